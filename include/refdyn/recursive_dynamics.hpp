@@ -1,0 +1,45 @@
+#pragma once
+/// Recursive rigid-body dynamics on spatial vectors (Featherstone 2008). Sign convention:
+///     M(q) q̈ + c(q, q̇) + g(q) = τ
+/// with c the Coriolis/centrifugal vector and g the gravity vector (g = ∂V/∂q).
+/// These are the independent cross-check of the paper's trace route (trace_dynamics.hpp),
+/// and the fast route used by the planners and controllers.
+
+#include "refdyn/model.hpp"
+
+namespace refdyn {
+
+/// Recursive Newton–Euler algorithm: τ = M(q) q̈ + c(q, q̇) + g(q) → data.tau.
+/// q, qd, qdd: size nq. O(n).
+const Eigen::VectorXd& inverse_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
+                                        const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd);
+
+/// Bias forces c(q, q̇) + g(q) (RNEA with q̈ = 0) → data.nle.
+const Eigen::VectorXd& bias_forces(const Model& model, Data& data, const Eigen::VectorXd& q,
+                                   const Eigen::VectorXd& qd);
+
+/// Gravity vector g(q) (RNEA with q̇ = q̈ = 0) → data.g.
+const Eigen::VectorXd& gravity_forces(const Model& model, Data& data, const Eigen::VectorXd& q);
+
+/// Composite rigid-body algorithm: joint-space mass matrix M(q) → data.M (both triangles).
+/// Also leaves data.liMi filled. O(n·depth).
+const Eigen::MatrixXd& mass_matrix(const Model& model, Data& data, const Eigen::VectorXd& q);
+
+/// Forward dynamics q̈ = M⁻¹ (τ − c − g) via CRBA + RNEA + Cholesky → data.ddq.
+/// Also leaves data.M, data.nle and data.llt (factor of M) filled.
+const Eigen::VectorXd& forward_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
+                                        const Eigen::VectorXd& qd, const Eigen::VectorXd& tau);
+
+/// Kinetic energy ½ q̇ᵀ M q̇ and potential energy V = −Σ m_l gᵀ r_C,l (zero at the origin of
+/// {0}), computed recursively (independent of the trace route's energies).
+double kinetic_energy(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+double potential_energy(const Model& model, Data& data, const Eigen::VectorXd& q);
+
+namespace unchecked {
+/// Kernels without argument checks, for inner loops whose inputs were validated once.
+void rnea(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
+          const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out);
+void crba(const Model& model, Data& data, const Eigen::VectorXd& q);
+}  // namespace unchecked
+
+}  // namespace refdyn

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs every Debian package refdyn needs to build, test, benchmark and plot.
+# Idempotent: when everything is present it only runs dpkg-query and returns.
+set -euo pipefail
+PACKAGES=(
+  cmake g++ make pkg-config
+  libeigen3-dev libboost-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libyaml-cpp-dev libcli11-dev libginac-dev
+  liburdfdom-dev liborocos-kdl-dev libmujoco-dev
+  python3 python3-matplotlib
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

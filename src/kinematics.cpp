@@ -1,0 +1,115 @@
+#include "refdyn/kinematics.hpp"
+
+#include "refdyn/error.hpp"
+
+#include <cmath>
+
+namespace refdyn {
+
+SE3 joint_placement(const Model& model, int i, double qi) {
+  const SE3& P = model.placement[i];
+  const Vec3& u = model.axis[i];
+  const double x = qi + model.offset[i];
+  SE3 X;
+  if (model.joint_type[i] == JointType::Revolute) {
+    const double c = std::cos(x), s = std::sin(x);
+    if (u.x() == 0.0 && u.y() == 0.0) {  // axis ±z, the DH case
+      const double ss = u.z() > 0 ? s : -s;
+      X.R.col(0) = c * P.R.col(0) + ss * P.R.col(1);
+      X.R.col(1) = -ss * P.R.col(0) + c * P.R.col(1);
+      X.R.col(2) = P.R.col(2);
+    } else {  // Rodrigues: R = c 1 + s [u]x + (1-c) u uᵀ
+      Mat3 Rj = c * Mat3::Identity() + s * skew(u) + (1 - c) * u * u.transpose();
+      X.R.noalias() = P.R * Rj;
+    }
+    X.p = P.p;
+  } else {
+    X.R = P.R;
+    X.p = P.p + P.R * (u * x);
+  }
+  return X;
+}
+
+void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  for (int i = 0; i < model.nq; ++i) {
+    data.liMi[i] = joint_placement(model, i, q[i]);
+    const int p = model.parent[i];
+    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
+  }
+}
+
+void forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  model.check_q(q);
+  forward_kinematics_unchecked(model, data, q);
+}
+
+namespace {
+void check_point(const Model& model, int point) {
+  if (point < 0 || point >= static_cast<int>(model.point_name.size()))
+    throw Error(expected_got("point index", "0 .. " + std::to_string(model.point_name.size()) + " - 1",
+                             std::to_string(point), "look the index up with Model::point_index(name)"));
+}
+}  // namespace
+
+Vec3 point_position(const Model& model, const Data& data, int point) {
+  check_point(model, point);
+  const int b = model.point_body[point];
+  return b < 0 ? model.point_position[point] : data.oMi[b].act_point(model.point_position[point]);
+}
+
+void point_jacobian(const Model& model, Data& data, int point) {
+  check_point(model, point);
+  data.Jp.setZero();
+  data.Jw.setZero();
+  const int b = model.point_body[point];
+  if (b < 0) return;
+  const Vec3 r = data.oMi[b].act_point(model.point_position[point]);
+  for (int i : model.support[b]) {
+    const Vec3 u = data.oMi[i].R * model.axis[i];
+    if (model.joint_type[i] == JointType::Revolute) {
+      data.Jw.col(i) = u;
+      data.Jp.col(i) = u.cross(r - data.oMi[i].p);
+    } else {
+      data.Jp.col(i) = u;
+    }
+  }
+}
+
+SE3 link_transform(const Model& model, const Data& data, int body) {
+  if (body < 0 || body >= model.nq)
+    throw Error(expected_got("body index", "0 .. nq-1", std::to_string(body)));
+  return data.oMi[body] * model.link_offset[body];
+}
+
+PointDrift point_drift(const Model& model, Data& data, int point, const Eigen::VectorXd& qd) {
+  check_point(model, point);
+  check_vector("qd", qd, model.nv);
+  PointDrift out{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  const int b = model.point_body[point];
+  if (b < 0) return out;
+  // Spatial velocity and drift acceleration along the support chain, in body frames.
+  for (int i : model.support[b]) {
+    const int p = model.parent[i];
+    const Motion vj = model.motion_subspace(i) * qd[i];
+    if (p < 0) {
+      data.v[i] = vj;
+      data.a[i] = Motion::Zero();
+    } else {
+      data.v[i] = data.liMi[i].act_inv(data.v[p]) + vj;
+      data.a[i] = data.liMi[i].act_inv(data.a[p]) + data.v[i].cross(vj);
+    }
+  }
+  const Vec3& r = model.point_position[point];
+  const Motion& v = data.v[b];
+  const Motion& a = data.a[b];
+  const Vec3 vel_b = v.v + v.w.cross(r);
+  const Vec3 acc_b = a.v + a.w.cross(r) + v.w.cross(vel_b);
+  const Mat3& R = data.oMi[b].R;
+  out.velocity = R * vel_b;
+  out.drift = R * acc_b;
+  out.omega = R * v.w;
+  out.omega_drift = R * a.w;
+  return out;
+}
+
+}  // namespace refdyn

@@ -1,0 +1,117 @@
+#include "test_support.hpp"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <sstream>
+
+namespace refdyn::test {
+
+::testing::AssertionResult near(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double rel_tol,
+                                double abs_tol) {
+  if (a.rows() != b.rows() || a.cols() != b.cols())
+    return ::testing::AssertionFailure() << "shape mismatch " << a.rows() << "x" << a.cols() << " vs "
+                                         << b.rows() << "x" << b.cols();
+  const double scale = std::max(a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff());
+  double worst = 0;
+  Eigen::Index wi = 0, wj = 0;
+  for (Eigen::Index j = 0; j < a.cols(); ++j)
+    for (Eigen::Index i = 0; i < a.rows(); ++i) {
+      const double d = std::abs(a(i, j) - b(i, j));
+      if (!(d <= abs_tol + rel_tol * scale) || !std::isfinite(d)) {
+        if (!(d <= worst)) {
+          worst = d;
+          wi = i;
+          wj = j;
+        }
+      }
+    }
+  if (worst == 0) return ::testing::AssertionSuccess();
+  std::ostringstream os;
+  os.precision(17);
+  os << "entry (" << wi << "," << wj << "): " << a(wi, wj) << " vs " << b(wi, wj) << ", |diff| = " << worst
+     << " > " << abs_tol << " + " << rel_tol << " * " << scale;
+  return ::testing::AssertionFailure() << os.str();
+}
+
+double rel_diff(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double floor) {
+  const double scale = std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), floor});
+  return (a - b).cwiseAbs().maxCoeff() / scale;
+}
+
+Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale) {
+  std::uniform_real_distribution<double> u(-scale, scale);
+  Eigen::VectorXd v(n);
+  for (int i = 0; i < n; ++i) v[i] = u(rng);
+  return v;
+}
+
+namespace {
+Mat3 random_rotation(std::mt19937& rng) {
+  std::normal_distribution<double> n(0, 1);
+  Eigen::Quaterniond qt(n(rng), n(rng), n(rng), n(rng));
+  qt.normalize();
+  return qt.toRotationMatrix();
+}
+
+LinkInertia random_inertia(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.2, 3.0), c(-0.3, 0.3), s(0.05, 0.5);
+  LinkInertia in;
+  in.mass = u(rng);
+  in.com = Vec3(c(rng), c(rng), c(rng));
+  // Box of random side lengths, rotated: always satisfies the triangle inequality.
+  const double a = s(rng), b = s(rng), d = s(rng);
+  Vec3 diag(in.mass * (b * b + d * d) / 12, in.mass * (a * a + d * d) / 12, in.mass * (a * a + b * b) / 12);
+  const Mat3 R = random_rotation(rng);
+  in.I_com = R * diag.asDiagonal() * R.transpose();
+  in.I_com = 0.5 * (in.I_com + in.I_com.transpose()).eval();
+  return in;
+}
+}  // namespace
+
+ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt) {
+  std::uniform_real_distribution<double> ang(-3.14159, 3.14159), len(-0.6, 0.6), uni(0.0, 1.0);
+  std::vector<DHRow> rows;
+  for (int i = 0; i < opt.dof; ++i) {
+    DHRow r;
+    r.type = uni(rng) < opt.prismatic_fraction ? JointType::Prismatic : JointType::Revolute;
+    r.theta = ang(rng);
+    r.d = len(rng);
+    r.a = len(rng);
+    r.alpha = ang(rng);
+    r.inertia = random_inertia(rng);
+    rows.push_back(r);
+  }
+  ModelDescription d = from_dh(rows, opt.modified_dh ? DHConvention::Modified : DHConvention::Standard,
+                               "random_chain");
+  if (opt.tree) {
+    for (size_t i = 1; i < d.links.size(); ++i)
+      d.links[i].parent = std::uniform_int_distribution<int>(-1, static_cast<int>(i) - 1)(rng);
+  }
+  if (opt.with_fixed_joints) {
+    // Insert a fixed link after every third link, carrying mass, reparenting the next one.
+    ModelDescription e = d;
+    e.links.clear();
+    std::vector<int> map(d.links.size());
+    for (size_t i = 0; i < d.links.size(); ++i) {
+      LinkSpec l = d.links[i];
+      l.parent = l.parent < 0 ? -1 : map[l.parent];
+      map[i] = e.add_link(l);
+      if (i % 3 == 1) {
+        LinkSpec f;
+        f.name = l.name + "_fixed";
+        f.type = JointType::Fixed;
+        f.parent = map[i];
+        f.placement = SE3{random_rotation(rng), Vec3(len(rng), len(rng), len(rng))};
+        f.inertia = random_inertia(rng);
+        map[i] = e.add_link(f);  // children of link i hang from the fixed link
+      }
+    }
+    d = e;
+  }
+  if (opt.random_base) d.base = SE3{random_rotation(rng), Vec3(len(rng), len(rng), len(rng))};
+  d.gravity = Vec3(0.3, -0.2, -9.81);
+  d.add_point("tip", d.links.back().name, Vec3(len(rng), len(rng), len(rng)));
+  return d;
+}
+
+}  // namespace refdyn::test
