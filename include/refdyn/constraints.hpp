@@ -1,0 +1,145 @@
+#pragma once
+/// Constraints on a model, material or programmed (task-based), in two orders:
+///  - holonomic (position) Φ(q, t) = 0, possibly rheonomic:
+///        Φ̇ = A q̇ + Φ_t,      Φ̈ = A q̈ + γ,      A = ∂Φ/∂q
+///  - first-order (velocity, nonholonomic or programmed speed) c(q, q̇, t) = 0:
+///        ċ = A q̈ + γ,        A = ∂c/∂q̇        (c linear in q̇ for the classical B q̇ + s)
+/// γ carries every velocity-product and time-derivative term (Φ_tt, ∂Φ_t/∂q q̇ included).
+/// Everything is exact: analytic kinematics (C, d of kinematics.hpp) chained with exact
+/// derivatives of the task functions.
+
+#include "refdyn/model.hpp"
+#include "refdyn/time_function.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+enum class ConstraintOrigin { Material, Programmed };
+const char* to_string(ConstraintOrigin o);
+
+/// World-frame kinematics of a point, computed once per evaluation and shared by constraints.
+struct PointState {
+  Vec3 r = Vec3::Zero();         ///< position
+  Vec3 v = Vec3::Zero();         ///< velocity C q̇
+  Vec3 d = Vec3::Zero();         ///< drift: acceleration − C q̈
+  Vec3 w = Vec3::Zero();         ///< angular velocity of the carrying body
+  Vec3 wd = Vec3::Zero();        ///< angular-acceleration drift of the carrying body
+  Mat3 R = Mat3::Identity();     ///< orientation of the carrying body
+  Eigen::Matrix<double, 3, Eigen::Dynamic> C;   ///< ∂r/∂q (3×n)
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jw;  ///< angular Jacobian of the body (3×n)
+};
+
+/// What a constraint reads: time, state, and the states of the points it declared.
+struct ConstraintInput {
+  double t;
+  const Eigen::VectorXd& q;
+  const Eigen::VectorXd& qd;
+  const std::vector<PointState>& points;  ///< indexed by model point index
+};
+
+class Constraint {
+ public:
+  virtual ~Constraint() = default;
+  virtual int rows() const = 0;
+  virtual bool first_order() const = 0;       ///< velocity-level constraint
+  virtual bool rheonomic() const = 0;         ///< depends explicitly on time
+  virtual std::vector<int> points() const { return {}; }  ///< model points it reads
+  /// phi: Φ or c; phid: Φ̇ (holonomic; equals phi for first-order rows); A; gamma.
+  virtual void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi,
+                        Eigen::Ref<Eigen::VectorXd> phid, Eigen::Ref<Eigen::MatrixXd> A,
+                        Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
+  virtual std::string describe() const = 0;
+
+  std::string name;
+  ConstraintOrigin origin = ConstraintOrigin::Programmed;
+};
+using ConstraintPtr = std::shared_ptr<const Constraint>;
+
+/// Implicit surface f(r, t) = 0 in the world frame, with exact derivatives.
+class ImplicitSurface {
+ public:
+  virtual ~ImplicitSurface() = default;
+  struct Value {
+    double f = 0;
+    Vec3 grad = Vec3::Zero();     ///< ∂f/∂r
+    Mat3 hess = Mat3::Zero();     ///< ∂²f/∂r²
+    double ft = 0, ftt = 0;       ///< ∂f/∂t, ∂²f/∂t²
+    Vec3 grad_t = Vec3::Zero();   ///< ∂²f/∂r∂t
+  };
+  virtual Value eval(const Vec3& r, double t) const = 0;
+  virtual bool rheonomic() const { return false; }
+  virtual std::string describe() const = 0;
+};
+using SurfacePtr = std::shared_ptr<const ImplicitSurface>;
+
+/// ((x − cx)/a)² + ((y − cy)/b)² − 1: the elliptic cylinder about the z axis (a curve in x–y).
+SurfacePtr elliptic_cylinder(double a, double b, double cx = 0.0, double cy = 0.0);
+/// |r − c|² − R²
+SurfacePtr sphere(const Vec3& center, double radius);
+/// n·r − h(t): a (moving) plane, n normalised.
+SurfacePtr plane(const Vec3& normal, TimeFunctionPtr offset);
+
+// ---- ready-made kinds (each binds names to indices now and throws on unknown names) ----
+
+/// A point on an implicit curve or surface: f(r_P, t) = 0.
+ConstraintPtr point_on_surface(const Model& model, const std::string& point, SurfacePtr surface,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// A point coordinate (axis 0: x, 1: y, 2: z) following a function of time: r_P,k − f(t) = 0.
+ConstraintPtr point_coordinate(const Model& model, const std::string& point, int axis, TimeFunctionPtr f,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// Prescribed joint motion: q_j − f(t) = 0.
+ConstraintPtr joint_trajectory(const Model& model, const std::string& joint, TimeFunctionPtr f,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// Two points coinciding (loop closure): r_P1 − r_P2 = 0 on the selected world axes
+/// (default all three; a planar loop uses {0, 1}).
+ConstraintPtr points_coincide(const Model& model, const std::string& p1, const std::string& p2,
+                              std::vector<int> axes = {0, 1, 2},
+                              ConstraintOrigin origin = ConstraintOrigin::Material);
+/// No lateral slip of a wheel or knife edge at point P: (R_b a)·v_P = 0, a fixed in the body
+/// carrying P (nonholonomic, first order).
+ConstraintPtr knife_edge(const Model& model, const std::string& point, const Vec3& lateral_axis_in_body,
+                         ConstraintOrigin origin = ConstraintOrigin::Material);
+/// Prescribed speed of a point along a fixed world direction u: u·v_P − s(t) = 0 (first order).
+ConstraintPtr point_speed(const Model& model, const std::string& point, const Vec3& direction,
+                          TimeFunctionPtr speed, ConstraintOrigin origin = ConstraintOrigin::Programmed);
+
+/// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
+class ConstraintSet {
+ public:
+  void add(ConstraintPtr c);
+  int rows() const { return rows_; }
+  int size() const { return static_cast<int>(constraints_.size()); }
+  const std::vector<ConstraintPtr>& constraints() const { return constraints_; }
+  int row_offset(int k) const { return offsets_[k]; }
+  int row_owner(int row) const;
+  bool row_first_order(int row) const { return constraints_[row_owner(row)]->first_order(); }
+  const std::vector<int>& points() const { return points_; }  ///< union of points read
+  std::string row_name(int row) const;                         ///< "name[i]" or "name"
+ private:
+  std::vector<ConstraintPtr> constraints_;
+  std::vector<int> offsets_;
+  std::vector<int> points_;
+  int rows_ = 0;
+};
+
+/// Workspace + result of evaluate_constraints, sized once for (model, set).
+struct ConstraintEval {
+  ConstraintEval(const Model& model, const ConstraintSet& set);
+  Eigen::VectorXd phi, phid, gamma;  ///< size m
+  Eigen::MatrixXd A;                 ///< m×n
+  std::vector<PointState> points;    ///< indexed by model point index
+};
+
+/// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and
+/// the point kinematics of every point the set reads. No heap allocation.
+void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev,
+                          double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+
+/// Point kinematics of every listed point into `out` (FK must be done; uses data.v, data.a).
+void compute_point_states(const Model& model, Data& data, const std::vector<int>& points,
+                          const Eigen::VectorXd& qd, std::vector<PointState>& out);
+
+}  // namespace refdyn

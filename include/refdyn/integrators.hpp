@@ -1,0 +1,67 @@
+#pragma once
+/// Time integration of ẋ = f(t, x): classical fixed-step RK4 (the paper's scheme) and adaptive
+/// Dormand–Prince 5(4) with dense output (Boost.Odeint). Numerical outcomes are results: the
+/// Summary says whether the run reached t1 and, if not, when and why it stopped; the state and
+/// everything observed up to then are kept.
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+
+namespace refdyn {
+
+enum class IntegratorMethod { RK4, DormandPrince45 };
+const char* to_string(IntegratorMethod m);
+
+struct IntegratorOptions {
+  IntegratorMethod method = IntegratorMethod::RK4;
+  double t0 = 0.0, t1 = 5.0;
+  double step = 1e-3;            ///< RK4 step; initial step for Dormand–Prince [s]
+  double output_interval = 0.0;  ///< observer sampling interval [s]; 0: every RK4 step (DP: `step`)
+  double rtol = 1e-8, atol = 1e-10;  ///< Dormand–Prince tolerances
+  double min_step = 1e-12;       ///< Dormand–Prince: smaller steps mean the run has collapsed
+  long max_steps = 100'000'000;
+  /// Throws refdyn::Error naming the bad field.
+  void validate() const;
+};
+
+enum class IntegrationStatus {
+  Success,           ///< reached t1
+  NonFinite,         ///< the state became NaN or infinite
+  StepSizeCollapse,  ///< the adaptive step fell below min_step
+  NumericalFailure,  ///< the right-hand side reported a failure (e.g. singular partition)
+  MaxSteps,          ///< max_steps exhausted before t1
+  Stopped,           ///< the observer asked to stop
+};
+const char* to_string(IntegrationStatus s);
+
+struct IntegrationSummary {
+  IntegrationStatus status = IntegrationStatus::Success;
+  std::string message;           ///< empty on success; else when and why it stopped
+  long steps = 0;                ///< accepted steps
+  long rejected_steps = 0;       ///< Dormand–Prince only
+  long rhs_evaluations = 0;
+  double t_end = 0.0;            ///< time of the last valid state
+  double wall_time = 0.0;        ///< [s]
+  double max_constraint_residual = 0.0;  ///< filled by callers that integrate constrained systems
+  bool ok() const { return status == IntegrationStatus::Success; }
+};
+
+/// ẋ = f(t, x); dx has the size of x.
+using OdeRhs = std::function<void(double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx)>;
+/// Called at t0 and every output sample; return false to stop.
+using OdeObserver = std::function<bool(double t, const Eigen::VectorXd& x)>;
+
+/// Integrates from x (at options.t0) to options.t1; on return x holds the last valid state.
+IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
+                             const OdeObserver& observer = {});
+
+/// One classical RK4 step of size h in place, with caller-provided scratch (k1..k4, tmp: size
+/// of x). No heap allocation.
+struct Rk4Workspace {
+  explicit Rk4Workspace(Eigen::Index n);
+  Eigen::VectorXd k1, k2, k3, k4, tmp;
+};
+void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& ws);
+
+}  // namespace refdyn

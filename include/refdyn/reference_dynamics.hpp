@@ -1,0 +1,142 @@
+#pragma once
+/// Reference dynamics (the generalized programmed motion equations, GPME, in the computational
+/// form of Jarzębowska et al. 2024, eqs. (2.5)–(2.6), (4.9)): the model's unconstrained
+/// dynamics M q̈ = F, F = Q − c − g, merged with all constraints (ConstraintSet) into one
+/// system free of reaction forces.
+///
+/// Projection (default, the paper's method). The user partitions the velocities into
+/// independent q̇_ic (the control inputs) and dependent q̇_dc. With A = [K_ic K_dc],
+///     ∂q̇_dc/∂q̇_ic = −K_dc⁻¹ K_ic,   N = ∂q̇/∂q̇_ic  (n × (n−m)),
+/// and the reduced equations are stacked with the stabilized constraints:
+///     Nᵀ (M q̈ − F) = 0                             (n − m rows)
+///     A q̈ = −γ − 2α Φ̇ − β² Φ      holonomic rows   (Baumgarte: Φ̈ + 2αΦ̇ + β²Φ = 0)
+///     A q̈ = −γ − β₁ c              first-order rows (ċ + β₁ c = 0)
+/// Lagrange (KKT) form, the independent check: [[M, Aᵀ],[A, 0]] [q̈; λ] = [F; rhs], i.e.
+///     M q̈ = F − Aᵀ λ,
+/// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
+/// programmed motion. Both give the same q̈ (to rounding) for any valid partition.
+///
+/// Paper-literal forces (option): (2.5) adds Σ_k q̇_k ∂Q_k/∂q̇_i to the projected forces,
+/// i.e. uses Nᵀ(Q + (∂Q/∂q̇)ᵀ q̇). That is not what Lagrange's equations give when Q depends
+/// on q̇ (damping, friction, drives); it is available for comparison with the paper only.
+
+#include "refdyn/constraints.hpp"
+#include "refdyn/error.hpp"
+#include "refdyn/force_elements.hpp"
+#include "refdyn/model.hpp"
+
+#include <Eigen/LU>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+/// Thrown by ReferenceDynamics::derivative when the equations cannot be formed (a singular
+/// partition); integrators catch it and report it in their Summary.
+class NumericalFailure : public Error {
+ public:
+  NumericalFailure(double t, const std::string& msg) : Error(msg), time(t) {}
+  double time;
+};
+
+enum class ReferenceSolver { Projection, Lagrange };
+
+struct ReferenceDynamicsOptions {
+  double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
+  double beta = 50.0;                ///< Baumgarte β [1/s] (holonomic rows)
+  double beta_first_order = 50.0;    ///< β₁ [1/s] for first-order rows: ċ + β₁ c = 0
+  ReferenceSolver solver = ReferenceSolver::Projection;
+  /// Independent (control-input) coordinates by joint name; n − m of them. Empty: chosen
+  /// automatically (best-conditioned K_dc) at the first evaluation.
+  std::vector<std::string> independent;
+  /// Re-choose the partition automatically when K_dc becomes ill-conditioned instead of
+  /// stopping with an error.
+  bool automatic_partition = false;
+  double max_condition = 1e8;        ///< largest accepted 1-norm condition number of K_dc
+  bool paper_literal_forces = false; ///< see the header comment
+  /// Throws refdyn::Error naming the bad field.
+  void validate() const;
+};
+
+class ReferenceDynamics {
+ public:
+  /// Keeps references to model, forces and constraints: they must outlive this object.
+  ReferenceDynamics(const Model& model, const ForceSet& forces, const ConstraintSet& constraints,
+                    ReferenceDynamicsOptions options = {});
+
+  int nq() const { return n_; }
+  int num_constraints() const { return m_; }
+  int num_force_states() const { return forces_.num_states(); }
+  int state_size() const { return 2 * n_ + forces_.num_states(); }
+  const Model& model() const { return model_; }
+  const ForceSet& forces() const { return forces_; }
+  const ConstraintSet& constraint_set() const { return constraints_; }
+  const ReferenceDynamicsOptions& options() const { return opt_; }
+
+  /// State x = [q; q̇; z] from q, q̇ and zero force-element states.
+  Eigen::VectorXd make_state(const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
+
+  /// ẋ = [q̇; q̈; ż] at (t, x). No heap allocation (after the first call with an automatic
+  /// partition). Throws NumericalFailure on a singular partition, Error on bad sizes.
+  void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
+
+  // ---- results of the last derivative() call ----
+  const Eigen::VectorXd& qdd() const { return qdd_; }
+  const Eigen::VectorXd& lambda() const { return lambda_; }
+  /// Q_c = M q̈ − F = −Aᵀλ: what the joints must add to realize the constraints.
+  const Eigen::VectorXd& constraint_force() const { return Qc_; }
+  const Eigen::VectorXd& applied_force() const { return Q_; }      ///< Q of the force elements
+  const Eigen::VectorXd& bias() const { return data_.nle; }        ///< c + g
+  const Eigen::MatrixXd& mass() const { return data_.M; }
+  const ConstraintEval& constraints() const { return ev_; }
+  double partition_condition() const { return cond_; }             ///< 1-norm cond(K_dc)
+  const std::vector<int>& independent() const { return ind_; }
+  const std::vector<int>& dependent() const { return dep_; }
+  Data& data() { return data_; }
+
+  /// Sets the partition by coordinate indices (n − m independent ones). Throws on a bad set.
+  void set_independent(const std::vector<int>& independent);
+  /// Chooses the dependent set with the best-conditioned K_dc at (t, q) (exhaustive when
+  /// there are at most 500 candidate sets, else by column-pivoted QR). Returns cond(K_dc).
+  double choose_partition(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+
+  /// Makes (q, q̇) consistent with the constraints at time t by Newton projection on the
+  /// dependent coordinates (position rows, then velocity rows). Reports the correction.
+  struct Consistency {
+    Eigen::VectorXd q, qd;               ///< corrected
+    Eigen::VectorXd dq, dqd;             ///< corrections applied
+    double residual_before = 0, residual_after = 0;  ///< max |Φ|, |Φ̇|, |c| before/after
+    int iterations = 0;
+    bool converged = false;
+  };
+  Consistency make_consistent(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double tol = 1e-12,
+                              int max_iterations = 50);
+
+  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order).
+  double residual(double t, const Eigen::VectorXd& x);
+
+ private:
+  void solve_projection(double t);
+  void solve_lagrange(double t);
+  bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
+  std::string partition_message(double t) const;
+
+  const Model& model_;
+  const ForceSet& forces_;
+  const ConstraintSet& constraints_;
+  ReferenceDynamicsOptions opt_;
+  int n_, m_;
+  Data data_;
+  ConstraintEval ev_;
+  std::vector<int> ind_, dep_;
+  bool partition_set_ = false;
+  // workspaces
+  Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
+  Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, S_, Y_, Smm_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_, lu_n_;
+  Eigen::LLT<Eigen::MatrixXd> llt_m_;
+  Eigen::VectorXd rhs_n_;
+  double cond_ = 1.0;
+};
+
+}  // namespace refdyn

@@ -1,0 +1,382 @@
+#include "refdyn/constraints.hpp"
+
+#include "refdyn/error.hpp"
+#include "refdyn/kinematics.hpp"
+#include "refdyn/text.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace refdyn {
+
+const char* to_string(ConstraintOrigin o) { return o == ConstraintOrigin::Material ? "material" : "programmed"; }
+
+namespace {
+
+// ---------------- surfaces ----------------
+class EllipticCylinder final : public ImplicitSurface {
+ public:
+  EllipticCylinder(double a, double b, double cx, double cy) : ia2_(1 / (a * a)), ib2_(1 / (b * b)), a_(a), b_(b), cx_(cx), cy_(cy) {}
+  Value eval(const Vec3& r, double) const override {
+    const double x = r.x() - cx_, y = r.y() - cy_;
+    Value v;
+    v.f = x * x * ia2_ + y * y * ib2_ - 1.0;
+    v.grad = Vec3(2 * x * ia2_, 2 * y * ib2_, 0);
+    v.hess(0, 0) = 2 * ia2_;
+    v.hess(1, 1) = 2 * ib2_;
+    return v;
+  }
+  std::string describe() const override {
+    return "((x - " + fmt(cx_) + ")/" + fmt(a_) + ")^2 + ((y - " + fmt(cy_) + ")/" + fmt(b_) + ")^2 - 1";
+  }
+ private:
+  double ia2_, ib2_, a_, b_, cx_, cy_;
+};
+
+class Sphere final : public ImplicitSurface {
+ public:
+  Sphere(const Vec3& c, double R) : c_(c), R_(R) {}
+  Value eval(const Vec3& r, double) const override {
+    Value v;
+    const Vec3 e = r - c_;
+    v.f = e.squaredNorm() - R_ * R_;
+    v.grad = 2 * e;
+    v.hess = 2 * Mat3::Identity();
+    return v;
+  }
+  std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
+ private:
+  Vec3 c_;
+  double R_;
+};
+
+class Plane final : public ImplicitSurface {
+ public:
+  Plane(const Vec3& n, TimeFunctionPtr h) : n_(n.normalized()), h_(std::move(h)) {}
+  Value eval(const Vec3& r, double t) const override {
+    const TimeValue h = h_->eval(t);
+    Value v;
+    v.f = n_.dot(r) - h.f;
+    v.grad = n_;
+    v.ft = -h.df;
+    v.ftt = -h.ddf;
+    return v;
+  }
+  bool rheonomic() const override { return true; }
+  std::string describe() const override { return "n.r - (" + h_->describe() + ")"; }
+ private:
+  Vec3 n_;
+  TimeFunctionPtr h_;
+};
+
+// ---------------- constraint kinds ----------------
+class PointOnSurface final : public Constraint {
+ public:
+  PointOnSurface(int p, std::string pn, SurfacePtr s) : p_(p), pn_(std::move(pn)), s_(std::move(s)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return s_->rheonomic(); }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const ImplicitSurface::Value f = s_->eval(P.r, in.t);
+    phi[0] = f.f;
+    phid[0] = f.grad.dot(P.v) + f.ft;
+    A.row(0).noalias() = f.grad.transpose() * P.C;
+    gamma[0] = f.grad.dot(P.d) + P.v.dot(f.hess * P.v) + 2 * f.grad_t.dot(P.v) + f.ftt;
+  }
+  std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
+ private:
+  int p_;
+  std::string pn_;
+  SurfacePtr s_;
+};
+
+class PointCoordinate final : public Constraint {
+ public:
+  PointCoordinate(int p, std::string pn, int k, TimeFunctionPtr f) : p_(p), k_(k), pn_(std::move(pn)), f_(std::move(f)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = P.r[k_] - f.f;
+    phid[0] = P.v[k_] - f.df;
+    A.row(0) = P.C.row(k_);
+    gamma[0] = P.d[k_] - f.ddf;
+  }
+  std::string describe() const override {
+    return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
+  }
+ private:
+  int p_, k_;
+  std::string pn_;
+  TimeFunctionPtr f_;
+};
+
+class JointTrajectory final : public Constraint {
+ public:
+  JointTrajectory(int j, std::string jn, TimeFunctionPtr f) : j_(j), jn_(std::move(jn)), f_(std::move(f)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return true; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = in.q[j_] - f.f;
+    phid[0] = in.qd[j_] - f.df;
+    A.row(0).setZero();
+    A(0, j_) = 1.0;
+    gamma[0] = -f.ddf;
+  }
+  std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
+ private:
+  int j_;
+  std::string jn_;
+  TimeFunctionPtr f_;
+};
+
+class PointsCoincide final : public Constraint {
+ public:
+  PointsCoincide(int p1, int p2, std::string n1, std::string n2, std::vector<int> axes)
+      : p1_(p1), p2_(p2), n1_(std::move(n1)), n2_(std::move(n2)), axes_(std::move(axes)) {}
+  int rows() const override { return static_cast<int>(axes_.size()); }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return false; }
+  std::vector<int> points() const override { return {p1_, p2_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p1_];
+    const PointState& Q = in.points[p2_];
+    for (size_t i = 0; i < axes_.size(); ++i) {
+      const int k = axes_[i];
+      phi[i] = P.r[k] - Q.r[k];
+      phid[i] = P.v[k] - Q.v[k];
+      A.row(i) = P.C.row(k) - Q.C.row(k);
+      gamma[i] = P.d[k] - Q.d[k];
+    }
+  }
+  std::string describe() const override { return "r(" + n1_ + ") - r(" + n2_ + ") = 0"; }
+ private:
+  int p1_, p2_;
+  std::string n1_, n2_;
+  std::vector<int> axes_;
+};
+
+class KnifeEdge final : public Constraint {
+ public:
+  KnifeEdge(int p, std::string pn, const Vec3& a) : p_(p), pn_(std::move(pn)), a_(a.normalized()) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return true; }
+  bool rheonomic() const override { return false; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const Vec3 n = P.R * a_;
+    phi[0] = n.dot(P.v);
+    phid[0] = phi[0];
+    A.row(0).noalias() = n.transpose() * P.C;
+    gamma[0] = P.w.cross(n).dot(P.v) + n.dot(P.d);
+  }
+  std::string describe() const override { return "no lateral slip at " + pn_; }
+ private:
+  int p_;
+  std::string pn_;
+  Vec3 a_;
+};
+
+class PointSpeed final : public Constraint {
+ public:
+  PointSpeed(int p, std::string pn, const Vec3& u, TimeFunctionPtr s) : p_(p), pn_(std::move(pn)), u_(u.normalized()), s_(std::move(s)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return true; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const TimeValue s = s_->eval(in.t);
+    phi[0] = u_.dot(P.v) - s.f;
+    phid[0] = phi[0];
+    A.row(0).noalias() = u_.transpose() * P.C;
+    gamma[0] = u_.dot(P.d) - s.df;
+  }
+  std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
+ private:
+  int p_;
+  std::string pn_;
+  Vec3 u_;
+  TimeFunctionPtr s_;
+};
+
+template <typename T>
+std::shared_ptr<T> named(std::shared_ptr<T> c, std::string name, ConstraintOrigin o) {
+  c->name = std::move(name);
+  c->origin = o;
+  return c;
+}
+
+void need_axis(int axis, const char* what) {
+  if (axis < 0 || axis > 2) throw Error(expected_got(what, "0 (x), 1 (y) or 2 (z)", std::to_string(axis)));
+}
+void need_vec(const Vec3& v, const std::string& what) {
+  if (!v.allFinite() || v.norm() < 1e-12) throw Error(expected_got(what, "a finite non-zero vector", "zero or NaN"));
+}
+
+}  // namespace
+
+SurfacePtr elliptic_cylinder(double a, double b, double cx, double cy) {
+  if (!(std::isfinite(a) && a > 0) || !(std::isfinite(b) && b > 0))
+    throw Error(expected_got("ellipse half-axes", "finite values > 0", fmt(a) + ", " + fmt(b)));
+  if (!std::isfinite(cx) || !std::isfinite(cy)) throw Error("ellipse centre must be finite");
+  return std::make_shared<EllipticCylinder>(a, b, cx, cy);
+}
+SurfacePtr sphere(const Vec3& c, double R) {
+  if (!c.allFinite() || !(std::isfinite(R) && R > 0))
+    throw Error(expected_got("sphere", "a finite centre and radius > 0", fmt(R)));
+  return std::make_shared<Sphere>(c, R);
+}
+SurfacePtr plane(const Vec3& n, TimeFunctionPtr h) {
+  need_vec(n, "plane normal");
+  if (!h) throw Error("plane: expected an offset function, got none");
+  return std::make_shared<Plane>(n, std::move(h));
+}
+
+ConstraintPtr point_on_surface(const Model& m, const std::string& point, SurfacePtr s, ConstraintOrigin o) {
+  if (!s) throw Error("point_on_surface: expected a surface, got none");
+  return named(std::make_shared<PointOnSurface>(m.point_index(point), point, std::move(s)), point + "_on_surface", o);
+}
+ConstraintPtr point_coordinate(const Model& m, const std::string& point, int axis, TimeFunctionPtr f,
+                               ConstraintOrigin o) {
+  need_axis(axis, "point_coordinate axis");
+  if (!f) throw Error("point_coordinate: expected a time function, got none");
+  return named(std::make_shared<PointCoordinate>(m.point_index(point), point, axis, std::move(f)),
+               std::string("xyz").substr(axis, 1) + "_" + point, o);
+}
+ConstraintPtr joint_trajectory(const Model& m, const std::string& joint, TimeFunctionPtr f, ConstraintOrigin o) {
+  if (!f) throw Error("joint_trajectory: expected a time function, got none");
+  return named(std::make_shared<JointTrajectory>(m.joint_index(joint), joint, std::move(f)), "q_" + joint, o);
+}
+ConstraintPtr points_coincide(const Model& m, const std::string& p1, const std::string& p2, std::vector<int> axes,
+                              ConstraintOrigin o) {
+  if (axes.empty()) throw Error("points_coincide: expected at least one axis, got none");
+  for (int a : axes) need_axis(a, "points_coincide axis");
+  const int i1 = m.point_index(p1), i2 = m.point_index(p2);
+  if (i1 == i2) throw Error("points_coincide: the two points are the same ('" + p1 + "')");
+  return named(std::make_shared<PointsCoincide>(i1, i2, p1, p2, std::move(axes)), p1 + "_at_" + p2, o);
+}
+ConstraintPtr knife_edge(const Model& m, const std::string& point, const Vec3& a, ConstraintOrigin o) {
+  need_vec(a, "knife_edge lateral axis");
+  return named(std::make_shared<KnifeEdge>(m.point_index(point), point, a), "no_slip_" + point, o);
+}
+ConstraintPtr point_speed(const Model& m, const std::string& point, const Vec3& u, TimeFunctionPtr s,
+                          ConstraintOrigin o) {
+  need_vec(u, "point_speed direction");
+  if (!s) throw Error("point_speed: expected a speed function, got none");
+  return named(std::make_shared<PointSpeed>(m.point_index(point), point, u, std::move(s)), "speed_" + point, o);
+}
+
+// ---------------- set and evaluation ----------------
+void ConstraintSet::add(ConstraintPtr c) {
+  if (!c) throw Error("ConstraintSet::add: expected a constraint, got none");
+  for (const auto& e : constraints_)
+    if (e->name == c->name)
+      throw Error("constraint '" + c->name + "' is defined twice (hint: give each constraint its own name)");
+  offsets_.push_back(rows_);
+  rows_ += c->rows();
+  for (int p : c->points())
+    if (std::find(points_.begin(), points_.end(), p) == points_.end()) points_.push_back(p);
+  constraints_.push_back(std::move(c));
+}
+
+int ConstraintSet::row_owner(int row) const {
+  int k = 0;
+  while (k + 1 < size() && offsets_[k + 1] <= row) ++k;
+  return k;
+}
+
+std::string ConstraintSet::row_name(int row) const {
+  const int k = row_owner(row);
+  const auto& c = constraints_[k];
+  return c->rows() == 1 ? c->name : c->name + "[" + std::to_string(row - offsets_[k]) + "]";
+}
+
+ConstraintEval::ConstraintEval(const Model& model, const ConstraintSet& set)
+    : phi(Eigen::VectorXd::Zero(set.rows())), phid(Eigen::VectorXd::Zero(set.rows())),
+      gamma(Eigen::VectorXd::Zero(set.rows())), A(Eigen::MatrixXd::Zero(set.rows(), model.nv)),
+      points(model.point_name.size()) {
+  for (auto& p : points) {
+    p.C = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
+    p.Jw = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
+  }
+}
+
+void compute_point_states(const Model& model, Data& data, const std::vector<int>& pts, const Eigen::VectorXd& qd,
+                          std::vector<PointState>& out) {
+  // Body velocities and drift accelerations (q̈ = 0), body frames.
+  for (int i = 0; i < model.nq; ++i) {
+    const int p = model.parent[i];
+    const Motion vj = model.motion_subspace(i) * qd[i];
+    if (p < 0) {
+      data.v[i] = vj;
+      data.a[i] = Motion::Zero();
+    } else {
+      data.v[i] = data.liMi[i].act_inv(data.v[p]) + vj;
+      data.a[i] = data.liMi[i].act_inv(data.a[p]) + data.v[i].cross(vj);
+    }
+  }
+  for (int k : pts) {
+    PointState& P = out[k];
+    const int b = model.point_body[k];
+    P.C.setZero();
+    P.Jw.setZero();
+    if (b < 0) {
+      P.r = model.point_position[k];
+      P.v.setZero();
+      P.d.setZero();
+      P.w.setZero();
+      P.wd.setZero();
+      P.R.setIdentity();
+      continue;
+    }
+    const SE3& X = data.oMi[b];
+    const Vec3& rb = model.point_position[k];
+    const Motion& v = data.v[b];
+    const Motion& a = data.a[b];
+    const Vec3 vel_b = v.v + v.w.cross(rb);
+    P.r = X.act_point(rb);
+    P.R = X.R;
+    P.v = X.R * vel_b;
+    P.d = X.R * (a.v + a.w.cross(rb) + v.w.cross(vel_b));
+    P.w = X.R * v.w;
+    P.wd = X.R * a.w;
+    for (int i : model.support[b]) {
+      const Vec3 u = data.oMi[i].R * model.axis[i];
+      if (model.joint_type[i] == JointType::Revolute) {
+        P.Jw.col(i) = u;
+        P.C.col(i) = u.cross(P.r - data.oMi[i].p);
+      } else {
+        P.C.col(i) = u;
+      }
+    }
+  }
+}
+
+void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev, double t,
+                          const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  forward_kinematics_unchecked(model, data, q);
+  compute_point_states(model, data, set.points(), qd, ev.points);
+  const ConstraintInput in{t, q, qd, ev.points};
+  for (int k = 0; k < set.size(); ++k) {
+    const auto& c = set.constraints()[k];
+    const int r = set.row_offset(k), m = c->rows();
+    c->evaluate(in, ev.phi.segment(r, m), ev.phid.segment(r, m), ev.A.middleRows(r, m), ev.gamma.segment(r, m));
+  }
+}
+
+}  // namespace refdyn

@@ -1,0 +1,54 @@
+#include "refdyn/models/paper_example.hpp"
+
+#include "refdyn/models/paper_manipulator.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace refdyn::models {
+
+PaperExample::PaperExample(const PaperExampleParams& p) : params(p), model(paper_manipulator()) {
+  if (p.with_drive) {
+    drive = std::make_shared<FlexibleDrive>(model, "psi1", p.drive,
+                                            cycloidal(p.drive_rise, p.drive_duration));
+    forces.add(drive);
+  }
+  if (p.with_friction) {
+    forces.add(std::make_shared<LuGreFriction>(model, "psi1", p.lugre_rot));
+    forces.add(std::make_shared<LuGreFriction>(model, "psi2", p.lugre_rot));
+    forces.add(std::make_shared<LuGreFriction>(model, "z3", p.lugre_lin));
+  }
+  const double z0 = kPaperH1 + 0.5 * std::sin(std::numbers::pi / 4);
+  z_a = raised_cosine(z0, p.z_amplitude, p.z_period);
+  auto ellipse = point_on_surface(model, "E", elliptic_cylinder(p.ellipse_a, p.ellipse_b));
+  std::const_pointer_cast<Constraint>(ellipse)->name = "ellipse";
+  auto height = point_coordinate(model, "E", 2, z_a);
+  std::const_pointer_cast<Constraint>(height)->name = "height";
+  constraints.add(ellipse);
+  constraints.add(height);
+}
+
+ReferenceDynamicsOptions PaperExample::options() const {
+  ReferenceDynamicsOptions o;
+  o.alpha = params.alpha;
+  o.beta = params.beta;
+  o.independent = {"psi1"};
+  return o;
+}
+
+Eigen::VectorXd PaperExample::q0() const {
+  Eigen::VectorXd q(3);
+  q << 0.0, 1.5 * std::numbers::pi - params.elevation0, params.z3_0;
+  return q;
+}
+
+IntegratorOptions PaperExample::integrator() const {
+  IntegratorOptions o;
+  o.method = IntegratorMethod::RK4;
+  o.t0 = 0.0;
+  o.t1 = params.t1;
+  o.step = params.step;
+  return o;
+}
+
+}  // namespace refdyn::models

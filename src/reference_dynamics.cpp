@@ -1,0 +1,323 @@
+#include "refdyn/reference_dynamics.hpp"
+
+#include "refdyn/kinematics.hpp"
+#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/text.hpp"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+namespace refdyn {
+
+void ReferenceDynamicsOptions::validate() const {
+  auto need = [](bool ok, const char* what, const char* expected, double got) {
+    if (!ok) throw Error(expected_got(std::string("reference dynamics option ") + what, expected, fmt(got)));
+  };
+  need(std::isfinite(alpha) && alpha >= 0, "alpha", "a finite value >= 0 [1/s]", alpha);
+  need(std::isfinite(beta) && beta >= 0, "beta", "a finite value >= 0 [1/s]", beta);
+  need(std::isfinite(beta_first_order) && beta_first_order >= 0, "beta_first_order", "a finite value >= 0 [1/s]",
+       beta_first_order);
+  need(max_condition > 1, "max_condition", "a value > 1", max_condition);
+}
+
+ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces, const ConstraintSet& constraints,
+                                     ReferenceDynamicsOptions options)
+    : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
+      m_(constraints.rows()), data_(model), ev_(model, constraints) {
+  opt_.validate();
+  if (m_ > n_)
+    throw Error(expected_got("number of constraint rows", "at most the number of coordinates (" + std::to_string(n_) + ")",
+                             std::to_string(m_), "remove redundant constraints"));
+  const int nz = forces.num_states();
+  q_.setZero(n_);
+  qd_.setZero(n_);
+  Q_.setZero(n_);
+  F_.setZero(n_);
+  rhs_.setZero(m_);
+  qdd_.setZero(n_);
+  lambda_.setZero(m_);
+  Qc_.setZero(n_);
+  zdot_.setZero(std::max(nz, 1));
+  tmp_n_.setZero(n_);
+  tmp_m_.setZero(m_);
+  dQ_.setZero(n_, n_);
+  Kdc_.setZero(m_, m_);
+  Kic_.setZero(m_, n_ - m_);
+  Kinv_.setZero(m_, m_);
+  G_.setZero(m_, n_ - m_);
+  S_.setZero(n_, n_);
+  Y_.setZero(n_, m_);
+  Smm_.setZero(m_, m_);
+  rhs_n_.setZero(n_);
+  lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
+  lu_n_ = Eigen::PartialPivLU<Eigen::MatrixXd>(n_);
+  llt_m_ = Eigen::LLT<Eigen::MatrixXd>(m_);
+  if (!opt_.independent.empty()) {
+    std::vector<int> ind;
+    for (const auto& name : opt_.independent) ind.push_back(model.joint_index(name));
+    set_independent(ind);
+  }
+}
+
+Eigen::VectorXd ReferenceDynamics::make_state(const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
+  model_.check_q(q);
+  check_vector("qd", qd, n_);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(state_size());
+  x.head(n_) = q;
+  x.segment(n_, n_) = qd;
+  return x;
+}
+
+void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
+  const int k = n_ - m_;
+  if (static_cast<int>(ind.size()) != k) {
+    std::string names;
+    for (int i = 0; i < n_; ++i) names += (i ? ", " : "") + model_.joint_name[i];
+    throw Error(expected_got("number of independent coordinates", std::to_string(k) + " (coordinates " +
+                             std::to_string(n_) + " minus constraint rows " + std::to_string(m_) + ")",
+                             std::to_string(ind.size()), "pick them among: " + names));
+  }
+  std::vector<bool> is_ind(n_, false);
+  for (int i : ind) {
+    if (i < 0 || i >= n_) throw Error(expected_got("independent coordinate index", "0 .. nq-1", std::to_string(i)));
+    if (is_ind[i]) throw Error("independent coordinate '" + model_.joint_name[i] + "' is listed twice");
+    is_ind[i] = true;
+  }
+  ind_ = ind;
+  dep_.clear();
+  for (int i = 0; i < n_; ++i)
+    if (!is_ind[i]) dep_.push_back(i);
+  partition_set_ = true;
+}
+
+bool ReferenceDynamics::factor_partition() {
+  for (int c = 0; c < m_; ++c) Kdc_.col(c) = ev_.A.col(dep_[c]);
+  for (int c = 0; c < n_ - m_; ++c) Kic_.col(c) = ev_.A.col(ind_[c]);
+  if (m_ == 0) {
+    cond_ = 1.0;
+    return true;
+  }
+  lu_m_.compute(Kdc_);
+  Kinv_ = lu_m_.inverse();
+  const double norm = Kdc_.cwiseAbs().colwise().sum().maxCoeff();
+  const double inorm = Kinv_.cwiseAbs().colwise().sum().maxCoeff();
+  cond_ = norm * inorm;
+  if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
+  G_.noalias() = -Kinv_ * Kic_;
+  return true;
+}
+
+std::string ReferenceDynamics::partition_message(double t) const {
+  std::ostringstream os;
+  os << "at t = " << t << " s the velocity partition is singular or ill-conditioned: K_dc of constraints [";
+  for (int r = 0; r < m_; ++r) os << (r ? ", " : "") << constraints_.row_name(r);
+  os << "] over dependent coordinates [";
+  for (size_t i = 0; i < dep_.size(); ++i) os << (i ? ", " : "") << model_.joint_name[dep_[i]];
+  os << "] has condition number " << (std::isfinite(cond_) ? fmt(cond_) : std::string("inf")) << " > "
+     << fmt(opt_.max_condition)
+     << " (hint: choose other independent coordinates, enable automatic_partition, or use the Lagrange solver)";
+  return os.str();
+}
+
+double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  model_.check_q(q);
+  check_vector("qd", qd, n_);
+  evaluate_constraints(model_, data_, constraints_, ev_, t, q, qd);
+  if (m_ == 0) {
+    std::vector<int> all(n_);
+    std::iota(all.begin(), all.end(), 0);
+    set_independent(all);
+    cond_ = 1.0;
+    return cond_;
+  }
+  // Count candidate sets C(n, m).
+  double count = 1;
+  for (int i = 0; i < m_; ++i) count = count * (n_ - i) / (i + 1);
+  std::vector<int> best_dep;
+  double best = std::numeric_limits<double>::infinity();
+  if (count <= 500) {
+    std::vector<bool> sel(n_, false);
+    std::fill(sel.end() - m_, sel.end(), true);
+    Eigen::MatrixXd K(m_, m_);
+    do {
+      std::vector<int> dep;
+      for (int i = 0; i < n_; ++i)
+        if (sel[i]) dep.push_back(i);
+      for (int c = 0; c < m_; ++c) K.col(c) = ev_.A.col(dep[c]);
+      Eigen::JacobiSVD<Eigen::MatrixXd> svd(K);
+      const auto& s = svd.singularValues();
+      const double c = s(m_ - 1) > 0 ? s(0) / s(m_ - 1) : std::numeric_limits<double>::infinity();
+      if (c < best) {
+        best = c;
+        best_dep = dep;
+      }
+    } while (std::next_permutation(sel.begin(), sel.end()));
+  } else {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(ev_.A);
+    for (int i = 0; i < m_; ++i) best_dep.push_back(qr.colsPermutation().indices()[i]);
+    std::sort(best_dep.begin(), best_dep.end());
+  }
+  std::vector<int> ind;
+  for (int i = 0; i < n_; ++i)
+    if (std::find(best_dep.begin(), best_dep.end(), i) == best_dep.end()) ind.push_back(i);
+  set_independent(ind);
+  factor_partition();
+  return cond_;
+}
+
+void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
+  const int nz = forces_.num_states();
+  if (x.size() != state_size() || xdot.size() != state_size()) {
+    check_size("x", state_size(), x.size(), "x = [q; qd; z] with z the force-element states");
+    check_size("xdot", state_size(), xdot.size());
+  }
+  q_ = x.head(n_);
+  qd_ = x.segment(n_, n_);
+  const double* z = nz ? x.data() + 2 * n_ : nullptr;
+  if (!x.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
+
+  evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
+  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
+  unchecked::crba(model_, data_, q_);
+  unchecked::rnea(model_, data_, q_, &qd_, nullptr, true, data_.nle);
+  F_ = Q_ - data_.nle;
+  for (int r = 0; r < m_; ++r)
+    rhs_[r] = constraints_.row_first_order(r)
+                  ? -ev_.gamma[r] - opt_.beta_first_order * ev_.phi[r]
+                  : -ev_.gamma[r] - 2.0 * opt_.alpha * ev_.phid[r] - opt_.beta * opt_.beta * ev_.phi[r];
+
+  if (opt_.solver == ReferenceSolver::Projection)
+    solve_projection(t);
+  else
+    solve_lagrange(t);
+
+  Qc_.noalias() = data_.M * qdd_;
+  Qc_ -= F_;
+  xdot.head(n_) = qd_;
+  xdot.segment(n_, n_) = qdd_;
+  if (nz) xdot.tail(nz) = zdot_.head(nz);
+}
+
+void ReferenceDynamics::solve_projection(double t) {
+  if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
+  if (!factor_partition()) {
+    if (!opt_.automatic_partition) throw NumericalFailure(t, partition_message(t));
+    choose_partition(t, q_, qd_);
+    if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
+  }
+  const int k = n_ - m_;
+  const Eigen::MatrixXd& M = data_.M;
+  // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
+  if (opt_.paper_literal_forces) {
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    tmp_n_ += F_;
+  } else {
+    tmp_n_ = F_;
+  }
+  // Rows of Nᵀ M and Nᵀ F: row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
+  for (int c = 0; c < k; ++c) {
+    S_.row(c) = M.row(ind_[c]);
+    rhs_n_[c] = tmp_n_[ind_[c]];
+    for (int r = 0; r < m_; ++r) {
+      const double g = G_(r, c);
+      S_.row(c) += g * M.row(dep_[r]);
+      rhs_n_[c] += g * tmp_n_[dep_[r]];
+    }
+  }
+  S_.bottomRows(m_) = ev_.A;
+  rhs_n_.tail(m_) = rhs_;
+  lu_n_.compute(S_);
+  qdd_ = lu_n_.solve(rhs_n_);
+  // λ from the dependent rows: K_dcᵀ λ = (F − M q̈)_dc.
+  if (m_ > 0) {
+    tmp_n_.noalias() = M * qdd_;
+    for (int r = 0; r < m_; ++r) tmp_m_[r] = F_[dep_[r]] - tmp_n_[dep_[r]];
+    lambda_.noalias() = Kinv_.transpose() * tmp_m_;
+  }
+}
+
+void ReferenceDynamics::solve_lagrange(double t) {
+  data_.llt.compute(data_.M);
+  if (data_.llt.info() != Eigen::Success)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+  // u = M⁻¹F, Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ.
+  qdd_ = F_;
+  data_.llt.solveInPlace(qdd_);
+  if (m_ == 0) return;
+  Y_ = ev_.A.transpose();
+  data_.llt.solveInPlace(Y_);
+  Smm_.noalias() = ev_.A * Y_;
+  llt_m_.compute(Smm_);
+  if (llt_m_.info() != Eigen::Success)
+    throw NumericalFailure(t, "at t = " + fmt(t) +
+                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
+                                  "hint: remove redundant constraints");
+  tmp_m_.noalias() = ev_.A * qdd_;
+  tmp_m_ -= rhs_;
+  lambda_ = tmp_m_;
+  llt_m_.solveInPlace(lambda_);
+  qdd_.noalias() -= Y_ * lambda_;
+}
+
+double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
+  check_size("x", state_size(), x.size());
+  q_ = x.head(n_);
+  qd_ = x.segment(n_, n_);
+  evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
+  return m_ ? ev_.phi.cwiseAbs().maxCoeff() : 0.0;
+}
+
+ReferenceDynamics::Consistency ReferenceDynamics::make_consistent(double t, const Eigen::VectorXd& q0,
+                                                                  const Eigen::VectorXd& qd0, double tol,
+                                                                  int max_iterations) {
+  model_.check_q(q0);
+  check_vector("qd", qd0, n_);
+  if (!partition_set_) choose_partition(t, q0, qd0);
+  Consistency out;
+  out.q = q0;
+  out.qd = qd0;
+  auto residuals = [&](const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+    evaluate_constraints(model_, data_, constraints_, ev_, t, q, qd);
+    double r = 0;
+    for (int i = 0; i < m_; ++i) r = std::max({r, std::abs(ev_.phi[i]), std::abs(ev_.phid[i])});
+    return r;
+  };
+  out.residual_before = residuals(out.q, out.qd);
+  std::vector<int> hol;
+  for (int r = 0; r < m_; ++r)
+    if (!constraints_.row_first_order(r)) hol.push_back(r);
+  // Position level: minimum-norm Newton steps on the dependent coordinates, holonomic rows.
+  for (int it = 0; it < max_iterations && !hol.empty(); ++it) {
+    evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
+    Eigen::VectorXd phi(hol.size());
+    Eigen::MatrixXd K(hol.size(), dep_.size());
+    for (size_t i = 0; i < hol.size(); ++i) {
+      phi[i] = ev_.phi[hol[i]];
+      for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(hol[i], dep_[c]);
+    }
+    out.iterations = it + 1;
+    if (phi.cwiseAbs().maxCoeff() <= tol) break;
+    const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(phi);
+    for (size_t c = 0; c < dep_.size(); ++c) out.q[dep_[c]] -= step[c];
+  }
+  // Velocity level: Φ̇ = 0 and c = 0 are both A q̇ + b = 0 in q̇; Newton on the dependent q̇.
+  for (int it = 0; it < max_iterations && m_ > 0; ++it) {
+    evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
+    if (ev_.phid.cwiseAbs().maxCoeff() <= tol) break;
+    Eigen::MatrixXd K(m_, dep_.size());
+    for (size_t c = 0; c < dep_.size(); ++c) K.col(c) = ev_.A.col(dep_[c]);
+    const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(ev_.phid);
+    for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
+  }
+  out.residual_after = residuals(out.q, out.qd);
+  out.converged = out.residual_after <= std::max(tol, 1e3 * tol * (1 + out.residual_before)) ||
+                  out.residual_after <= 1e-10;
+  out.dq = out.q - q0;
+  out.dqd = out.qd - qd0;
+  return out;
+}
+
+}  // namespace refdyn
