@@ -115,3 +115,45 @@ ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt) 
 }
 
 }  // namespace refdyn::test
+
+namespace refdyn::test {
+
+std::vector<SE3> reference_link_poses(const ModelDescription& d, const Eigen::VectorXd& q) {
+  std::vector<SE3> T(d.links.size());
+  Eigen::Index k = 0;
+  for (size_t i = 0; i < d.links.size(); ++i) {
+    const LinkSpec& l = d.links[i];
+    const SE3 parent = l.parent < 0 ? d.base : T[static_cast<size_t>(l.parent)];
+    SE3 J = SE3::Identity();
+    if (l.type == JointType::Revolute) {
+      J.R = Eigen::AngleAxisd(q[k++] + l.offset, l.axis.normalized()).toRotationMatrix();
+    } else if (l.type == JointType::Prismatic) {
+      J.p = l.axis.normalized() * (q[k++] + l.offset);
+    }
+    T[i] = parent * l.placement * J * l.link_offset;
+  }
+  return T;
+}
+
+Vec3 reference_point_position(const ModelDescription& d, const Eigen::VectorXd& q,
+                              const std::string& point) {
+  const std::vector<SE3> T = reference_link_poses(d, q);
+  for (const PointSpec& p : d.points) {
+    if (p.name != point) continue;
+    if (p.link == "world") return p.position;
+    if (p.link == "base") return d.base.act_point(p.position);
+    for (size_t i = 0; i < d.links.size(); ++i)
+      if (d.links[i].name == p.link) return T[i].act_point(p.position);
+  }
+  ADD_FAILURE() << "reference_point_position: no point '" << point << "'";
+  return Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+}
+
+std::vector<int> movable_links(const ModelDescription& d) {
+  std::vector<int> out;
+  for (size_t i = 0; i < d.links.size(); ++i)
+    if (d.links[i].type != JointType::Fixed) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+}  // namespace refdyn::test

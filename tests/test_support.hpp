@@ -33,3 +33,20 @@ ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt =
 Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale = 1.0);
 
 }  // namespace refdyn::test
+
+namespace refdyn::test {
+
+/// Reference forward kinematics computed straight from a ModelDescription, independent of
+/// build_model's folding: T^(l) = T^(parent) · P_l · J_l(q_l) · L_l for every description link
+/// (fixed links included), with J_l from Eigen::AngleAxis / a translation along the axis.
+/// q is indexed by the movable links in description order (the Model's coordinate order).
+std::vector<SE3> reference_link_poses(const ModelDescription& d, const Eigen::VectorXd& q);
+
+/// Position in {0} of the named point of `d`, by reference_link_poses.
+Vec3 reference_point_position(const ModelDescription& d, const Eigen::VectorXd& q,
+                              const std::string& point);
+
+/// Description index of the link behind each Model body (the movable links, in order).
+std::vector<int> movable_links(const ModelDescription& d);
+
+}  // namespace refdyn::test

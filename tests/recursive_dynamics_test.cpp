@@ -1,0 +1,416 @@
+// Recursive dynamics (RNEA, CRBA, forward dynamics, energies): algebraic identities on random
+// chains and trees of 1..30 DOF, Lagrangian identities checked by finite differences, and
+// closed-form oracles (planar 2R arm, pendulum, sliders).
+#include "refdyn/kinematics.hpp"
+#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/trace_dynamics.hpp"
+#include "test_support.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <numbers>
+
+using namespace refdyn;
+using refdyn::test::near;
+
+namespace {
+
+struct Case {
+  std::string label;
+  Model model;
+  ModelDescription desc;
+};
+
+const std::vector<int> kSizes = {1, 2, 3, 5, 8, 13, 21, 30};
+
+/// For each size: a standard-DH chain, a modified-DH chain with fixed links, and a tree.
+std::vector<Case> random_models(std::mt19937& rng) {
+  std::vector<Case> out;
+  for (int n : kSizes) {
+    for (int variant = 0; variant < 3; ++variant) {
+      test::RandomChainOptions o;
+      o.dof = n;
+      o.modified_dh = variant == 1;
+      o.with_fixed_joints = variant == 1;
+      o.tree = variant == 2;
+      ModelDescription d = test::random_chain(rng, o);
+      const char* kind[] = {"standard chain", "modified chain +fixed", "tree"};
+      out.push_back({std::string(kind[variant]) + " n=" + std::to_string(n), build_model(d), d});
+    }
+  }
+  return out;
+}
+
+double inf_norm(const Eigen::MatrixXd& a) { return a.cwiseAbs().maxCoeff(); }
+
+/// Central difference of M along q̇: Ṁ = dM(q + t q̇)/dt at t = 0.
+Eigen::MatrixXd mdot_fd(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double h) {
+  Data d(model);
+  const Eigen::MatrixXd Mp = mass_matrix(model, d, q + h * qd);
+  const Eigen::MatrixXd Mm = mass_matrix(model, d, q - h * qd);
+  return (Mp - Mm) / (2 * h);
+}
+
+constexpr double kH = 1e-5;       // central-difference step
+constexpr double kFdTol = 1e-7;   // FD of M, V and T over chains up to 30 DOF (worst seen ~1e-9)
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Algebraic identities between the recursive algorithms
+
+TEST(RecursiveDynamics, MassMatrixColumnsFromInverseDynamics) {
+  std::mt19937 rng(101);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), z = Eigen::VectorXd::Zero(n);
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+    const Eigen::VectorXd tau0 = inverse_dynamics(c.model, data, q, z, z);
+    // The subtraction cancels |g|; compare at the scale of max(|M|, |g|).
+    const double scale = std::max(inf_norm(M), inf_norm(tau0));
+    Eigen::MatrixXd Mid(n, n);
+    for (int i = 0; i < n; ++i)
+      Mid.col(i) = inverse_dynamics(c.model, data, q, z, Eigen::VectorXd::Unit(n, i)) - tau0;
+    EXPECT_TRUE(near(M, Mid, 0, 1e-12 * scale)) << c.label;
+  }
+}
+
+TEST(RecursiveDynamics, BiasAndGravityAreInverseDynamicsWithZeroArguments) {
+  std::mt19937 rng(102);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          z = Eigen::VectorXd::Zero(n);
+    const Eigen::VectorXd tau_v = inverse_dynamics(c.model, data, q, qd, z);
+    const Eigen::VectorXd tau_0 = inverse_dynamics(c.model, data, q, z, z);
+    EXPECT_TRUE(near(bias_forces(c.model, data, q, qd), tau_v, 1e-14)) << c.label;
+    EXPECT_TRUE(near(gravity_forces(c.model, data, q), tau_0, 1e-14)) << c.label;
+    // Linearity in q̈: ID(q, q̇, q̈) = M q̈ + c + g.
+    const Eigen::VectorXd qdd = test::random_vector(rng, n, 2.0);
+    const Eigen::VectorXd M_qdd = mass_matrix(c.model, data, q) * qdd;
+    const Eigen::VectorXd tau = inverse_dynamics(c.model, data, q, qd, qdd);
+    EXPECT_TRUE(near(tau, M_qdd + tau_v, 0, 1e-12 * std::max(inf_norm(M_qdd), inf_norm(tau_v)))) << c.label;
+    // c is quadratic in q̇: c(2q̇) = 4 c(q̇).
+    const Eigen::VectorXd c1 = bias_forces(c.model, data, q, qd) - tau_0;
+    const Eigen::VectorXd c2 = bias_forces(c.model, data, q, 2 * qd) - tau_0;
+    EXPECT_TRUE(near(c2, 4 * c1, 0, 1e-12 * std::max(inf_norm(c2), inf_norm(tau_0)))) << c.label;
+  }
+}
+
+TEST(RecursiveDynamics, ForwardDynamicsInvertsInverseDynamics) {
+  std::mt19937 rng(103);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0);
+    const Eigen::VectorXd qdd = forward_dynamics(c.model, data, q, qd, tau);
+    const Eigen::MatrixXd M = data.M;
+    // Backward error: the residual of M q̈ + c + g = τ is at rounding level.
+    const Eigen::VectorXd tau_back = inverse_dynamics(c.model, data, q, qd, qdd);
+    const double scale = std::max({inf_norm(tau), inf_norm(M * qdd), inf_norm(data.nle)});
+    EXPECT_TRUE(near(tau_back, tau, 0, 1e-11 * scale)) << c.label;
+    // Forward error, the other way round, bounded by cond(M)·ε.
+    const Eigen::VectorXd qdd_ref = test::random_vector(rng, n, 2.0);
+    const Eigen::VectorXd tau2 = inverse_dynamics(c.model, data, q, qd, qdd_ref);
+    const Eigen::VectorXd qdd2 = forward_dynamics(c.model, data, q, qd, tau2);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
+    const double cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+    EXPECT_LE(test::rel_diff(qdd2, qdd_ref), 1e-13 * cond + 1e-13) << c.label << " cond(M) = " << cond;
+  }
+}
+
+TEST(RecursiveDynamics, MassMatrixIsSymmetricPositiveDefiniteAndEqualsTraceRoute) {
+  std::mt19937 rng(104);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    for (int rep = 0; rep < 3; ++rep) {
+      const Eigen::VectorXd q = test::random_vector(rng, n, 3.0);
+      const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+      EXPECT_TRUE(near(M, M.transpose(), 0, 0)) << c.label;
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
+      EXPECT_GT(es.eigenvalues().minCoeff(), 0.0) << c.label;
+      EXPECT_TRUE(near(trace_mass_matrix(c.model, data, q), M, 1e-11)) << c.label;
+      // ½ q̇ᵀ M q̇ is the kinetic energy, three ways.
+      const Eigen::VectorXd qd = test::random_vector(rng, n, 2.0);
+      const double T_M = 0.5 * qd.dot(M * qd);
+      EXPECT_GT(T_M, 0.0);
+      EXPECT_NEAR(kinetic_energy(c.model, data, q, qd), T_M, 1e-12 * T_M) << c.label;
+      EXPECT_NEAR(trace_kinetic_energy(c.model, data, q, qd), T_M, 1e-11 * T_M) << c.label;
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lagrangian identities (finite differences in the test only)
+
+TEST(RecursiveDynamics, CoriolisFromLagrangeEquations) {
+  // From L = ½ q̇ᵀ M q̇ − V:  c = Ṁ q̇ − ∂T/∂q  and  g = ∂V/∂q.
+  std::mt19937 rng(105);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model), d2(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0);
+    const Eigen::VectorXd g = gravity_forces(c.model, data, q);
+    const Eigen::VectorXd cvec = bias_forces(c.model, data, q, qd) - g;
+    Eigen::VectorXd dTdq(n), dVdq(n);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::VectorXd e = Eigen::VectorXd::Unit(n, i);
+      dTdq[i] = (kinetic_energy(c.model, d2, q + kH * e, qd) - kinetic_energy(c.model, d2, q - kH * e, qd)) / (2 * kH);
+      dVdq[i] = (potential_energy(c.model, d2, q + kH * e) - potential_energy(c.model, d2, q - kH * e)) / (2 * kH);
+    }
+    const Eigen::VectorXd c_lagrange = mdot_fd(c.model, q, qd, kH) * qd - dTdq;
+    const double cscale = inf_norm(mass_matrix(c.model, d2, q)) * qd.squaredNorm();
+    EXPECT_TRUE(near(cvec, c_lagrange, kFdTol, kFdTol * cscale)) << c.label;
+    EXPECT_TRUE(near(g, dVdq, kFdTol, kFdTol * inf_norm(g))) << c.label;
+  }
+}
+
+TEST(RecursiveDynamics, SkewSymmetryOfMdotMinus2C) {
+  // q̇ᵀ(Ṁ − 2C)q̇ = 0  ⇔  q̇ᵀ Ṁ q̇ = 2 q̇ᵀ c(q, q̇).
+  std::mt19937 rng(106);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0);
+    const Eigen::VectorXd cvec = bias_forces(c.model, data, q, qd) - gravity_forces(c.model, data, q);
+    const Eigen::MatrixXd Md = mdot_fd(c.model, q, qd, kH);
+    const double lhs = qd.dot(Md * qd), rhs = 2 * qd.dot(cvec);
+    const double scale = inf_norm(Md) * qd.squaredNorm();
+    EXPECT_NEAR(lhs, rhs, kFdTol * scale) << c.label << " (scale " << scale << ")";
+  }
+}
+
+TEST(RecursiveDynamics, EnergiesAgreeWithTraceRoute) {
+  std::mt19937 rng(107);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0);
+    const double T = kinetic_energy(c.model, data, q, qd), V = potential_energy(c.model, data, q);
+    EXPECT_NEAR(trace_kinetic_energy(c.model, data, q, qd), T, 1e-11 * T) << c.label;
+    // V is the sum of Σ m_l g·r_C terms of both signs; compare at the scale of the largest.
+    double Vscale = 0;
+    forward_kinematics(c.model, data, q);
+    for (int l = 0; l < n; ++l) {
+      const Inertia& I = c.model.inertia[static_cast<size_t>(l)];
+      Vscale += std::abs(c.model.gravity.dot(data.oMi[l].R * I.h + I.m * data.oMi[l].p));
+    }
+    EXPECT_NEAR(trace_potential_energy(c.model, data, q), V, 1e-13 * Vscale) << c.label;
+    // V from the point-mass definition: −Σ m gᵀ r_C with r_C from the reference kinematics.
+    const std::vector<SE3> X = test::reference_link_poses(c.desc, q);
+    double V_ref = 0;
+    for (size_t k = 0; k < c.desc.links.size(); ++k) {
+      const LinkSpec& l = c.desc.links[k];
+      bool moves = false;  // links rigidly attached to the world are left out by the model
+      for (int a = static_cast<int>(k); a >= 0; a = c.desc.links[static_cast<size_t>(a)].parent)
+        moves = moves || c.desc.links[static_cast<size_t>(a)].type != JointType::Fixed;
+      if (moves) V_ref -= l.inertia.mass * c.model.gravity.dot(X[k].act_point(l.inertia.com));
+    }
+    EXPECT_NEAR(V_ref, V, 1e-13 * Vscale) << c.label;
+  }
+}
+
+TEST(RecursiveDynamics, PowerBalanceAlongForwardDynamics) {
+  // With q̈ = FD(q, q̇, τ):  dE/dt = q̇ᵀ M q̈ + ½ q̇ᵀ Ṁ q̇ + gᵀ q̇ = q̇ᵀ τ.
+  std::mt19937 rng(108);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0);
+    const Eigen::VectorXd qdd = forward_dynamics(c.model, data, q, qd, tau);
+    const Eigen::MatrixXd M = data.M;
+    const Eigen::VectorXd g = gravity_forces(c.model, data, q);
+    const Eigen::MatrixXd Md = mdot_fd(c.model, q, qd, kH);
+    const double Edot = qd.dot(M * qdd) + 0.5 * qd.dot(Md * qd) + g.dot(qd);
+    const double scale = std::abs(qd.dot(M * qdd)) + std::abs(0.5 * qd.dot(Md * qd)) + std::abs(g.dot(qd)) +
+                         std::abs(qd.dot(tau));
+    EXPECT_NEAR(Edot, qd.dot(tau), kFdTol * scale) << c.label;
+    // And dE/dt from the energies themselves along q(t) = q + q̇t + ½q̈t², q̇(t) = q̇ + q̈t.
+    const double t = 1e-5;
+    auto E = [&](double s) {
+      const Eigen::VectorXd qs = q + s * qd + 0.5 * s * s * qdd, qds = qd + s * qdd;
+      return kinetic_energy(c.model, data, qs, qds) + potential_energy(c.model, data, qs);
+    };
+    const double Edot_fd = (E(t) - E(-t)) / (2 * t);
+    EXPECT_NEAR(Edot_fd, qd.dot(tau), kFdTol * scale + 1e-10 * std::abs(E(0)) / t) << c.label;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Closed-form oracles
+
+namespace {
+
+struct Arm2R {
+  double m1 = 1.7, m2 = 1.1, l1 = 0.8, l2 = 0.6, lc1 = 0.35, lc2 = 0.28, I1 = 0.09, I2 = 0.04, g = 9.81;
+
+  Eigen::Matrix2d M(double q2) const {
+    const double c2 = std::cos(q2);
+    Eigen::Matrix2d M;
+    M(0, 0) = m1 * lc1 * lc1 + I1 + m2 * (l1 * l1 + lc2 * lc2 + 2 * l1 * lc2 * c2) + I2;
+    M(0, 1) = M(1, 0) = m2 * (lc2 * lc2 + l1 * lc2 * c2) + I2;
+    M(1, 1) = m2 * lc2 * lc2 + I2;
+    return M;
+  }
+  Eigen::Vector2d c(double q2, double qd1, double qd2) const {
+    const double h = -m2 * l1 * lc2 * std::sin(q2);
+    return {h * (2 * qd1 * qd2 + qd2 * qd2), -h * qd1 * qd1};
+  }
+  Eigen::Vector2d grav(double q1, double q2) const {
+    const double c12 = std::cos(q1 + q2);
+    return {(m1 * lc1 + m2 * l1) * g * std::cos(q1) + m2 * lc2 * g * c12, m2 * lc2 * g * c12};
+  }
+  double V(double q1, double q2) const {
+    return m1 * g * lc1 * std::sin(q1) + m2 * g * (l1 * std::sin(q1) + lc2 * std::sin(q1 + q2));
+  }
+  /// A rod-like link along x: I_zz about the com = I, and I_yy = I, I_xx small.
+  static Mat3 inertia(double I) { return Vec3(0.1 * I, I, I).asDiagonal(); }
+
+  /// Built from LinkSpecs: joints about z at the link starts, gravity along −y.
+  ModelDescription by_links() const {
+    ModelDescription d;
+    LinkSpec a;
+    a.name = "upper";
+    a.inertia = {m1, Vec3(lc1, 0, 0), inertia(I1)};
+    d.add_link(a);
+    LinkSpec b;
+    b.name = "lower";
+    b.parent = 0;
+    b.placement = SE3::trans(Vec3(l1, 0, 0));
+    b.inertia = {m2, Vec3(lc2, 0, 0), inertia(I2)};
+    d.add_link(b);
+    d.gravity = Vec3(0, -g, 0);
+    d.add_point("tip", "lower", Vec3(l2, 0, 0));
+    return d;
+  }
+  /// Built from a standard DH table with α = 0: DH frame i sits at the end of link i.
+  ModelDescription by_dh() const {
+    std::vector<DHRow> rows(2);
+    rows[0].a = l1;
+    rows[0].inertia = {m1, Vec3(lc1 - l1, 0, 0), inertia(I1)};
+    rows[1].a = l2;
+    rows[1].inertia = {m2, Vec3(lc2 - l2, 0, 0), inertia(I2)};
+    ModelDescription d = from_dh(rows, DHConvention::Standard, "planar_2r");
+    d.gravity = Vec3(0, -g, 0);
+    d.add_point("tip", "link2", Vec3::Zero());
+    return d;
+  }
+};
+
+}  // namespace
+
+TEST(ClosedForm, PlanarTwoLinkArm) {
+  const Arm2R arm;
+  std::mt19937 rng(201);
+  for (const ModelDescription& d : {arm.by_links(), arm.by_dh()}) {
+    const Model model = build_model(d);
+    Data data(model);
+    for (int rep = 0; rep < 20; ++rep) {
+      const Eigen::VectorXd q = test::random_vector(rng, 2, 3.2), qd = test::random_vector(rng, 2, 3.0),
+                            tau = test::random_vector(rng, 2, 10.0);
+      const Eigen::Matrix2d M = arm.M(q[1]);
+      const Eigen::Vector2d cc = arm.c(q[1], qd[0], qd[1]), gg = arm.grav(q[0], q[1]);
+      EXPECT_TRUE(near(mass_matrix(model, data, q), M, 1e-14)) << d.name;
+      EXPECT_TRUE(near(gravity_forces(model, data, q), gg, 1e-14, 1e-14)) << d.name;
+      EXPECT_TRUE(near(bias_forces(model, data, q, qd), cc + gg, 1e-14, 1e-14)) << d.name;
+      EXPECT_TRUE(near(trace_coriolis(model, data, q, qd), cc, 1e-13, 1e-13)) << d.name;
+      EXPECT_TRUE(near(forward_dynamics(model, data, q, qd, tau), M.ldlt().solve(tau - cc - gg), 1e-13)) << d.name;
+      EXPECT_NEAR(kinetic_energy(model, data, q, qd), 0.5 * qd.dot(M * qd), 1e-14 * qd.dot(M * qd));
+      EXPECT_NEAR(potential_energy(model, data, q), arm.V(q[0], q[1]), 1e-13);
+      forward_kinematics(model, data, q);
+      const Vec3 tip(arm.l1 * std::cos(q[0]) + arm.l2 * std::cos(q[0] + q[1]),
+                     arm.l1 * std::sin(q[0]) + arm.l2 * std::sin(q[0] + q[1]), 0);
+      EXPECT_TRUE(near(point_position(model, data, 0), tip, 1e-15, 1e-15)) << d.name;
+    }
+  }
+}
+
+TEST(ClosedForm, SimplePendulum) {
+  // Revolute about z, com at distance l below the pivot at θ = 0, gravity −y:
+  // M = m l² + I,  c = 0,  g = m g l sin θ,  V = −m g l cos θ.
+  const double m = 2.3, l = 0.7, I = 0.05, gr = 9.81;
+  ModelDescription d;
+  LinkSpec p;
+  p.name = "bob";
+  p.placement = SE3::trans(Vec3(0.2, 0.4, -0.1));  // pivot off the origin: V shifts by a constant
+  p.inertia = {m, Vec3(0, -l, 0), Vec3(I, 0.5 * I, I).asDiagonal()};
+  d.add_link(p);
+  d.gravity = Vec3(0, -gr, 0);
+  const Model model = build_model(d);
+  Data data(model);
+  for (double th : {-2.5, -1.0, 0.0, 0.3, 1.2, 3.0}) {
+    Eigen::VectorXd q(1), qd(1), tau(1);
+    q << th;
+    qd << 1.7;
+    tau << 0.4;
+    EXPECT_NEAR(mass_matrix(model, data, q)(0, 0), m * l * l + I, 1e-14);
+    EXPECT_NEAR(gravity_forces(model, data, q)[0], m * gr * l * std::sin(th), 1e-13);
+    EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr * l * std::sin(th), 1e-13);
+    EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I),
+                1e-13);
+    EXPECT_NEAR(potential_energy(model, data, q), m * gr * (0.4 - l * std::cos(th)), 1e-13);
+    EXPECT_NEAR(kinetic_energy(model, data, q, qd), 0.5 * (m * l * l + I) * 1.7 * 1.7, 1e-13);
+  }
+}
+
+TEST(ClosedForm, VerticalSlider) {
+  // Prismatic along z against gravity −z: M = m, c = 0, g = m g, V = m g z.
+  const double m = 4.2, gr = 9.81;
+  ModelDescription d;
+  LinkSpec s;
+  s.name = "carriage";
+  s.type = JointType::Prismatic;
+  s.offset = 0.25;
+  s.inertia = {m, Vec3(0.1, 0.2, 0.3), Vec3(0.1, 0.2, 0.25).asDiagonal()};
+  d.add_link(s);
+  const Model model = build_model(d);
+  Data data(model);
+  for (double z : {-1.0, 0.0, 0.5, 2.0}) {
+    Eigen::VectorXd q(1), qd(1), tau(1);
+    q << z;
+    qd << -0.8;
+    tau << 50.0;
+    EXPECT_NEAR(mass_matrix(model, data, q)(0, 0), m, 1e-15);
+    EXPECT_NEAR(gravity_forces(model, data, q)[0], m * gr, 1e-13);
+    EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr, 1e-13);
+    EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
+    EXPECT_NEAR(potential_energy(model, data, q), m * gr * (z + 0.25 + 0.3), 1e-12);
+  }
+}
+
+TEST(ClosedForm, RadialSliderOnATurntable) {
+  // Turntable (revolute z, inertia J) carrying a point-like slider of mass m along its x axis:
+  // M = diag(J + m r² + I_s, m),  c = (2 m r ṙ θ̇, −m r θ̇²),  g = 0 (gravity along −z).
+  const double J = 0.6, m = 1.4, Is = 0.02;
+  ModelDescription d;
+  LinkSpec t;
+  t.name = "turntable";
+  t.inertia = {3.0, Vec3::Zero(), Vec3(0.3, 0.3, J).asDiagonal()};
+  d.add_link(t);
+  LinkSpec s;
+  s.name = "slider";
+  s.parent = 0;
+  s.type = JointType::Prismatic;
+  s.axis = Vec3::UnitX();
+  s.inertia = {m, Vec3::Zero(), Vec3(0.01, Is, Is).asDiagonal()};
+  d.add_link(s);
+  const Model model = build_model(d);
+  Data data(model);
+  std::mt19937 rng(202);
+  for (int rep = 0; rep < 10; ++rep) {
+    const Eigen::VectorXd q = test::random_vector(rng, 2, 2.0), qd = test::random_vector(rng, 2, 2.0);
+    const double r = q[1];
+    Eigen::Matrix2d M;
+    M << J + m * r * r + Is, 0, 0, m;
+    const Eigen::Vector2d cc(2 * m * r * qd[1] * qd[0], -m * r * qd[0] * qd[0]);
+    EXPECT_TRUE(near(mass_matrix(model, data, q), M, 1e-14, 1e-14));
+    EXPECT_TRUE(near(gravity_forces(model, data, q), Eigen::Vector2d::Zero(), 0, 1e-14));
+    EXPECT_TRUE(near(bias_forces(model, data, q, qd), cc, 1e-14, 1e-14));
+    EXPECT_TRUE(near(trace_coriolis(model, data, q, qd), cc, 1e-13, 1e-13));
+  }
+}
