@@ -1,4 +1,5 @@
 // refdyn command line. Catches refdyn::Error once, prints one line, exits non-zero.
+#include "paper_study_output.hpp"
 #include "refdyn/error.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "refdyn/recursive_dynamics.hpp"
@@ -10,7 +11,7 @@
 
 namespace {
 
-int run_paper(const std::string& out_dir) {
+[[maybe_unused]] int print_model_summary() {
   using namespace refdyn;
   const Model model = models::paper_manipulator();
   Data data(model);
@@ -22,7 +23,6 @@ int run_paper(const std::string& out_dir) {
   std::cout << "M(q0) =\n" << mass_matrix(model, data, q).format(f) << "\n";
   std::cout << "c(q0, qd0) + g(q0) =\n" << bias_forces(model, data, q, qd).transpose().format(f) << "\n";
   std::cout << "g(q0) =\n" << gravity_forces(model, data, q).transpose().format(f) << "\n";
-  (void)out_dir;
   return 0;
 }
 
@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*paper) return run_paper(out_dir);
+    if (*paper) return refdyn::app::run_paper_command(out_dir, false);
   } catch (const refdyn::Error& e) {
     std::fprintf(stderr, "refdyn: error: %s\n", e.what());
     return 2;

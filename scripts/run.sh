@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
-# Builds everything and runs the main job: the paper's three-link manipulator study.
+# Builds everything and runs the main job: the paper's three-link manipulator study
+# (plan + 8 closed loops), writing CSV/JSON results and figures (PNG + PDF) into results/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 BUILD_DIR=${BUILD_DIR:-build}
+OUT=${OUTPUT_DIR:-results}
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD_DIR" -j "$(nproc)"
-"$BUILD_DIR/apps/refdyn" paper --output "${OUTPUT_DIR:-results}" "$@"
+"$BUILD_DIR/apps/refdyn" paper --output "$OUT"
+/usr/bin/python3 scripts/plot_study.py "$OUT"

@@ -46,6 +46,7 @@ class JointEffort final : public ForceElement {
  public:
   JointEffort(int j, std::string n, TimeFunctionPtr f) : j_(j), n_(std::move(n)), f_(std::move(f)) {}
   std::string name() const override { return "effort(" + n_ + ")"; }
+  bool actuator() const override { return true; }
   void apply(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
     Q[j_] += f_->eval(t).f;

@@ -1,5 +1,6 @@
 #include "refdyn/models/paper_example.hpp"
 
+#include "refdyn/error.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 
 #include <cmath>
@@ -7,7 +8,20 @@
 
 namespace refdyn::models {
 
-PaperExample::PaperExample(const PaperExampleParams& p) : params(p), model(paper_manipulator()) {
+namespace {
+Model build_paper_model(const PaperExampleParams& p) {
+  ModelDescription d = paper_manipulator_description();
+  if (!p.limits.empty()) {
+    if (p.limits.size() != d.links.size())
+      throw Error(expected_got("paper example limits", std::to_string(d.links.size()) + " entries (one per joint)",
+                               std::to_string(p.limits.size())));
+    for (size_t i = 0; i < d.links.size(); ++i) d.links[i].limits = p.limits[i];
+  }
+  return build_model(d);
+}
+}  // namespace
+
+PaperExample::PaperExample(const PaperExampleParams& p) : params(p), model(build_paper_model(p)) {
   if (p.with_drive) {
     drive = std::make_shared<FlexibleDrive>(model, "psi1", p.drive,
                                             cycloidal(p.drive_rise, p.drive_duration));

@@ -24,6 +24,9 @@ class ForceElement {
                      Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const = 0;
   /// Name of each state (for CSV headers).
   virtual std::vector<std::string> state_names() const { return {}; }
+  /// True for actuators (drives, prescribed efforts): their force is delivered by the joint's
+  /// motor and counts in the feasibility report's required effort.
+  virtual bool actuator() const { return false; }
 };
 using ForceElementPtr = std::shared_ptr<const ForceElement>;
 
@@ -44,6 +47,7 @@ class FlexibleDrive final : public ForceElement {
  public:
   FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p, TimeFunctionPtr profile);
   std::string name() const override { return "flexible_drive(" + joint_name_ + ")"; }
+  bool actuator() const override { return true; }
   void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
   /// The drive torque alone.

@@ -13,6 +13,7 @@
 #include "refdyn/reference_dynamics.hpp"
 
 #include <memory>
+#include <vector>
 
 namespace refdyn::models {
 
@@ -32,6 +33,8 @@ struct PaperExampleParams {
   double elevation0 = 0.7853981633974483;  ///< initial elevation ε of the sliding link (45°)
   double z3_0 = 0.5;                       ///< initial slider extension [m]
   double t1 = 5.0, step = 1e-3;
+  /// Joint limits for the feasibility report (the paper gives none; default: unlimited).
+  std::vector<JointLimits> limits;
 };
 
 /// Everything needed to plan the paper's motion; members own what ReferenceDynamics refers to.

@@ -1,0 +1,7 @@
+#pragma once
+#include <string>
+
+namespace refdyn::app {
+/// `refdyn paper`: runs the paper's study and writes CSV/JSON results into out_dir.
+int run_paper_command(const std::string& out_dir, bool quiet);
+}
