@@ -166,7 +166,7 @@ int run_paper_command(const std::string& out, bool quiet) {
         if (r.t[k] >= 2.5) late = std::max(late, std::abs(r.x[k][j] - r.q_ref[k][j]));
       }
       js << (j ? ", " : "") << "{\"joint\": " << io::json_string(m.joint_name[j]) << ", \"e0\": " << io::json_number(e0)
-         << ", \"settle_time_1e-3\": " << io::json_number(ts) << ", \"max_abs_error_after_2.5s\": "
+         << ", \"settle_time_rel_1e-3\": " << io::json_number(ts) << ", \"max_abs_error_after_2.5s\": "
          << io::json_number(late) << ", \"peak_abs_tau\": " << io::json_number(peak) << "}";
       char line[200];
       std::snprintf(line, sizeof line, "%-17s %-6s %s  %s  %s          %s\n", j ? "" : run.label.c_str(),
