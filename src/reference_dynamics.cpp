@@ -101,9 +101,19 @@ bool ReferenceDynamics::factor_partition() {
     return true;
   }
   lu_m_.compute(Kdc_);
-  Kinv_ = lu_m_.inverse();
-  const double norm = Kdc_.cwiseAbs().colwise().sum().maxCoeff();
-  const double inorm = Kinv_.cwiseAbs().colwise().sum().maxCoeff();
+  // K⁻¹ = U⁻¹ L⁻¹ P in place (no temporaries), and the exact 1-norm condition number.
+  Kinv_.setZero();
+  const auto& perm = lu_m_.permutationP().indices();  // P e_i = e_perm[i]
+  for (int i = 0; i < m_; ++i) Kinv_(perm[i], i) = 1.0;
+  lu_m_.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(Kinv_);
+  lu_m_.matrixLU().triangularView<Eigen::Upper>().solveInPlace(Kinv_);
+  auto norm1 = [](const Eigen::MatrixXd& X) {
+    double best = 0;
+    for (Eigen::Index c = 0; c < X.cols(); ++c) best = std::max(best, X.col(c).cwiseAbs().sum());
+    return best;
+  };
+  const double norm = norm1(Kdc_);
+  const double inorm = norm1(Kinv_);
   cond_ = norm * inorm;
   if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
   G_.noalias() = -Kinv_ * Kic_;
