@@ -34,10 +34,20 @@ PaperExample::PaperExample(const PaperExampleParams& p) : params(p), model(build
   }
   const double z0 = kPaperH1 + 0.5 * std::sin(std::numbers::pi / 4);
   z_a = raised_cosine(z0, p.z_amplitude, p.z_period);
-  auto ellipse = point_on_surface(model, "E", elliptic_cylinder(p.ellipse_a, p.ellipse_b));
-  std::const_pointer_cast<Constraint>(ellipse)->name = "ellipse";
-  auto height = point_coordinate(model, "E", 2, z_a);
-  std::const_pointer_cast<Constraint>(height)->name = "height";
+  ConstraintPtr ellipse, height;
+  if (p.expression_constraints) {
+    ellipse = expression_constraint(model, "ellipse", "(x(E)/a)^2 + (y(E)/b)^2 - 1", false,
+                                    {{"a", p.ellipse_a}, {"b", p.ellipse_b}});
+    height = expression_constraint(model, "height", "z(E) - (z0 + dz*(1 - cos(2*pi*t/Tz))/2)", false,
+                                   {{"z0", z0}, {"dz", p.z_amplitude}, {"Tz", p.z_period}});
+  } else {
+    auto e = point_on_surface(model, "E", elliptic_cylinder(p.ellipse_a, p.ellipse_b));
+    std::const_pointer_cast<Constraint>(e)->name = "ellipse";
+    auto h = point_coordinate(model, "E", 2, z_a);
+    std::const_pointer_cast<Constraint>(h)->name = "height";
+    ellipse = e;
+    height = h;
+  }
   constraints.add(ellipse);
   constraints.add(height);
 }

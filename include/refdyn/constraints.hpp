@@ -11,6 +11,7 @@
 #include "refdyn/model.hpp"
 #include "refdyn/time_function.hpp"
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -105,6 +106,21 @@ ConstraintPtr knife_edge(const Model& model, const std::string& point, const Vec
 /// Prescribed speed of a point along a fixed world direction u: u·v_P − s(t) = 0 (first order).
 ConstraintPtr point_speed(const Model& model, const std::string& point, const Vec3& direction,
                           TimeFunctionPtr speed, ConstraintOrigin origin = ConstraintOrigin::Programmed);
+
+/// A constraint written as an expression over task quantities, differentiated exactly
+/// (GiNaC, compiled to a tape; see expression.hpp) and chained through the point kinematics:
+///   holonomic (first_order = false):  x(P), y(P), z(P)  world coordinates of point P,
+///                                      q(j)  joint coordinate, t, and named parameters;
+///   first order (first_order = true):  additionally vx(P), vy(P), vz(P) and qd(j).
+/// E.g. "(x(E)/a)^2 + (y(E)/b)^2 - 1" with parameters {a, b}, or
+/// "-(y(E))*vx(E) + x(E)*vy(E) - R*v0" for a prescribed speed along a circle.
+/// For a holonomic Φ = f(w): A = Σ f_w ∂w/∂q, Φ̇ = f_w ẇ, γ = f_w ẅ|_{q̈=0} + ẇᵀ f_ww ẇ.
+/// For a first-order c = f(w): A = Σ f_w ∂w/∂q̇, γ = Σ f_w ẇ|_{q̈=0}. Throws Error naming the
+/// constraint for an expression that does not parse or uses unknown names.
+ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                    bool first_order = false,
+                                    const std::map<std::string, double>& parameters = {},
+                                    ConstraintOrigin origin = ConstraintOrigin::Programmed);
 
 /// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
 class ConstraintSet {

@@ -2,6 +2,7 @@
 /// Scalar functions of time with exact first and second derivatives: prescribed trajectories
 /// z_a(t), drive profiles ψ_dr(t), programmed speeds s(t), joint torques τ(t).
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,5 +34,9 @@ TimeFunctionPtr raised_cosine(double f0, double df, double period);
 /// acceleration at both ends); constant before and after:
 /// f = f0 + rise·(τ − sin(2πτ)/(2π)), τ = (t − t0)/duration ∈ [0, 1].
 TimeFunctionPtr cycloidal(double rise, double duration, double f0 = 0.0, double t0 = 0.0);
+
+/// f(t) given as an expression in `t` and named parameters, e.g. "z0 + dz*(1 - cos(2*pi*t/T))/2";
+/// f' and f'' are exact (GiNaC). Throws Error for a text that does not parse.
+TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters = {});
 
 }  // namespace refdyn

@@ -33,6 +33,9 @@ struct PaperExampleParams {
   double elevation0 = 0.7853981633974483;  ///< initial elevation ε of the sliding link (45°)
   double z3_0 = 0.5;                       ///< initial slider extension [m]
   double t1 = 5.0, step = 1e-3;
+  /// Build Φ1, Φ2 from symbolic expressions (expression_constraint) instead of the
+  /// hand-written ready-made kinds; the results agree to rounding (tested).
+  bool expression_constraints = false;
   /// Joint limits for the feasibility report (the paper gives none; default: unlimited).
   std::vector<JointLimits> limits;
 };
