@@ -220,7 +220,7 @@ class Reporter : public benchmark::ConsoleReporter {
         continue;
       }
       const std::string name = r.run_name.function_name;
-      const double ns = r.GetAdjustedRealTime() * to_ns(r.time_unit);
+      const double ns = r.GetAdjustedCPUTime() * to_ns(r.time_unit);
       if (r.run_type == Run::RT_Iteration) {
         stats[name].reps.push_back(ns);
         if (r.repetitions <= 1) shown.push_back(r);
@@ -265,7 +265,7 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
     return it == rep.stats.end() ? nullptr : &it->second;
   };
   std::printf("\nRatios KDL / refdyn recursive and trace / recursive (> 1: refdyn's recursive route is faster).\n");
-  std::printf("Times are per call; 'med' = median over repetitions, 'min' = fastest repetition;\n");
+  std::printf("Times are CPU time per call; 'med' = median over repetitions, 'min' = fastest repetition;\n");
   std::printf("ratios are med/med and min/min.\n\n");
   std::printf("| model | DOF | quantity | recursive med | recursive min | KDL med | KDL min | KDL/rec med | KDL/rec min | trace med | trace/rec med |\n");
   std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");

@@ -3,101 +3,674 @@
 #include "refdyn/error.hpp"
 #include "refdyn/kinematics.hpp"
 
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+// Speed notes. These kernels are the fast route; tests/trace_dynamics_test.cpp checks them
+// against the independent trace route to 1e-10 and bench/dynamics_bench.cpp times them against
+// Orocos KDL (see bench/README.md).
+//  - 3-vectors live in 4-lane SIMD registers (GCC/Clang vector extensions: one AVX instruction
+//    per vector operation, a cross product is four). The fourth lane is padding: no result
+//    lane 0–2 ever reads it, so it may hold anything finite.
+//  - Joints whose axis is ±z of the joint frame (every DH joint) are special-cased: S is a unit
+//    vector, so S·F is one lane of F, S q̇ adds to one lane of v, v ×m S q̇ is a lane swap. The
+//    sign of the axis is folded into q̇, q̈ and τ. X = P·Rz(q) costs four vector operations.
+//  - sin/cos of the joint angles are evaluated four at a time (vectorised polynomial).
+//  - The parent's quantities are carried in registers when the parent is the previous body
+//    (every serial chain) instead of making a store→load round trip through Data; trees fall
+//    back to memory.
+//  - RNEA is Featherstone's, in body frames, gravity as a base acceleration, with the body
+//    force written as f = (I_O α + ω × I_O ω + h × b,  m b + α × h + ω × (ω × h)), b = a_v + ω × v.
+//  - CRBA: for small models in body frames (composite inertia carried to the parent, the force
+//    Ic S carried up the chain); for larger ones in the world frame, where every M_ij with j an
+//    ancestor of i is a 6-term dot product S_j·(Ic_i S_i) instead of a frame-by-frame transport.
+//  - Everything is fixed-size and lives in Data: no allocation.
+
+#if !(defined(__GNUC__) || defined(__clang__))
+#error "refdyn's recursive_dynamics.cpp uses GCC/Clang vector extensions"
+#endif
+
+#define REFDYN_INLINE inline __attribute__((always_inline))
+
 namespace refdyn {
+namespace {
+
+// ---- 4-lane vectors ----------------------------------------------------------------------------
+
+typedef double v4 __attribute__((vector_size(4 * sizeof(double))));
+typedef std::int64_t v4l __attribute__((vector_size(4 * sizeof(double))));
+
+#if defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 12)
+#define REFDYN_SHUF(a, i, j, k, l) __builtin_shufflevector(a, a, i, j, k, l)
+#else
+#define REFDYN_SHUF(a, i, j, k, l) __builtin_shuffle(a, v4l{i, j, k, l})
+#endif
+
+/// x, y, z, 0 from three consecutive doubles.
+REFDYN_INLINE v4 ld3(const double* p) { return v4{p[0], p[1], p[2], 0.0}; }
+REFDYN_INLINE v4 ld3(const Vec3& a) { return ld3(a.data()); }
+/// Four consecutive doubles; only where the fourth still lies inside the same object.
+REFDYN_INLINE v4 ld4(const double* p) {
+  v4 a;
+  std::memcpy(&a, p, sizeof a);
+  return a;
+}
+REFDYN_INLINE void st3(v4 a, double* p) {
+  p[0] = a[0];
+  p[1] = a[1];
+  p[2] = a[2];
+}
+REFDYN_INLINE void st3(v4 a, Vec3& o) { st3(a, o.data()); }
+/// Writes four doubles; only where the fourth is rewritten afterwards, inside the same object.
+REFDYN_INLINE void st4(v4 a, double* p) { std::memcpy(p, &a, sizeof a); }
+REFDYN_INLINE v4 splat(double s) { return v4{s, s, s, s}; }
+template <int k>
+REFDYN_INLINE v4 bc(v4 a) {
+  return REFDYN_SHUF(a, k, k, k, k);
+}
+REFDYN_INLINE v4 yzx(v4 a) { return REFDYN_SHUF(a, 1, 2, 0, 3); }
+REFDYN_INLINE v4 cross(v4 a, v4 b) { return yzx(a * yzx(b) - yzx(a) * b); }
+REFDYN_INLINE double dot3(v4 a, v4 b) {
+  const v4 m = a * b;
+  return m[0] + m[1] + m[2];
+}
+/// ez × x = (−x.y, x.x, 0) and x × ez = (x.y, −x.x, 0).
+REFDYN_INLINE v4 x_cross_ez(v4 x) {
+  return __builtin_shufflevector(x, v4{0.0, 0.0, 0.0, 0.0}, 1, 0, 4, 4) * v4{1.0, -1.0, 1.0, 1.0};
+}
+REFDYN_INLINE v4 ez(double s) { return splat(s) * v4{0.0, 0.0, 1.0, 0.0}; }
+
+/// 3×3 matrix as three columns.
+struct M3 {
+  v4 c0, c1, c2;
+};
+REFDYN_INLINE v4 mul(const M3& A, v4 x) { return A.c0 * bc<0>(x) + A.c1 * bc<1>(x) + A.c2 * bc<2>(x); }
+REFDYN_INLINE M3 transpose(const M3& A) {
+  const v4 lo = __builtin_shufflevector(A.c0, A.c1, 0, 4, 1, 5);  // a0x a1x a0y a1y
+  const v4 hi = __builtin_shufflevector(A.c0, A.c1, 2, 6, 3, 7);  // a0z a1z . .
+  return {__builtin_shufflevector(lo, A.c2, 0, 1, 4, 7), __builtin_shufflevector(lo, A.c2, 2, 3, 5, 7),
+          __builtin_shufflevector(hi, A.c2, 0, 1, 6, 7)};
+}
+/// Columns of a Mat3 (column-major); the padding lanes of c0, c1 hold the next column's x.
+REFDYN_INLINE M3 ld(const Mat3& R) {
+  const double* d = R.data();
+  return {ld4(d), ld4(d + 3), ld3(d + 6)};
+}
+/// Columns of an SE3's rotation: the last one may over-read into p (same object).
+REFDYN_INLINE M3 ld_rot(const SE3& X) {
+  const double* d = X.R.data();
+  return {ld4(d), ld4(d + 3), ld4(d + 6)};
+}
+REFDYN_INLINE void st(const M3& A, Mat3& R) {
+  double* d = R.data();
+  st4(A.c0, d);
+  st4(A.c1, d + 3);
+  st3(A.c2, d + 6);
+}
+
+// ---- joints ------------------------------------------------------------------------------------
+
+enum class Kind : unsigned char { RevZ, PrisZ, Rev, Pris };
+
+struct JointKind {
+  Kind kind;
+  double sign;  ///< +1 or −1 for the ±z kinds
+};
+
+REFDYN_INLINE JointKind joint_kind(const Model& m, int i) {
+  const Vec3& u = m.axis[i];
+  const bool rev = m.joint_type[i] == JointType::Revolute;
+  if (u.x() == 0.0 && u.y() == 0.0) return {rev ? Kind::RevZ : Kind::PrisZ, u.z() > 0 ? 1.0 : -1.0};
+  return {rev ? Kind::Rev : Kind::Pris, 1.0};
+}
+
+/// sin and cos of four angles: Cody–Waite reduction by π/2 (three-part constant, exact products
+/// for |x| < 2^29) and Cephes' minimax polynomials on [−π/4, π/4] (about 1 ulp); branch-free,
+/// one vector instruction per step. Angles with |x| ≥ 1e6 (or not finite) take std::sin/cos.
+constexpr int kBlock = 4;
+
+REFDYN_INLINE void sincos4(v4 x, double* s, double* c) {
+  constexpr double two_over_pi = 0.636619772367581343075535053490057;
+  constexpr double P1 = 1.57079625129699707031e+00;  // π/2 = P1 + P2 + P3
+  constexpr double P2 = 7.54978941586159635335e-08;
+  constexpr double P3 = 5.39030285815811905290e-15;
+  constexpr double shifter = 6755399441055744.0;  // 1.5·2^52: x + shifter rounds x to an integer
+  const v4 t = x * two_over_pi + shifter;
+  const v4 kd = t - shifter;
+  const v4l quadrant = (v4l)(t);  // bit cast; low bits: round(2x/π) mod 4
+  const v4 r = ((x - kd * P1) - kd * P2) - kd * P3;
+  const v4 z = r * r;
+  const v4 ps = ((((1.58962301576546568060e-10 * z - 2.50507477628578072866e-8) * z +
+                   2.75573136213857245213e-6) * z - 1.98412698295895385996e-4) * z +
+                 8.33333333332211858878e-3) * z - 1.66666666666666307295e-1;
+  const v4 pc = ((((-1.13585365213876817300e-11 * z + 2.08757008419747316778e-9) * z -
+                   2.75573141792967388112e-7) * z + 2.48015872888517045348e-5) * z -
+                 1.38888888888730564116e-3) * z + 4.16666666666665929218e-2;
+  const v4 sr = r + r * z * ps;
+  const v4 cr = (1.0 - 0.5 * z) + z * z * pc;
+  const v4l swap = (quadrant & 1) != 0;
+  const v4 s_abs = swap ? cr : sr, c_abs = swap ? sr : cr;
+  const v4l sv = (v4l)(s_abs) ^ ((quadrant & 2) << 62);
+  const v4l cv = (v4l)(c_abs) ^ (((quadrant + 1) & 2) << 62);
+  std::memcpy(s, &sv, sizeof sv);
+  std::memcpy(c, &cv, sizeof cv);
+  const v4l xa = (v4l)(x) & 0x7fffffffffffffffLL;
+  const v4l small = (v4)(xa) < 1e6;  // false for NaN
+  if ((small[0] & small[1] & small[2] & small[3]) == 0)
+    for (int k = 0; k < kBlock; ++k)
+      if (!(std::abs(x[k]) < 1e6)) {
+        s[k] = std::sin(x[k]);
+        c[k] = std::cos(x[k]);
+      }
+}
+
+/// sin, cos of the joint angles q + offset of bodies b .. b+3 (zero past the end).
+REFDYN_INLINE void joint_sincos(const Model& m, const double* q, int b, double* s, double* c) {
+  v4 x;
+  if (b + kBlock <= m.nq) {
+    x = ld4(q + b) + ld4(m.offset.data() + b);
+  } else {
+    x = v4{0.0, 0.0, 0.0, 0.0};
+    for (int k = 0; b + k < m.nq; ++k) x[k] = q[b + k] + m.offset[b + k];
+  }
+  sincos4(x, s, c);
+}
+
+/// X = P_i · J_i(q_i) as registers (R columns, p), also stored in X_out. c, s: cos and sin of
+/// the joint angle (unused for prismatic joints).
+REFDYN_INLINE void joint_transform(const Model& m, int i, const JointKind& k, double qi, double c,
+                                   double s, M3& R, v4& p, SE3& X_out) {
+  const SE3& P = m.placement[i];
+  switch (k.kind) {
+    case Kind::RevZ: {
+      const M3 PR = ld_rot(P);
+      const v4 cv = splat(c), sv = splat(k.sign * s);
+      R = {cv * PR.c0 + sv * PR.c1, cv * PR.c1 - sv * PR.c0, PR.c2};
+      p = ld3(P.p);
+      break;
+    }
+    case Kind::PrisZ: {
+      R = ld_rot(P);
+      p = ld3(P.p) + splat(k.sign * (qi + m.offset[i])) * R.c2;
+      break;
+    }
+    case Kind::Rev: {  // Rodrigues: R = P.R (c 1 + s [u]x + (1-c) u uᵀ)
+      const Vec3& u = m.axis[i];
+      const Mat3 Rj = c * Mat3::Identity() + s * skew(u) + (1 - c) * u * u.transpose();
+      const Mat3 PRj = P.R * Rj;
+      R = ld(PRj);
+      p = ld3(P.p);
+      break;
+    }
+    case Kind::Pris: {
+      R = ld_rot(P);
+      p = ld3(P.p) + mul(R, ld3(m.axis[i]) * splat(qi + m.offset[i]));
+      break;
+    }
+  }
+  st(R, X_out.R);
+  st3(p, X_out.p);
+}
+
+REFDYN_INLINE void load_transform(const SE3& X, M3& R, v4& p) {
+  R = ld_rot(X);
+  p = ld3(X.p);
+}
+
+/// Inertia (m, h, I columns) in registers.
+struct In {
+  double m;
+  v4 h;
+  M3 I;
+};
+REFDYN_INLINE In ld(const Inertia& I) {
+  return {I.m, ld4(I.h.data()), {ld4(I.I.data()), ld4(I.I.data() + 3), ld3(I.I.data() + 6)}};
+}
+REFDYN_INLINE void st(const In& a, Inertia& I) {
+  I.m = a.m;
+  st4(a.h, I.h.data());  // the fourth double is I(0,0), rewritten next
+  st(a.I, I.I);
+}
+REFDYN_INLINE void add(In& a, const In& b) {
+  a.m += b.m;
+  a.h += b.h;
+  a.I.c0 += b.I.c0;
+  a.I.c1 += b.I.c1;
+  a.I.c2 += b.I.c2;
+}
+
+/// The inertia `a` (given in B) expressed in A, for X_AB = (R, p):
+///   I_A = R I Rᵀ + 2 (k·p) 1 − (p kᵀ + k pᵀ),  k = R h + ½ m p,   h_A = R h + m p.
+REFDYN_INLINE In transform(const In& a, const M3& R, v4 p) {
+  const v4 Rh = mul(R, a.h);
+  const v4 k = Rh + splat(0.5 * a.m) * p;
+  const double d = 2.0 * dot3(k, p);
+  const M3 A{mul(R, a.I.c0), mul(R, a.I.c1), mul(R, a.I.c2)};  // R I
+  const M3 Rt = transpose(R);
+  const v4 dp = splat(d);
+  In o;
+  o.m = a.m;
+  o.h = Rh + splat(a.m) * p;
+  o.I.c0 = mul(A, Rt.c0) - p * bc<0>(k) - k * bc<0>(p) + dp * v4{1.0, 0.0, 0.0, 0.0};
+  o.I.c1 = mul(A, Rt.c1) - p * bc<1>(k) - k * bc<1>(p) + dp * v4{0.0, 1.0, 0.0, 0.0};
+  o.I.c2 = mul(A, Rt.c2) - p * bc<2>(k) - k * bc<2>(p) + dp * v4{0.0, 0.0, 1.0, 0.0};
+  return o;
+}
+
+/// Joint-space component S_iᵀ f of a body-frame force (n, f).
+REFDYN_INLINE double project(const Model& m, int i, const JointKind& k, v4 n, v4 f) {
+  switch (k.kind) {
+    case Kind::RevZ: return k.sign * n[2];
+    case Kind::PrisZ: return k.sign * f[2];
+    case Kind::Rev: return dot3(ld3(m.axis[i]), n);
+    default: return dot3(ld3(m.axis[i]), f);
+  }
+}
+
+// ---- RNEA --------------------------------------------------------------------------------------
+
+/// QD: q̇ given (else zero); QDD: q̈ given (else zero). With `have_X` the joint transforms in
+/// data.liMi are reused (computed by the caller for the same q).
+template <bool QD, bool QDD>
+void rnea_impl(const Model& model, Data& data, const double* q, const double* qd, const double* qdd,
+               bool gravity, double* out, bool have_X) {
+  const int n = model.nq;
+  const v4 a0 = gravity ? -ld3(model.gravity) : splat(0.0);
+  const v4 zero = splat(0.0);
+  v4 w = zero, vv = zero, aw = zero, av = zero;  // motion of the previous body
+  double sn[kBlock], cs[kBlock];
+  for (int i = 0; i < n; ++i) {
+    const JointKind k = joint_kind(model, i);
+    M3 R;
+    v4 p;
+    if (have_X) {
+      load_transform(data.liMi[i], R, p);
+    } else {
+      if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
+      joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
+    }
+    const M3 Rt = transpose(R);
+    const int par = model.parent[i];
+    if (par >= 0) {
+      if (par != i - 1) {  // tree: the parent's motion from memory
+        aw = ld3(data.a[par].w);
+        av = ld3(data.a[par].v);
+        if constexpr (QD) {
+          w = ld3(data.v[par].w);
+          vv = ld3(data.v[par].v);
+        }
+      }
+      av = mul(Rt, av - cross(p, aw));
+      aw = mul(Rt, aw);
+      if constexpr (QD) {
+        vv = mul(Rt, vv - cross(p, w));
+        w = mul(Rt, w);
+      }
+    } else {
+      aw = zero;
+      av = mul(Rt, a0);
+      if constexpr (QD) {
+        w = zero;
+        vv = zero;
+      }
+    }
+    // Joint terms: v += S q̇, a += v ×m S q̇ + S q̈.
+    const double dq = QD ? k.sign * qd[i] : 0.0;
+    const double ddq = QDD ? k.sign * qdd[i] : 0.0;
+    switch (k.kind) {
+      case Kind::RevZ:
+        if constexpr (QD) {
+          const v4 d = splat(dq);
+          aw += d * x_cross_ez(w);
+          av += d * x_cross_ez(vv);
+          w += ez(dq);
+        }
+        if constexpr (QDD) aw += ez(ddq);
+        break;
+      case Kind::PrisZ:
+        if constexpr (QD) {
+          av += splat(dq) * x_cross_ez(w);
+          vv += ez(dq);
+        }
+        if constexpr (QDD) av += ez(ddq);
+        break;
+      case Kind::Rev: {
+        const v4 u = ld3(model.axis[i]);
+        if constexpr (QD) {
+          const v4 d = splat(dq);
+          aw += d * cross(w, u);
+          av += d * cross(vv, u);
+          w += d * u;
+        }
+        if constexpr (QDD) aw += splat(ddq) * u;
+        break;
+      }
+      case Kind::Pris: {
+        const v4 u = ld3(model.axis[i]);
+        if constexpr (QD) {
+          const v4 d = splat(dq);
+          av += d * cross(w, u);
+          vv += d * u;
+        }
+        if constexpr (QDD) av += splat(ddq) * u;
+        break;
+      }
+    }
+    // f = I a + v ×* (I v) = (I_O α + ω × I_O ω + h × b,  m b + α × h + ω × (ω × h)).
+    const In I = ld(model.inertia[i]);
+    v4 fn, ff;
+    if constexpr (QD) {
+      const v4 b = av + cross(w, vv);
+      const v4 wh = cross(w, I.h);
+      fn = mul(I.I, aw) + cross(w, mul(I.I, w)) + cross(I.h, b);
+      ff = splat(I.m) * b + cross(aw, I.h) + cross(w, wh);
+      st3(w, data.v[i].w);
+      st3(vv, data.v[i].v);
+    } else {
+      fn = mul(I.I, aw) + cross(I.h, av);
+      ff = splat(I.m) * av + cross(aw, I.h);
+      data.v[i].w.setZero();
+      data.v[i].v.setZero();
+    }
+    st3(aw, data.a[i].w);
+    st3(av, data.a[i].v);
+    st3(fn, data.f[i].n);
+    st3(ff, data.f[i].f);
+  }
+  // Backward: f_i (total) = own + children's; the child i+1's share is carried in registers.
+  bool carry = false;
+  v4 cn = zero, cf = zero;
+  for (int i = n - 1; i >= 0; --i) {
+    v4 fn = ld3(data.f[i].n), ff = ld3(data.f[i].f);
+    if (carry) {
+      fn += cn;
+      ff += cf;
+      st3(fn, data.f[i].n);
+      st3(ff, data.f[i].f);
+    }
+    out[i] = project(model, i, joint_kind(model, i), fn, ff);
+    const int par = model.parent[i];
+    carry = false;
+    if (par >= 0) {
+      M3 R;
+      v4 p;
+      load_transform(data.liMi[i], R, p);
+      const v4 tf = mul(R, ff);
+      const v4 tn = mul(R, fn) + cross(p, tf);
+      if (par == i - 1) {
+        cn = tn;
+        cf = tf;
+        carry = true;
+      } else {
+        st3(ld3(data.f[par].n) + tn, data.f[par].n);
+        st3(ld3(data.f[par].f) + tf, data.f[par].f);
+      }
+    }
+  }
+}
+
+void rnea_dispatch(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
+                   const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out, bool have_X) {
+  const double* pq = q.data();
+  const double* pqd = qd ? qd->data() : nullptr;
+  const double* pqdd = qdd ? qdd->data() : nullptr;
+  double* o = out.data();
+  if (qd && qdd) rnea_impl<true, true>(model, data, pq, pqd, pqdd, gravity, o, have_X);
+  else if (qd) rnea_impl<true, false>(model, data, pq, pqd, nullptr, gravity, o, have_X);
+  else if (qdd) rnea_impl<false, true>(model, data, pq, nullptr, pqdd, gravity, o, have_X);
+  else rnea_impl<false, false>(model, data, pq, nullptr, nullptr, gravity, o, have_X);
+}
+
+// ---- CRBA --------------------------------------------------------------------------------------
+
+/// F = I S for the motion subspace S of body i in its own frame.
+REFDYN_INLINE void inertia_times_axis(const Model& m, int i, const JointKind& k, const In& I, v4& Fn, v4& Ff,
+                                      double& Mii) {
+  switch (k.kind) {
+    case Kind::RevZ: {  // S = (ez, 0): F = (I ez, ez × h)
+      const v4 s = splat(k.sign);
+      Fn = s * I.I.c2;
+      Ff = -s * x_cross_ez(I.h);
+      Mii = I.I.c2[2];
+      break;
+    }
+    case Kind::PrisZ: {  // S = (0, ez): F = (h × ez, m ez)
+      const v4 s = splat(k.sign);
+      Fn = s * x_cross_ez(I.h);
+      Ff = ez(k.sign * I.m);
+      Mii = I.m;
+      break;
+    }
+    case Kind::Rev: {
+      const v4 u = ld3(m.axis[i]);
+      Fn = mul(I.I, u);
+      Ff = cross(u, I.h);
+      Mii = dot3(u, Fn);
+      break;
+    }
+    case Kind::Pris: {
+      const v4 u = ld3(m.axis[i]);
+      Fn = cross(I.h, u);
+      Ff = splat(I.m) * u;
+      Mii = dot3(u, Ff);
+      break;
+    }
+  }
+}
+
+/// Body-frame CRBA (Featherstone's): best for small models.
+void crba_local(const Model& model, Data& data, const double* q) {
+  const int n = model.nq;
+  bool chain = true;
+  double sn[kBlock], cs[kBlock];
+  for (int i = 0; i < n; ++i) {
+    const JointKind k = joint_kind(model, i);
+    M3 R;
+    v4 p;
+    if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
+    joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
+    chain &= model.parent[i] == i - 1;
+  }
+  if (!chain)  // trees accumulate the composites of non-adjacent children in data.Ic
+    for (int i = 0; i < n; ++i) data.Ic[i] = model.inertia[i];
+  double* M = data.M.data();
+  const Eigen::Index ld_M = data.M.rows();
+  bool carry = false;
+  In c{};
+  for (int i = n - 1; i >= 0; --i) {
+    In Ic = ld(chain ? model.inertia[i] : data.Ic[i]);
+    if (carry) add(Ic, c);
+    st(Ic, data.Ic[i]);
+    const JointKind k = joint_kind(model, i);
+    v4 Fn, Ff;
+    double Mii;
+    inertia_times_axis(model, i, k, Ic, Fn, Ff, Mii);
+    M[i + ld_M * i] = Mii;
+    for (int j = i; model.parent[j] >= 0;) {
+      M3 R;
+      v4 p;
+      load_transform(data.liMi[j], R, p);
+      Ff = mul(R, Ff);
+      Fn = mul(R, Fn) + cross(p, Ff);
+      j = model.parent[j];
+      const double mij = project(model, j, joint_kind(model, j), Fn, Ff);
+      M[i + ld_M * j] = mij;
+      M[j + ld_M * i] = mij;
+    }
+    const int par = model.parent[i];
+    carry = false;
+    if (par >= 0) {
+      M3 R;
+      v4 p;
+      load_transform(data.liMi[i], R, p);
+      const In T = transform(Ic, R, p);
+      if (par == i - 1) {
+        c = T;
+        carry = true;
+      } else {
+        In Ip = ld(data.Ic[par]);
+        add(Ip, T);
+        st(Ip, data.Ic[par]);
+      }
+    }
+  }
+}
+
+/// World-frame CRBA: composite inertias and joint axes in {0}; best for larger models.
+/// data.Ic ends holding the composites expressed in {0}, data.oMi the body poses.
+void crba_world(const Model& model, Data& data, const double* q) {
+  const int n = model.nq;
+  double sn[kBlock], cs[kBlock];
+  M3 OR{};
+  v4 Op{};
+  for (int i = 0; i < n; ++i) {
+    const JointKind k = joint_kind(model, i);
+    M3 R;
+    v4 p;
+    if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
+    joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
+    const int par = model.parent[i];
+    if (par < 0) {
+      OR = R;
+      Op = p;
+    } else {
+      if (par != i - 1) load_transform(data.oMi[par], OR, Op);
+      Op += mul(OR, p);
+      OR = M3{mul(OR, R.c0), mul(OR, R.c1), mul(OR, R.c2)};
+    }
+    st(OR, data.oMi[i].R);
+    st3(Op, data.oMi[i].p);
+    st(transform(ld(model.inertia[i]), OR, Op), data.Ic[i]);
+  }
+  double* M = data.M.data();
+  const Eigen::Index ld_M = data.M.rows();
+  bool carry = false;
+  In c{};
+  for (int i = n - 1; i >= 0; --i) {
+    In Ic = ld(data.Ic[i]);
+    if (carry) {
+      add(Ic, c);
+      st(Ic, data.Ic[i]);
+    }
+    const JointKind k = joint_kind(model, i);
+    M3 OR_i;
+    v4 Op_i;
+    load_transform(data.oMi[i], OR_i, Op_i);
+    v4 sw, sv;  // S_i in {0}
+    switch (k.kind) {
+      case Kind::RevZ: sw = splat(k.sign) * OR_i.c2; sv = cross(Op_i, sw); break;
+      case Kind::PrisZ: sw = splat(0.0); sv = splat(k.sign) * OR_i.c2; break;
+      case Kind::Rev: sw = mul(OR_i, ld3(model.axis[i])); sv = cross(Op_i, sw); break;
+      default: sw = splat(0.0); sv = mul(OR_i, ld3(model.axis[i])); break;
+    }
+    // F = Ic S = (I sw + h × sv, m sv − h × sw).
+    const v4 Fn = mul(Ic.I, sw) + cross(Ic.h, sv);
+    const v4 Ff = splat(Ic.m) * sv + cross(sw, Ic.h);
+    M[i + ld_M * i] = dot3(sw, Fn) + dot3(sv, Ff);
+    for (int j = model.parent[i]; j >= 0; j = model.parent[j]) {
+      const JointKind kj = joint_kind(model, j);
+      const SE3& Oj = data.oMi[j];
+      double mij;
+      switch (kj.kind) {
+        case Kind::RevZ:  // S_j = (z, p × z): S_j·F = z·(Fn − p × Ff)
+          mij = kj.sign * dot3(ld3(Oj.R.data() + 6), Fn - cross(ld3(Oj.p), Ff));
+          break;
+        case Kind::PrisZ:
+          mij = kj.sign * dot3(ld3(Oj.R.data() + 6), Ff);
+          break;
+        case Kind::Rev: {
+          const v4 u = mul(ld_rot(Oj), ld3(model.axis[j]));
+          mij = dot3(u, Fn - cross(ld3(Oj.p), Ff));
+          break;
+        }
+        default:
+          mij = dot3(mul(ld_rot(Oj), ld3(model.axis[j])), Ff);
+      }
+      M[i + ld_M * j] = mij;
+      M[j + ld_M * i] = mij;
+    }
+    const int par = model.parent[i];
+    carry = false;
+    if (par == i - 1) {
+      c = Ic;
+      carry = true;
+    } else if (par >= 0) {
+      In Ip = ld(data.Ic[par]);
+      add(Ip, Ic);
+      st(Ip, data.Ic[par]);
+    }
+  }
+}
+
+/// Below this many bodies the body-frame CRBA is faster (bench/dynamics_bench.cpp).
+constexpr int kWorldCrbaFrom = 10;
+
+void crba_impl(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  if (model.nq < kWorldCrbaFrom) crba_local(model, data, q.data());
+  else crba_world(model, data, q.data());
+}
+
+/// Argument checks with a fast success path; on failure the library's checks produce the
+/// error message (and throw).
+REFDYN_INLINE bool fine(const Eigen::VectorXd& x, int n) { return x.size() == n && x.allFinite(); }
+REFDYN_INLINE void check_q_fast(const Model& model, const Eigen::VectorXd& q) {
+  if (!fine(q, model.nq)) model.check_q(q);
+}
+REFDYN_INLINE void check_vector_fast(const char* what, const Eigen::VectorXd& x, int n) {
+  if (!fine(x, n)) check_vector(what, x, n);
+}
+
+}  // namespace
+
 namespace unchecked {
 
 void rnea(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
           const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out) {
-  const int n = model.nq;
-  // Gravity enters as a fictitious base acceleration a_0 = −g (Featherstone §5.3).
-  const Motion a0{Vec3::Zero(), gravity ? Vec3(-model.gravity) : Vec3::Zero()};
-  for (int i = 0; i < n; ++i) {
-    const SE3& X = data.liMi[i] = joint_placement(model, i, q[i]);
-    const int p = model.parent[i];
-    const Motion S = model.motion_subspace(i);
-    Motion& v = data.v[i];
-    Motion& a = data.a[i];
-    if (qd) {
-      const Motion vj = S * (*qd)[i];
-      v = (p < 0 ? Motion::Zero() : X.act_inv(data.v[p])) + vj;
-      a = X.act_inv(p < 0 ? a0 : data.a[p]) + v.cross(vj);
-    } else {
-      v = Motion::Zero();
-      a = X.act_inv(p < 0 ? a0 : data.a[p]);
-    }
-    if (qdd) a += S * (*qdd)[i];
-    const Inertia& I = model.inertia[i];
-    data.f[i] = I * a;
-    if (qd) data.f[i] += cross_force(v, I * v);
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    out[i] = dot(model.motion_subspace(i), data.f[i]);
-    const int p = model.parent[i];
-    if (p >= 0) data.f[p] += data.liMi[i].act(data.f[i]);
-  }
+  rnea_dispatch(model, data, q, qd, qdd, gravity, out, false);
 }
 
-void crba(const Model& model, Data& data, const Eigen::VectorXd& q) {
-  const int n = model.nq;
-  for (int i = 0; i < n; ++i) {
-    data.liMi[i] = joint_placement(model, i, q[i]);
-    data.Ic[i] = model.inertia[i];
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    const Motion S = model.motion_subspace(i);
-    Force F = data.Ic[i] * S;
-    data.M(i, i) = dot(S, F);
-    int j = i;
-    while (model.parent[j] >= 0) {
-      F = data.liMi[j].act(F);
-      j = model.parent[j];
-      const double mij = dot(model.motion_subspace(j), F);
-      data.M(i, j) = mij;
-      data.M(j, i) = mij;
-    }
-    const int p = model.parent[i];
-    if (p >= 0) data.Ic[p] += data.Ic[i].transformed(data.liMi[i]);
-  }
-}
+void crba(const Model& model, Data& data, const Eigen::VectorXd& q) { crba_impl(model, data, q); }
 
 }  // namespace unchecked
 
 const Eigen::VectorXd& inverse_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
                                         const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd) {
-  model.check_q(q);
-  check_vector("qd", qd, model.nv);
-  check_vector("qdd", qdd, model.nv);
-  unchecked::rnea(model, data, q, &qd, &qdd, true, data.tau);
+  check_q_fast(model, q);
+  check_vector_fast("qd", qd, model.nv);
+  check_vector_fast("qdd", qdd, model.nv);
+  rnea_impl<true, true>(model, data, q.data(), qd.data(), qdd.data(), true, data.tau.data(), false);
   return data.tau;
 }
 
 const Eigen::VectorXd& bias_forces(const Model& model, Data& data, const Eigen::VectorXd& q,
                                    const Eigen::VectorXd& qd) {
-  model.check_q(q);
-  check_vector("qd", qd, model.nv);
-  unchecked::rnea(model, data, q, &qd, nullptr, true, data.nle);
+  check_q_fast(model, q);
+  check_vector_fast("qd", qd, model.nv);
+  rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), false);
   return data.nle;
 }
 
 const Eigen::VectorXd& gravity_forces(const Model& model, Data& data, const Eigen::VectorXd& q) {
-  model.check_q(q);
-  unchecked::rnea(model, data, q, nullptr, nullptr, true, data.g);
+  check_q_fast(model, q);
+  rnea_impl<false, false>(model, data, q.data(), nullptr, nullptr, true, data.g.data(), false);
   return data.g;
 }
 
 const Eigen::MatrixXd& mass_matrix(const Model& model, Data& data, const Eigen::VectorXd& q) {
-  model.check_q(q);
-  unchecked::crba(model, data, q);
+  check_q_fast(model, q);
+  crba_impl(model, data, q);
   return data.M;
 }
 
 const Eigen::VectorXd& forward_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
                                         const Eigen::VectorXd& qd, const Eigen::VectorXd& tau) {
-  model.check_q(q);
-  check_vector("qd", qd, model.nv);
-  check_vector("tau", tau, model.nv);
-  unchecked::crba(model, data, q);
-  unchecked::rnea(model, data, q, &qd, nullptr, true, data.nle);
+  check_q_fast(model, q);
+  check_vector_fast("qd", qd, model.nv);
+  check_vector_fast("tau", tau, model.nv);
+  crba_impl(model, data, q);
+  // The joint transforms in data.liMi are those of this q: reuse them.
+  rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), true);
   data.llt.compute(data.M);
   if (data.llt.info() != Eigen::Success)
     throw Error("forward_dynamics: the mass matrix is not positive definite at this q "

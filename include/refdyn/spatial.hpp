@@ -124,10 +124,35 @@ struct Inertia {
   /// Momentum  I·v.
   Force operator*(const Motion& v) const { return {I * v.w + h.cross(v.v), m * v.v + v.w.cross(h)}; }
   /// This inertia (given in B) expressed in A, for X = X_AB.
+  ///   I_A = R I Rᵀ − ([Rh]×[p]× + [p]×[Rh]×) − m [p]×²  =  R I Rᵀ + 2 (k·p) 1 − (p kᵀ + k pᵀ)
+  /// with k = R h + ½ m p (from [a]×[b]× = b aᵀ − (a·b) 1); only one triangle is computed.
   Inertia transformed(const SE3& X) const {
-    Vec3 Rh = X.R * h;
-    Mat3 sp = skew(X.p), sRh = skew(Rh);
-    return {m, Rh + m * X.p, X.R * I * X.R.transpose() - (sRh * sp + sp * sRh) - m * sp * sp};
+    Inertia out;
+    transform_into(X, out);
+    return out;
+  }
+  /// Same as transformed(), written into `out` (which must not alias *this).
+  void transform_into(const SE3& X, Inertia& out) const {
+    const Mat3& R = X.R;
+    const Vec3& p = X.p;
+    const Vec3 Rh = R * h;
+    const Vec3 k = Rh + (0.5 * m) * p;
+    const double d = 2.0 * k.dot(p);
+    Mat3 A;
+    A.noalias() = R * I;  // R I; then (R I) Rᵀ on one triangle
+    Mat3& J = out.I;
+    for (int c = 0; c < 3; ++c)
+      for (int r = c; r < 3; ++r) {
+        const double v = A(r, 0) * R(c, 0) + A(r, 1) * R(c, 1) + A(r, 2) * R(c, 2) -
+                         (p[r] * k[c] + k[r] * p[c]);
+        J(r, c) = v;
+        J(c, r) = v;
+      }
+    J(0, 0) += d;
+    J(1, 1) += d;
+    J(2, 2) += d;
+    out.m = m;
+    out.h = Rh + m * p;
   }
   Vec3 com() const { return m > 0 ? Vec3(h / m) : Vec3::Zero(); }
 };
