@@ -1,52 +1,61 @@
-// refdyn command line. Catches refdyn::Error once, prints one line, exits non-zero.
+// refdyn command line. Library errors (refdyn::Error) are caught once here, printed as one
+// line, and mapped to the documented exit codes (commands.hpp).
+#include "commands.hpp"
 #include "paper_study_output.hpp"
 #include "refdyn/error.hpp"
-#include "refdyn/models/paper_manipulator.hpp"
-#include "refdyn/recursive_dynamics.hpp"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
-#include <iostream>
-#include <numbers>
-
-namespace {
-
-[[maybe_unused]] int print_model_summary() {
-  using namespace refdyn;
-  const Model model = models::paper_manipulator();
-  Data data(model);
-  Eigen::VectorXd q(3), qd = Eigen::VectorXd::Zero(3);
-  q << 0.0, 225.0 * std::numbers::pi / 180.0, 0.5;
-  std::cout << model.summary();
-  const Eigen::IOFormat f(8, 0, "  ", "\n", "    [", "]");
-  std::cout << "initial state q = [0, 225 deg, 0.5 m], qd = 0\n";
-  std::cout << "M(q0) =\n" << mass_matrix(model, data, q).format(f) << "\n";
-  std::cout << "c(q0, qd0) + g(q0) =\n" << bias_forces(model, data, q, qd).transpose().format(f) << "\n";
-  std::cout << "g(q0) =\n" << gravity_forces(model, data, q).transpose().format(f) << "\n";
-  return 0;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
+  using namespace refdyn::app;
   CLI::App app{"refdyn: task-based motion planning from computationally generated reference dynamics"};
+  app.footer(
+      "Exit codes: 0 success; 1 bad command line; 2 invalid input (scenario, model, option): nothing written;\n"
+      "            3 internal error; 4 a run stopped early (diverged, singular partition): partial results written.\n"
+      "Scenario format: docs/scenario.md. Examples: examples/*/*.yaml.");
   app.require_subcommand(1);
-  std::string out_dir = "results";
-  auto* paper = app.add_subcommand("paper", "Run the paper's three-link manipulator study");
+  std::string file, out_dir = "results";
+  bool quiet = false;
+
+  auto* check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
+  check->add_option("file", file, "Scenario file (YAML)")->required();
+
+  auto* plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
+  plan->add_option("file", file, "Scenario file (YAML)")->required();
+  plan->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
+  plan->add_flag("-q,--quiet", quiet, "Print nothing on success");
+
+  auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
+  track->add_option("file", file, "Scenario file (YAML)")->required();
+  track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
+  track->add_flag("-q,--quiet", quiet, "Print nothing on success");
+
+  auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
+  plot->add_option("dir", out_dir, "Results folder written by plan, track or paper")->required();
+
+  auto* paper = app.add_subcommand("paper", "Run the paper's three-link manipulator study (the main job)");
   paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
+  paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int rc = app.exit(e);
+    return rc == 0 ? kOk : kUsage;
   }
   try {
-    if (*paper) return refdyn::app::run_paper_command(out_dir, false);
+    if (*check) return run_check(file);
+    if (*plan) return run_plan(file, out_dir, quiet);
+    if (*track) return run_track(file, out_dir, quiet);
+    if (*plot) return run_plot(out_dir);
+    if (*paper) return run_paper_command(out_dir, quiet);
   } catch (const refdyn::Error& e) {
     std::fprintf(stderr, "refdyn: error: %s\n", e.what());
-    return 2;
+    return kBadInput;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "refdyn: internal error: %s\n", e.what());
-    return 3;
+    std::fprintf(stderr, "refdyn: internal error: %s (please report)\n", e.what());
+    return kInternal;
   }
-  return 0;
+  return kOk;
 }
