@@ -517,10 +517,29 @@ void crba_local(const Model& model, Data& data, const double* q) {
   }
 }
 
-/// World-frame CRBA: composite inertias and joint axes in {0}; best for larger models.
-/// data.Ic ends holding the composites expressed in {0}, data.oMi the body poses.
+/// Joint axis S_i of body i in {0} (angular sw, linear sv about the world origin).
+REFDYN_INLINE void world_axis(const Model& m, int i, const JointKind& k, const M3& OR, v4 Op, v4& sw, v4& sv) {
+  switch (k.kind) {
+    case Kind::RevZ: sw = splat(k.sign) * OR.c2; sv = cross(Op, sw); break;
+    case Kind::PrisZ: sw = splat(0.0); sv = splat(k.sign) * OR.c2; break;
+    case Kind::Rev: sw = mul(OR, ld3(m.axis[i])); sv = cross(Op, sw); break;
+    default: sw = splat(0.0); sv = mul(OR, ld3(m.axis[i])); break;
+  }
+}
+
+/// Bodies whose world axes fit the stack buffer of crba_world (6 doubles each).
+constexpr int kWorldAxesOnStack = 128;
+
+/// World-frame CRBA: composite inertias and joint axes in {0}, so M_ji = S_j·(Ic_i S_i) for
+/// every ancestor j of i; best for larger models. For a serial chain the ancestors of i are
+/// 0 .. i-1 and column i above the diagonal is one vectorised pass over the axes stored by
+/// component. data.Ic ends holding the composites expressed in {0}, data.oMi the body poses.
 void crba_world(const Model& model, Data& data, const double* q) {
   const int n = model.nq;
+  // Joint axes in {0}, by component (sw.x, sw.y, sw.z, sv.x, sv.y, sv.z).
+  alignas(64) double S[6][kWorldAxesOnStack];
+  const bool axes_on_stack = n <= kWorldAxesOnStack;
+  bool chain = true;
   double sn[kBlock], cs[kBlock];
   M3 OR{};
   v4 Op{};
@@ -531,6 +550,7 @@ void crba_world(const Model& model, Data& data, const double* q) {
     if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
     joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
     const int par = model.parent[i];
+    chain &= par == i - 1;
     if (par < 0) {
       OR = R;
       Op = p;
@@ -541,54 +561,55 @@ void crba_world(const Model& model, Data& data, const double* q) {
     }
     st(OR, data.oMi[i].R);
     st3(Op, data.oMi[i].p);
-    st(transform(ld(model.inertia[i]), OR, Op), data.Ic[i]);
+    if (axes_on_stack) {
+      v4 sw, sv;
+      world_axis(model, i, k, OR, Op, sw, sv);
+      for (int c = 0; c < 3; ++c) {
+        S[c][i] = sw[c];
+        S[3 + c][i] = sv[c];
+      }
+    }
   }
+  if (!chain)  // trees accumulate the composites of non-adjacent children in data.Ic
+    for (int i = 0; i < n; ++i) data.Ic[i] = Inertia::Zero();
   double* M = data.M.data();
   const Eigen::Index ld_M = data.M.rows();
   bool carry = false;
   In c{};
   for (int i = n - 1; i >= 0; --i) {
-    In Ic = ld(data.Ic[i]);
-    if (carry) {
-      add(Ic, c);
-      st(Ic, data.Ic[i]);
-    }
-    const JointKind k = joint_kind(model, i);
     M3 OR_i;
     v4 Op_i;
     load_transform(data.oMi[i], OR_i, Op_i);
-    v4 sw, sv;  // S_i in {0}
-    switch (k.kind) {
-      case Kind::RevZ: sw = splat(k.sign) * OR_i.c2; sv = cross(Op_i, sw); break;
-      case Kind::PrisZ: sw = splat(0.0); sv = splat(k.sign) * OR_i.c2; break;
-      case Kind::Rev: sw = mul(OR_i, ld3(model.axis[i])); sv = cross(Op_i, sw); break;
-      default: sw = splat(0.0); sv = mul(OR_i, ld3(model.axis[i])); break;
-    }
+    In Ic = transform(ld(model.inertia[i]), OR_i, Op_i);
+    if (!chain) add(Ic, ld(data.Ic[i]));
+    if (carry) add(Ic, c);
+    st(Ic, data.Ic[i]);
+    const JointKind k = joint_kind(model, i);
+    v4 sw, sv;
+    world_axis(model, i, k, OR_i, Op_i, sw, sv);
     // F = Ic S = (I sw + h × sv, m sv − h × sw).
     const v4 Fn = mul(Ic.I, sw) + cross(Ic.h, sv);
     const v4 Ff = splat(Ic.m) * sv + cross(sw, Ic.h);
-    M[i + ld_M * i] = dot3(sw, Fn) + dot3(sv, Ff);
-    for (int j = model.parent[i]; j >= 0; j = model.parent[j]) {
-      const JointKind kj = joint_kind(model, j);
-      const SE3& Oj = data.oMi[j];
-      double mij;
-      switch (kj.kind) {
-        case Kind::RevZ:  // S_j = (z, p × z): S_j·F = z·(Fn − p × Ff)
-          mij = kj.sign * dot3(ld3(Oj.R.data() + 6), Fn - cross(ld3(Oj.p), Ff));
-          break;
-        case Kind::PrisZ:
-          mij = kj.sign * dot3(ld3(Oj.R.data() + 6), Ff);
-          break;
-        case Kind::Rev: {
-          const v4 u = mul(ld_rot(Oj), ld3(model.axis[j]));
-          mij = dot3(u, Fn - cross(ld3(Oj.p), Ff));
-          break;
+    double* Mi = M + ld_M * i;  // column i
+    Mi[i] = dot3(sw, Fn) + dot3(sv, Ff);
+    if (chain && axes_on_stack) {
+      const double f0 = Fn[0], f1 = Fn[1], f2 = Fn[2], f3 = Ff[0], f4 = Ff[1], f5 = Ff[2];
+      for (int j = 0; j < i; ++j)
+        Mi[j] = S[0][j] * f0 + S[1][j] * f1 + S[2][j] * f2 + S[3][j] * f3 + S[4][j] * f4 + S[5][j] * f5;
+    } else {
+      for (int j = model.parent[i]; j >= 0; j = model.parent[j]) {
+        v4 swj, svj;
+        if (axes_on_stack) {
+          swj = v4{S[0][j], S[1][j], S[2][j], 0.0};
+          svj = v4{S[3][j], S[4][j], S[5][j], 0.0};
+        } else {
+          M3 ORj;
+          v4 Opj;
+          load_transform(data.oMi[j], ORj, Opj);
+          world_axis(model, j, joint_kind(model, j), ORj, Opj, swj, svj);
         }
-        default:
-          mij = dot3(mul(ld_rot(Oj), ld3(model.axis[j])), Ff);
+        Mi[j] = dot3(swj, Fn) + dot3(svj, Ff);
       }
-      M[i + ld_M * j] = mij;
-      M[j + ld_M * i] = mij;
     }
     const int par = model.parent[i];
     carry = false;
@@ -601,10 +622,19 @@ void crba_world(const Model& model, Data& data, const double* q) {
       st(Ip, data.Ic[par]);
     }
   }
+  // Lower triangle from the upper one (rows of a column-major matrix are strided).
+  for (int i = 0; i < n; ++i) {
+    const double* Mi = M + ld_M * i;
+    if (chain) {
+      for (int j = 0; j < i; ++j) M[i + ld_M * j] = Mi[j];
+    } else {
+      for (int j = model.parent[i]; j >= 0; j = model.parent[j]) M[i + ld_M * j] = Mi[j];
+    }
+  }
 }
 
-/// Below this many bodies the body-frame CRBA is faster (bench/dynamics_bench.cpp).
-constexpr int kWorldCrbaFrom = 10;
+/// Below this many bodies the body-frame CRBA is faster (measured crossover: 6–7 bodies).
+constexpr int kWorldCrbaFrom = 7;
 
 void crba_impl(const Model& model, Data& data, const Eigen::VectorXd& q) {
   if (model.nq < kWorldCrbaFrom) crba_local(model, data, q.data());
