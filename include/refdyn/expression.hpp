@@ -1,0 +1,156 @@
+#pragma once
+/// Symbolic scalar expressions for task constraints, compiled to a fast evaluation tape.
+///
+/// A constraint such as `(x(E)/a)^2 + (y(E)/b)^2 - 1` is parsed once (GiNaC's parser, after a
+/// front end that resolves names and fixes precedence), its gradient and Hessian are derived
+/// exactly (GiNaC), and value + gradient + Hessian are compiled into one flat instruction tape
+/// over doubles with common-subexpression elimination shared across all entries. Evaluation is
+/// an interpreter loop over that tape: no GiNaC, no virtual calls, no heap allocation.
+///
+/// Syntax
+///   numbers      2, 0.5, .5, 1e-3
+///   operators    + - * / ^ (also **), unary + -, parentheses. Usual precedence: ^ binds
+///                tighter than unary minus (-x^2 = -(x^2)) and is right-associative
+///                (a^b^c = a^(b^c)); * and / are left-associative (a/b*c = (a/b)*c).
+///   functions    sin cos tan asin acos atan atan2(y,x) sinh cosh tanh asinh acosh atanh
+///                exp log sqrt abs pow(a,b) min(a,b) max(a,b)
+///                (min/max are expanded as (a+b∓|a−b|)/2; their derivatives jump at a = b)
+///   constants    pi, e (= exp(1)); a variable or parameter of the same name shadows them
+///   variables    any listed name: a plain identifier (`t`, `x`) or a call-like name
+///                `name(arg)` such as `x(E)`, `vx(E)`, `q(psi1)`. Whitespace inside is ignored:
+///                `x( E )` is the variable "x(E)". A call-like name that is listed as a variable
+///                wins over a function of the same name.
+///   parameters   identifiers given numeric values; substituted as constants before
+///                differentiation (integers exactly, other values as IEEE doubles).
+///
+/// Thread safety: an Expression is immutable after construction; evaluating one Expression from
+/// several threads at once is safe (each call uses its own scratch). Construction uses GiNaC,
+/// which is not thread-safe; constructors serialise on an internal mutex, but other GiNaC users
+/// in the same process are not covered by it.
+
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+class Expression;
+
+/// Caller-owned scratch registers for Expression::evaluate. Sized from an expression, it makes
+/// evaluation allocation-free whatever the tape size. One workspace per thread; it may be
+/// reused for any expression whose register count fits (it grows, allocating, if it does not).
+class ExpressionWorkspace {
+ public:
+  ExpressionWorkspace() = default;
+  explicit ExpressionWorkspace(const Expression& e);
+  /// Grows (never shrinks) to fit `e`.
+  void reserve_for(const Expression& e);
+  std::size_t size() const { return registers_.size(); }
+
+ private:
+  friend class Expression;
+  std::vector<double> registers_;
+};
+
+/// Construction options beyond the derivative order.
+struct ExpressionOptions {
+  /// 0 (value only), 1 (+ gradient) or 2 (+ Hessian).
+  int derivative_order = 2;
+  /// Use a closed-form kernel when the structure allows it instead of interpreting the tape.
+  /// Currently: expressions with a constant Hessian (polynomials of degree <= 2 in at most 8
+  /// used variables, e.g. ellipse/sphere/plane constraints), evaluated as
+  /// value = c0 + xᵀ(b + A x / 2), gradient = b + A x, Hessian = A. The kernel is checked
+  /// against the tape at construction. false: always the tape (tests, benchmarks).
+  bool specialize = true;
+};
+
+class Expression {
+ public:
+  /// Parses and compiles `text`.
+  /// `variables`: the argument order of evaluate(); names as written in the text (whitespace is
+  ///   ignored). `parameters`: named constants. `derivative_order`: 0 (value only),
+  ///   1 (+ gradient) or 2 (+ Hessian).
+  /// Throws refdyn::Error on a syntax error, an unknown identifier, a bad function call, a
+  /// NaN/infinite parameter, a constant sub-expression that is infinite (e.g. division by zero)
+  /// or not a real number (e.g. sqrt(-1)), duplicate/ill-formed variable names, a name that is
+  /// both a variable and a parameter, or a derivative order outside 0..2.
+  Expression(const std::string& text, const std::vector<std::string>& variables,
+             const std::map<std::string, double>& parameters = {}, int derivative_order = 2);
+  Expression(const std::string& text, const std::vector<std::string>& variables,
+             const std::map<std::string, double>& parameters, const ExpressionOptions& options);
+
+  /// Number of variables n (the length of x in evaluate()).
+  int num_variables() const;
+  /// Variable names in argument order, whitespace-stripped.
+  const std::vector<std::string>& variables() const;
+  /// Indices of the variables the expression depends on, ascending (gradient sparsity).
+  std::vector<int> used_variables() const;
+  int derivative_order() const;
+  /// The source text as given.
+  const std::string& source() const;
+
+  /// Value at x (size n). Runs only the value part of the tape.
+  double value(const double* x) const;
+  /// Value, and optionally the gradient (grad, size n) and Hessian (hess, n×n, symmetric, so
+  /// row- and column-major alike). Pass nullptr to skip either. Entries for variables the
+  /// expression does not use are written as 0. Requires derivative_order() >= 1 for grad and
+  /// >= 2 for hess (else throws Error). Does not allocate if the tape needs at most
+  /// kStackRegisters registers; larger tapes use a per-thread buffer that allocates once per
+  /// thread and size (use the workspace overload to avoid that).
+  void evaluate(const double* x, double& value, double* grad, double* hess) const;
+  /// As above with caller-provided scratch: never allocates if `ws` was sized for this
+  /// expression (ExpressionWorkspace(expr) or reserve_for(expr)).
+  void evaluate(const double* x, double& value, double* grad, double* hess,
+                ExpressionWorkspace& ws) const;
+
+  /// Canonical GiNaC printout of the expression after parameter substitution.
+  std::string text() const;
+  /// ∂/∂x_i as text ("0" for unused variables). Requires derivative_order() >= 1.
+  std::string derivative_text(int i) const;
+  /// ∂²/∂x_i∂x_j as text. Requires derivative_order() >= 2.
+  std::string second_derivative_text(int i, int j) const;
+
+  /// Diagnostics: number of tape instructions (after CSE and constant folding) and number of
+  /// registers one evaluation needs.
+  int tape_size() const;
+  int register_count() const;
+  /// Tape size the same expression would have without common-subexpression elimination (every
+  /// occurrence compiled separately); for tests and documentation of the CSE gain.
+  int tape_size_without_cse() const;
+  /// Human-readable listing of the tape (one instruction per line).
+  std::string tape_listing() const;
+  /// True if evaluation uses the closed-form quadratic kernel (see ExpressionOptions).
+  bool is_quadratic() const;
+
+  static constexpr int kStackRegisters = 256;
+
+  struct Impl;
+  /// Evaluation entry point chosen at construction (quadratic kernel or tape interpreter);
+  /// scratch: registers for the interpreter, nullptr for its own stack buffer.
+  using Kernel = void (*)(const Impl& impl, const double* x, double& value, double* grad,
+                          double* hess, double* scratch);
+
+ private:
+  [[noreturn]] void throw_order_error(bool grad) const;
+
+  std::shared_ptr<const Impl> impl_;
+  const Impl* raw_ = nullptr;  // impl_.get(), saves a load in the hot path
+  Kernel kernel_ = nullptr;
+  int order_ = 0;
+};
+
+inline double Expression::value(const double* x) const {
+  double v;
+  kernel_(*raw_, x, v, nullptr, nullptr, nullptr);
+  return v;
+}
+
+inline void Expression::evaluate(const double* x, double& value, double* grad,
+                                 double* hess) const {
+  if ((grad && order_ < 1) || (hess && order_ < 2)) throw_order_error(grad && order_ < 1);
+  kernel_(*raw_, x, value, grad, hess, nullptr);
+}
+
+}  // namespace refdyn
