@@ -414,9 +414,9 @@ namespace {
 
 #define RD_U (p->c * r[p->a] + p->d)
 // OwnStack: registers on this function's stack (the program needs at most kStackRegisters),
-// else in `scratch`. No auto-vectorisation: the interpreter's small loops are shorter scalar.
+// else in `scratch`.
 template <bool OwnStack>
-__attribute__((optimize("no-tree-vectorize"))) void interpret(
+void interpret(
     const Expression::Impl& m, const double* __restrict x, double& value, double* grad,
     double* hess, double* scratch) {
   double own[OwnStack ? Expression::kStackRegisters : 1];
