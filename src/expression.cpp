@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <functional>
+#include <initializer_list>
 #include <mutex>
 #include <queue>
 #include <set>
@@ -74,7 +75,15 @@ enum class Op : std::uint8_t {
   ValueOut,   // value = r[a]; return unless a derivative is wanted
   ValueOutC,  // value = c;    return unless a derivative is wanted
   GradOut,    // if grad: write output block a into grad; return unless hess is wanted
+  GradOut1,   // as GradOut for a dense gradient of 1..4 entries with sources from b
+  GradOut2,
+  GradOut3,
+  GradOut4,
   HessOut,    // write output block a into hess; return
+  HessOut1,   // as HessOut for a dense Hessian of 1, 4, 9, 16 entries with sources from b
+  HessOut4,
+  HessOut9,
+  HessOut16,
   End,        // return
   Count
 };
@@ -94,7 +103,9 @@ constexpr std::array<OpInfo, static_cast<int>(Op::Count)> kOpInfo{{
     {"acos", 1, 2},   {"atan", 1, 2},   {"sinh", 1, 2},     {"cosh", 1, 2},    {"tanh", 1, 2},
     {"asinh", 1, 2},  {"acosh", 1, 2},  {"atanh", 1, 2},    {"exp", 1, 2},     {"log", 1, 2},
     {"abs", 1, 2},    {"loadx", 0, 0}, {"value_out", 1, 0}, {"value_out_c", 0, 1},
-    {"grad_out", 0, 0}, {"hess_out", 0, 0}, {"end", 0, 0},
+    {"grad_out", 0, 0}, {"grad_out", 0, 0}, {"grad_out", 0, 0}, {"grad_out", 0, 0},
+    {"grad_out", 0, 0}, {"hess_out", 0, 0}, {"hess_out", 0, 0}, {"hess_out", 0, 0},
+    {"hess_out", 0, 0}, {"hess_out", 0, 0}, {"end", 0, 0},
 }};
 
 const OpInfo& info(Op op) { return kOpInfo[static_cast<int>(op)]; }
@@ -405,14 +416,31 @@ namespace {
     if (!hess) return;                                                                \
   }                                                                                   \
   RD_NEXT;                                                                            \
+  RD_OP(GradOut1) { RD_GRAD_DENSE(1); }                                               \
+  RD_NEXT;                                                                            \
+  RD_OP(GradOut2) { RD_GRAD_DENSE(2); }                                               \
+  RD_NEXT;                                                                            \
+  RD_OP(GradOut3) { RD_GRAD_DENSE(3); }                                               \
+  RD_NEXT;                                                                            \
+  RD_OP(GradOut4) { RD_GRAD_DENSE(4); }                                               \
+  RD_NEXT;                                                                            \
   RD_OP(HessOut) {                                                                    \
     write_block(pv.blocks[p->a], pv, r, hess);                                        \
     return;                                                                           \
   }                                                                                   \
-  RD_NEXT;                                                                            \
+  RD_OP(HessOut1) { RD_HESS_DENSE(1); }                                               \
+  RD_OP(HessOut4) { RD_HESS_DENSE(4); }                                               \
+  RD_OP(HessOut9) { RD_HESS_DENSE(9); }                                               \
+  RD_OP(HessOut16) { RD_HESS_DENSE(16); }                                             \
   RD_OP(End) { return; }
 
 #define RD_U (p->c * r[p->a] + p->d)
+#define RD_GRAD_DENSE(N)                                              \
+  if (grad) write_dense<N>(pv.sources + p->b, pv.pool, r, grad); \
+  if (!hess) return
+#define RD_HESS_DENSE(N)                                 \
+  write_dense<N>(pv.sources + p->b, pv.pool, r, hess); \
+  return
 // OwnStack: registers on this function's stack (the program needs at most kStackRegisters),
 // else in `scratch`.
 template <bool OwnStack>
@@ -431,7 +459,9 @@ void interpret(
       &&L_Const,  &&L_Sqrt,   &&L_Sin,    &&L_Cos,     &&L_SinCos,  &&L_Tan,
       &&L_Asin,   &&L_Acos,   &&L_Atan,   &&L_Sinh,    &&L_Cosh,    &&L_Tanh,
       &&L_Asinh,  &&L_Acosh,  &&L_Atanh,  &&L_Exp,     &&L_Log,     &&L_Abs,
-      &&L_LoadX,  &&L_ValueOut, &&L_ValueOutC, &&L_GradOut, &&L_HessOut, &&L_End};
+      &&L_LoadX,  &&L_ValueOut, &&L_ValueOutC, &&L_GradOut, &&L_GradOut1, &&L_GradOut2,
+      &&L_GradOut3, &&L_GradOut4, &&L_HessOut, &&L_HessOut1, &&L_HessOut4, &&L_HessOut9,
+      &&L_HessOut16, &&L_End};
   static_assert(sizeof(kLabels) / sizeof(kLabels[0]) == static_cast<int>(Op::Count));
 #define RD_OP(name) L_##name:
 #define RD_NEXT goto* kLabels[static_cast<int>((++p)->op)]
@@ -453,6 +483,8 @@ void interpret(
 #endif
 }
 #undef RD_U
+#undef RD_GRAD_DENSE
+#undef RD_HESS_DENSE
 #undef RD_HANDLERS
 
 }  // namespace
@@ -1513,6 +1545,18 @@ void lower(const SsaProgram& prog, Expression::Impl& impl) {
     return static_cast<std::uint32_t>(impl.blocks.size() - 1);
   };
 
+  // Small dense outputs get an op of their own (unrolled, no block lookup).
+  auto specialise_output = [&](Instr& ins, Op first, std::initializer_list<std::uint32_t> sizes) {
+    const OutBlock& bl = impl.blocks[ins.a];
+    int k = 0;
+    for (std::uint32_t size : sizes) {
+      if (bl.dense_n == size) {
+        ins.op = static_cast<Op>(static_cast<int>(first) + k);
+        ins.b = bl.d_off;
+      }
+      ++k;
+    }
+  };
   std::size_t stage = 0;
   auto close_stages = [&](std::size_t i) {
     while (stage < 3 && prog.stage_end[stage] == i) {
@@ -1526,12 +1570,14 @@ void lower(const SsaProgram& prog, Expression::Impl& impl) {
         std::vector<OutputSlot> regs;
         outputs(prog.grad, false, impl.grad_const, regs);
         out.push_back({Op::GradOut, 0, make_block(impl.grad_const, regs, n), 0, 0.0, 0.0});
+        specialise_output(out.back(), Op::GradOut1, {1, 2, 3, 4});
       } else if (stage == 2 && impl.order >= 2) {
         std::vector<OutputSlot> regs;
         outputs(prog.hess, true, impl.hess_const, regs);
         out.push_back({Op::HessOut, 0,
                        make_block(impl.hess_const, regs, static_cast<std::size_t>(n) * n), 0,
                        0.0, 0.0});
+        specialise_output(out.back(), Op::HessOut1, {1, 4, 9, 16});
       }
       if (stage == 2) out.push_back({Op::End, 0, 0, 0, 0.0, 0.0});
       ++stage;
@@ -1907,8 +1953,16 @@ std::string Expression::tape_listing() const {
         continue;
       case Op::ValueOut: os << "value = r" << in.a << "\n"; continue;
       case Op::ValueOutC: os << "value = " << fmt(in.c) << "\n"; continue;
-      case Op::GradOut: os << "-- gradient out:\n"; block("grad", in.a); continue;
-      case Op::HessOut: os << "-- hessian out:\n"; block("hess", in.a); continue;
+      case Op::GradOut: case Op::GradOut1: case Op::GradOut2: case Op::GradOut3:
+      case Op::GradOut4:
+        os << "-- gradient out:\n";
+        block("grad", in.a);
+        continue;
+      case Op::HessOut: case Op::HessOut1: case Op::HessOut4: case Op::HessOut9:
+      case Op::HessOut16:
+        os << "-- hessian out:\n";
+        block("hess", in.a);
+        continue;
       case Op::End: continue;
       default: break;
     }
