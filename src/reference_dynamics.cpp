@@ -112,7 +112,9 @@ bool ReferenceDynamics::factor_partition() {
     for (Eigen::Index c = 0; c < X.cols(); ++c) best = std::max(best, X.col(c).cwiseAbs().sum());
     return best;
   };
-  const double norm = norm1(Kdc_);
+  // κ = ‖A‖₁ ‖K_dc⁻¹‖₁: the sensitivity of q̇_dc = −K_dc⁻¹ K_ic q̇_ic, measured against the whole
+  // constraint Jacobian (a tiny K_dc next to a large K_ic is ill-conditioned even when m = 1).
+  const double norm = norm1(ev_.A);
   const double inorm = norm1(Kinv_);
   cond_ = norm * inorm;
   if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
@@ -148,6 +150,7 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
   for (int i = 0; i < m_; ++i) count = count * (n_ - i) / (i + 1);
   std::vector<int> best_dep;
   double best = std::numeric_limits<double>::infinity();
+  const double sigma_max_A = Eigen::JacobiSVD<Eigen::MatrixXd>(ev_.A).singularValues()(0);
   if (count <= 500) {
     std::vector<bool> sel(n_, false);
     std::fill(sel.end() - m_, sel.end(), true);
@@ -159,7 +162,7 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
       for (int c = 0; c < m_; ++c) K.col(c) = ev_.A.col(dep[c]);
       Eigen::JacobiSVD<Eigen::MatrixXd> svd(K);
       const auto& s = svd.singularValues();
-      const double c = s(m_ - 1) > 0 ? s(0) / s(m_ - 1) : std::numeric_limits<double>::infinity();
+      const double c = s(m_ - 1) > 0 ? sigma_max_A / s(m_ - 1) : std::numeric_limits<double>::infinity();
       if (c < best) {
         best = c;
         best_dep = dep;
@@ -169,6 +172,19 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(ev_.A);
     for (int i = 0; i < m_; ++i) best_dep.push_back(qr.colsPermutation().indices()[i]);
     std::sort(best_dep.begin(), best_dep.end());
+    if (qr.rank() == m_) {
+      Eigen::MatrixXd K(m_, m_);
+      for (int c = 0; c < m_; ++c) K.col(c) = ev_.A.col(best_dep[c]);
+      const auto sv = Eigen::JacobiSVD<Eigen::MatrixXd>(K).singularValues();
+      best = sv(m_ - 1) > 0 ? sigma_max_A / sv(m_ - 1) : best;
+    }
+  }
+  if (best_dep.size() != static_cast<size_t>(m_) || !std::isfinite(best)) {
+    std::string rows;
+    for (int r = 0; r < m_; ++r) rows += (r ? ", " : "") + constraints_.row_name(r);
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the constraint Jacobian of [" + rows +
+                                  "] is rank-deficient: no choice of dependent coordinates gives a regular K_dc "
+                                  "(hint: remove redundant constraints or start away from this configuration)");
   }
   std::vector<int> ind;
   for (int i = 0; i < n_; ++i)

@@ -33,12 +33,25 @@ void trace_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q) 
   }
 }
 
+namespace {
+void check_index(const Model& model, int k, const char* what) {
+  if (k < 0 || k >= model.nq)
+    throw Error(expected_got(what, "an index in 0 .. " + std::to_string(model.nq - 1), std::to_string(k),
+                             "bodies and joints are numbered in model order"));
+}
+}  // namespace
+
 Mat4 trace_dT(const Model& model, const Data& data, int l, int i) {
+  check_index(model, l, "trace_dT body index l");
+  check_index(model, i, "trace_dT joint index i");
   if (!in_support(model, l, i)) return Mat4::Zero();
   return data.D[i] * data.T[l];
 }
 
 Mat4 trace_ddT(const Model& model, const Data& data, int l, int i, int j) {
+  check_index(model, l, "trace_ddT body index l");
+  check_index(model, i, "trace_ddT joint index i");
+  check_index(model, j, "trace_ddT joint index j");
   if (!in_support(model, l, i) || !in_support(model, l, j)) return Mat4::Zero();
   // Both are ancestors of l, so one is an ancestor of the other; the ancestor's D goes left.
   const int a = std::min(i, j), b = std::max(i, j);

@@ -52,7 +52,7 @@ struct ReferenceDynamicsOptions {
   /// Re-choose the partition automatically when K_dc becomes ill-conditioned instead of
   /// stopping with an error.
   bool automatic_partition = false;
-  double max_condition = 1e8;        ///< largest accepted 1-norm condition number of K_dc
+  double max_condition = 1e8;        ///< largest accepted κ = ‖A‖₁‖K_dc⁻¹‖₁ (see partition_condition)
   bool paper_literal_forces = false; ///< see the header comment
   /// Throws refdyn::Error naming the bad field.
   void validate() const;
@@ -89,7 +89,9 @@ class ReferenceDynamics {
   const Eigen::VectorXd& bias() const { return data_.nle; }        ///< c + g
   const Eigen::MatrixXd& mass() const { return data_.M; }
   const ConstraintEval& constraints() const { return ev_; }
-  double partition_condition() const { return cond_; }             ///< 1-norm cond(K_dc)
+  /// κ = ‖A‖₁ ‖K_dc⁻¹‖₁ at the last evaluation: K_dc's conditioning measured against the whole
+  /// constraint Jacobian (so a tiny K_dc next to a large K_ic counts as ill-conditioned).
+  double partition_condition() const { return cond_; }
   const std::vector<int>& independent() const { return ind_; }
   const std::vector<int>& dependent() const { return dep_; }
   Data& data() { return data_; }

@@ -1,0 +1,54 @@
+#pragma once
+/// URDF loading (with urdfdom) into refdyn's editable ModelDescription.
+///
+/// Mapping, per URDF joint (parent link -> child link):
+///  - <origin xyz rpy>  -> LinkSpec::placement (parent link frame -> joint frame); URDF rpy are
+///                         fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
+///  - revolute, continuous -> JointType::Revolute; prismatic -> Prismatic; fixed -> Fixed
+///                         (build_model folds fixed links into their parent body).
+///  - <axis xyz>        -> LinkSpec::axis, normalised (a zero axis is an error).
+///  - link_offset is the identity: the URDF child link frame is the joint frame.
+///  - <limit lower upper velocity effort> -> JointLimits, taken as written; continuous joints
+///                         get no position limits (velocity/effort only).
+///  - names: child link name -> LinkSpec::name, joint name -> LinkSpec::joint_name.
+/// Per URDF link, <inertial>: com = origin xyz, I_com = R I Rᵀ (R from the origin rpy, I from
+/// ixx..izz about the centre of mass in the inertial frame), i.e. expressed in link axes.
+/// A link without <inertial> is massless.
+///
+/// The root link (the URDF's, or UrdfOptions::root_link) becomes a Fixed link attached to the
+/// base at the identity, so its frame is the base frame; its mass is welded to the world and
+/// does not enter the dynamics. Links are listed parents-first by a depth-first walk from the
+/// root; siblings are visited in the natural order of their joint names ("j2" before "j10").
+/// This is also the order of the model's coordinates. URDF parts outside the walked subtree
+/// are ignored. Visual/collision geometry, materials, <dynamics> (damping, friction),
+/// <calibration> and <safety_controller> are ignored; Gazebo/transmission tags too.
+///
+/// Not supported (refdyn::Error naming the joint): floating and planar joints, <mimic>.
+/// Every error is one line: "urdf file '<name>': what is wrong (hint: ...)". urdfdom's own
+/// diagnostics are captured (not printed) and quoted in that line; malformed XML is reported
+/// with its line number. Any error urdfdom logs is fatal, even when it still returns a model.
+/// The result is validated with build_model, so a returned description always builds.
+
+#include "refdyn/model.hpp"
+
+#include <string>
+
+namespace refdyn::io {
+
+struct UrdfOptions {
+  /// Link to use as the root (fixed to the base); empty: the URDF's own root link.
+  std::string root_link;
+  /// Add a named point "<link>" at every link frame origin (so that scenario files can refer
+  /// to x(tool)). Links named "world" or "base" that are not the root get no point: refdyn
+  /// reserves those point-link names for the world and base frames.
+  bool points_for_links = true;
+};
+
+/// Reads and parses the URDF file at `path` (error messages name it as given).
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt = {});
+
+/// Parses URDF text; `source_name` names it in error messages (e.g. a file name).
+ModelDescription parse_urdf(const std::string& xml, const std::string& source_name,
+                            const UrdfOptions& opt = {});
+
+}  // namespace refdyn::io
