@@ -1,0 +1,464 @@
+// The refdyn command line on malformed and valid scenarios: every malformed scenario in
+// tests/data/bad/ (listed with its expected message in tests/data/bad/README.md) is rejected
+// with exit code 2, one line "refdyn: error: FILE:LINE: KEY: message" on stderr, and nothing
+// written; usage errors give exit code 1, --help exit code 0; the minimal valid scenario
+// (tests/data/good/minimal.yaml) is checked and planned.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kSource = REFDYN_SOURCE_DIR;
+const fs::path kBadDir = kSource / "tests/data/bad";
+const fs::path kGood = kSource / "tests/data/good/minimal.yaml";
+
+std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
+
+std::string read_text(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+/// A fresh temporary folder, removed with everything in it at the end of the test.
+class Scratch {
+ public:
+  Scratch() {
+    static std::atomic<int> counter{0};
+    root_ = fs::temp_directory_path() /
+            ("refdyn_cli_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "cwd");
+    fs::create_directories(root_ / "capture");
+  }
+  ~Scratch() {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+  const fs::path& root() const { return root_; }
+  fs::path cwd() const { return root_ / "cwd"; }          ///< the command's working directory
+  fs::path capture() const { return root_ / "capture"; }  ///< its stdout and stderr
+ private:
+  fs::path root_;
+};
+
+struct Result {
+  std::string command;
+  int code = -1;  ///< exit code (a shell reports a signal as 128 + signal)
+  std::string out, err;
+};
+
+/// Runs `refdyn ARGS` in scratch.cwd() with stdout/stderr redirected to files.
+Result run(const Scratch& s, const std::string& args) {
+  Result r;
+  r.command = "refdyn " + args;
+  const std::string cmd = "cd " + quote(s.cwd()) + " && " + quote(REFDYN_CLI) + " " + args + " >" +
+                          quote(s.capture() / "stdout") + " 2>" + quote(s.capture() / "stderr") + " </dev/null";
+  const int status = std::system(cmd.c_str());
+  r.code = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  r.out = read_text(s.capture() / "stdout");
+  r.err = read_text(s.capture() / "stderr");
+  return r;
+}
+
+std::string describe(const Result& r) {
+  return "\n  command: " + r.command + "\n  exit code: " + std::to_string(r.code) + "\n  stderr: [" + r.err +
+         "]\n  stdout: [" + r.out.substr(0, 400) + "]";
+}
+
+/// Folder entries (names), for messages.
+std::string listing(const fs::path& dir) {
+  std::string s;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) s += " " + e.path().filename().string();
+  return s.empty() ? " (empty)" : s;
+}
+
+bool empty_dir(const fs::path& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir, ec) && fs::is_empty(dir, ec);
+}
+
+int count_lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+/// The error line is exactly one line "refdyn: error: " + FILE + ...; returns what follows FILE.
+::testing::AssertionResult one_error_line(const Result& r, const std::string& file) {
+  if (r.err.empty() || r.err.back() != '\n' || count_lines(r.err) != 1)
+    return ::testing::AssertionFailure() << "stderr is not exactly one line (" << count_lines(r.err) << " newlines)"
+                                         << describe(r);
+  const std::string prefix = "refdyn: error: " + file;
+  if (r.err.rfind(prefix, 0) != 0)
+    return ::testing::AssertionFailure() << "stderr does not start with \"" << prefix << "\"" << describe(r);
+  return ::testing::AssertionSuccess();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The corpus of malformed scenarios, read from tests/data/bad/README.md.
+
+struct BadCase {
+  std::string file;
+  enum class Line { Exact, Optional, None } line_kind = Line::Exact;
+  int line_lo = 0, line_hi = 0;
+  std::string key;  ///< empty: the message has no key path
+  std::vector<std::string> fragments;
+};
+
+std::string trim(std::string s) {
+  const auto b = s.find_first_not_of(" \t");
+  const auto e = s.find_last_not_of(" \t\r");
+  return b == std::string::npos ? "" : s.substr(b, e - b + 1);
+}
+
+std::vector<BadCase> load_cases() {
+  std::vector<BadCase> cases;
+  std::ifstream f(kBadDir / "README.md");
+  for (std::string line; std::getline(f, line);) {
+    if (line.rfind("| ", 0) != 0 || !contains(line, ".yaml |")) continue;
+    std::vector<std::string> cols;
+    std::stringstream ss(line.substr(1));
+    for (std::string c; std::getline(ss, c, '|');) cols.push_back(trim(c));
+    if (cols.size() < 4) continue;
+    BadCase c;
+    c.file = cols[0];
+    const std::string& l = cols[1];
+    if (l == "-") {
+      c.line_kind = BadCase::Line::None;
+    } else if (l == "?") {
+      c.line_kind = BadCase::Line::Optional;
+    } else {
+      const auto dash = l.find('-');
+      c.line_lo = std::stoi(l.substr(0, dash));
+      c.line_hi = dash == std::string::npos ? c.line_lo : std::stoi(l.substr(dash + 1));
+    }
+    c.key = cols[2] == "-" ? "" : cols[2];
+    const std::string& fr = cols[3];
+    for (size_t p = fr.find('`'); p != std::string::npos;) {
+      const size_t q = fr.find('`', p + 1);
+      if (q == std::string::npos) break;
+      c.fragments.push_back(fr.substr(p + 1, q - p - 1));
+      p = fr.find('`', q + 1);
+    }
+    cases.push_back(c);
+  }
+  return cases;
+}
+
+const std::vector<BadCase>& bad_cases() {
+  static const std::vector<BadCase> cases = load_cases();
+  return cases;
+}
+
+/// Every problem with one rejected run, as text (empty: all good).
+std::vector<std::string> problems_with_rejection(const Result& r, const BadCase& c, const std::string& file) {
+  std::vector<std::string> p;
+  if (r.code != 2) p.push_back("exit code " + std::to_string(r.code) + ", expected 2");
+  if (!r.out.empty()) p.push_back("wrote to stdout");
+  if (r.err.empty() || r.err.back() != '\n' || count_lines(r.err) != 1)
+    p.push_back("stderr is " + std::to_string(count_lines(r.err)) + " lines, expected exactly one");
+  const std::string first = r.err.substr(0, r.err.find('\n'));
+  const std::string prefix = "refdyn: error: " + file;
+  if (first.rfind(prefix, 0) != 0) {
+    p.push_back("does not start with \"" + prefix + "\"");
+    return p;
+  }
+  std::string rest = first.substr(prefix.size());
+  int line = -1;
+  if (rest.size() > 1 && rest[0] == ':' && std::isdigit(static_cast<unsigned char>(rest[1]))) {
+    size_t k = 1;
+    while (k < rest.size() && std::isdigit(static_cast<unsigned char>(rest[k]))) ++k;
+    line = std::stoi(rest.substr(1, k - 1));
+    rest = rest.substr(k);
+  }
+  switch (c.line_kind) {
+    case BadCase::Line::None:
+      if (line >= 0) p.push_back("has a line number " + std::to_string(line) + ", expected none");
+      break;
+    case BadCase::Line::Optional:
+      break;
+    case BadCase::Line::Exact:
+      if (line < 0)
+        p.push_back("has no line number after the file name, expected line " + std::to_string(c.line_lo) +
+                    (c.line_hi != c.line_lo ? "-" + std::to_string(c.line_hi) : ""));
+      else if (line < c.line_lo || line > c.line_hi)
+        p.push_back("names line " + std::to_string(line) + ", expected line " + std::to_string(c.line_lo) +
+                    (c.line_hi != c.line_lo ? "-" + std::to_string(c.line_hi) : ""));
+      break;
+  }
+  if (rest.rfind(": ", 0) != 0) {
+    p.push_back("no \": \" after the file name and line");
+    return p;
+  }
+  rest = rest.substr(2);
+  if (!c.key.empty()) {
+    if (rest.rfind(c.key + ": ", 0) != 0) {
+      p.push_back("key path is not \"" + c.key + "\" (message after the line: \"" + rest.substr(0, 60) + "\")");
+    } else {
+      rest = rest.substr(c.key.size() + 2);
+    }
+  }
+  for (const auto& f : c.fragments)
+    if (!contains(rest, f)) p.push_back("message lacks \"" + f + "\"");
+  return p;
+}
+
+void PrintTo(const BadCase& c, std::ostream* os) { *os << c.file; }
+
+class BadScenario : public ::testing::TestWithParam<BadCase> {};
+
+TEST_P(BadScenario, RejectedWithOneLineAndNothingWritten) {
+  const BadCase& c = GetParam();
+  const std::string file = (kBadDir / c.file).string();
+  ASSERT_TRUE(fs::exists(file)) << file;
+  Scratch s;
+  const fs::path out_empty = s.root() / "out_empty", out_new = s.root() / "out_new" / "nested",
+                 track_new = s.root() / "track_new";
+  fs::create_directories(out_empty);
+  const std::vector<std::string> commands{
+      "check " + quote(file),
+      "plan " + quote(file) + " -o " + quote(out_empty),
+      "plan " + quote(file) + " -o " + quote(out_new),
+      "track " + quote(file) + " -o " + quote(track_new),
+  };
+  // The same problem in several commands is reported once, with the first command's output.
+  std::vector<std::pair<std::string, Result>> found;
+  std::vector<std::vector<std::string>> in_commands;
+  for (const auto& cmd : commands) {
+    const Result r = run(s, cmd);
+    for (const auto& p : problems_with_rejection(r, c, file)) {
+      auto it = std::find_if(found.begin(), found.end(), [&](const auto& f) { return f.first == p; });
+      if (it == found.end()) {
+        found.emplace_back(p, r);
+        in_commands.push_back({});
+        it = found.end() - 1;
+      }
+      in_commands[it - found.begin()].push_back(cmd.substr(0, cmd.find(' ')));
+    }
+  }
+  for (size_t i = 0; i < found.size(); ++i) {
+    std::string which;
+    for (const auto& w : in_commands[i]) which += (which.empty() ? "" : ", ") + w;
+    ADD_FAILURE() << c.file << ": " << found[i].first << " [" << which << "]" << describe(found[i].second);
+  }
+  EXPECT_TRUE(empty_dir(out_empty)) << c.file << ": the existing output folder is no longer empty:" << listing(out_empty);
+  EXPECT_FALSE(fs::exists(s.root() / "out_new")) << c.file << ": a not-yet-existing output folder was created";
+  EXPECT_FALSE(fs::exists(track_new)) << c.file << ": track created its output folder";
+  EXPECT_TRUE(empty_dir(s.cwd())) << c.file << ": something was written in the working directory:" << listing(s.cwd());
+}
+
+std::string case_name(const ::testing::TestParamInfo<BadCase>& info) {
+  std::string n = info.param.file.substr(0, info.param.file.rfind('.'));
+  for (char& ch : n)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return n;
+}
+
+INSTANTIATE_TEST_SUITE_P(Corpus, BadScenario, ::testing::ValuesIn(bad_cases()), case_name);
+
+TEST(BadCorpus, EveryFileIsListedAndEveryListedFileExists) {
+  const auto& cases = bad_cases();
+  EXPECT_GE(cases.size(), 35u) << "tests/data/bad/README.md should list at least 35 malformed scenarios";
+  std::set<std::string> listed;
+  for (const auto& c : cases) {
+    EXPECT_TRUE(listed.insert(c.file).second) << c.file << " is listed twice";
+    EXPECT_TRUE(fs::exists(kBadDir / c.file)) << c.file << " is listed but does not exist";
+    EXPECT_FALSE(c.fragments.empty()) << c.file << " has no expected message fragment";
+  }
+  for (const auto& e : fs::directory_iterator(kBadDir)) {
+    if (e.path().extension() == ".yaml") {
+      EXPECT_TRUE(listed.count(e.path().filename().string())) << e.path().filename() << " is not listed in README.md";
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The valid minimal scenario.
+
+TEST(GoodScenario, CheckPrintsDofAndResiduals) {
+  Scratch s;
+  const Result r = run(s, "check " + quote(kGood));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_TRUE(contains(r.out, "valid")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "2 degrees of freedom")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "constraints: 1 (1 rows)")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "partition: independent [j2], dependent [j1]")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "initial residuals")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "tip_x") && contains(r.out, "|Phi| = ") && contains(r.out, "|dPhi/dt| = ")) << describe(r);
+  EXPECT_EQ(r.err, "");
+  EXPECT_TRUE(empty_dir(s.cwd())) << "check wrote something:" << listing(s.cwd());
+}
+
+void expect_plan_written(const fs::path& dir) {
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string n = e.path().filename().string();
+    names.insert(n);
+    EXPECT_FALSE(contains(n, ".tmp")) << "leftover temporary file " << e.path();
+  }
+  EXPECT_EQ(names, (std::set<std::string>{"plan.csv", "feasibility.json", "summary.json"})) << listing(dir);
+  const std::string csv = read_text(dir / "plan.csv");
+  EXPECT_EQ(csv.rfind("t,q_j1,q_j2,qd_j1,qd_j2,", 0), 0u) << csv.substr(0, 200);
+  EXPECT_GT(count_lines(csv), 100);  // t = 0 .. 0.5 s with step 1e-3
+  EXPECT_TRUE(contains(csv, "phi_tip_x")) << csv.substr(0, 400);
+  const std::string summary = read_text(dir / "summary.json");
+  EXPECT_TRUE(contains(summary, "\"scenario\": \"minimal_arm\"")) << summary;
+  EXPECT_TRUE(contains(summary, "\"status\": \"success\"")) << summary;
+  EXPECT_FALSE(read_text(dir / "feasibility.json").empty());
+}
+
+TEST(GoodScenario, PlanWritesResultsIntoANewFolder) {
+  Scratch s;
+  const fs::path out = s.root() / "new" / "results";
+  const Result r = run(s, "plan " + quote(kGood) + " -o " + quote(out));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_EQ(r.err, "");
+  EXPECT_TRUE(contains(r.out, "2 DOF")) << describe(r);
+  EXPECT_TRUE(contains(r.out, out.string())) << describe(r);
+  expect_plan_written(out);
+  EXPECT_TRUE(empty_dir(s.cwd())) << listing(s.cwd());
+}
+
+TEST(GoodScenario, PlanWritesResultsIntoAnExistingFolderQuietly) {
+  Scratch s;
+  const fs::path out = s.root() / "out";
+  fs::create_directories(out);
+  const Result r = run(s, "plan -q " + quote(kGood) + " --output " + quote(out));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_EQ(r.out, "") << "-q must print nothing on success";
+  EXPECT_EQ(r.err, "");
+  expect_plan_written(out);
+  // A second run over existing results replaces them.
+  const Result again = run(s, "plan -q " + quote(kGood) + " -o " + quote(out));
+  ASSERT_EQ(again.code, 0) << describe(again);
+  expect_plan_written(out);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output folders that cannot be written, missing inputs.
+
+TEST(OutputFolder, UnderARegularFileIsRejectedAndNothingIsWritten) {
+  Scratch s;
+  const fs::path area = s.root() / "area", blocker = area / "file.txt", out = blocker / "sub";
+  fs::create_directories(area);
+  std::ofstream(blocker) << "keep me\n";
+  const Result r = run(s, "plan " + quote(kGood) + " -o " + quote(out));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, ""));
+  EXPECT_TRUE(contains(r.err, "'" + out.string() + "'")) << "the message must name the folder" << describe(r);
+  EXPECT_EQ(r.out, "") << describe(r);
+  EXPECT_EQ(read_text(blocker), "keep me\n");
+  EXPECT_TRUE(fs::is_regular_file(blocker));
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(area)) names.insert(e.path().filename().string());
+  EXPECT_EQ(names, std::set<std::string>{"file.txt"}) << "half-written output:" << listing(area);
+  EXPECT_TRUE(empty_dir(s.cwd())) << listing(s.cwd());
+}
+
+TEST(OutputFolder, ThatIsARegularFileIsRejectedAndLeftAlone) {
+  Scratch s;
+  const fs::path area = s.root() / "area", out = area / "file.txt";
+  fs::create_directories(area);
+  std::ofstream(out) << "keep me\n";
+  const Result r = run(s, "plan " + quote(kGood) + " -o " + quote(out));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, ""));
+  EXPECT_TRUE(contains(r.err, "'" + out.string() + "'")) << "the message must name the folder" << describe(r);
+  EXPECT_EQ(read_text(out), "keep me\n");
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(area)) names.insert(e.path().filename().string());
+  EXPECT_EQ(names, std::set<std::string>{"file.txt"}) << listing(area);
+}
+
+TEST(MissingInput, ScenarioFileThatDoesNotExist) {
+  Scratch s;
+  const fs::path missing = s.root() / "no_such_scenario.yaml", out = s.root() / "out";
+  for (const std::string& cmd : {"check " + quote(missing), "plan " + quote(missing) + " -o " + quote(out)}) {
+    const Result r = run(s, cmd);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_TRUE(one_error_line(r, ""));
+    EXPECT_TRUE(contains(r.err, missing.string())) << describe(r);
+  }
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_TRUE(empty_dir(s.cwd())) << listing(s.cwd());
+}
+
+TEST(MissingInput, PlotOnAMissingFolder) {
+  Scratch s;
+  const fs::path dir = s.root() / "no_results_here";
+  const Result r = run(s, "plot " + quote(dir));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, ""));
+  EXPECT_TRUE(contains(r.err, dir.string())) << describe(r);
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+TEST(MissingInput, PlotOnAFolderWithoutResults) {
+  Scratch s;
+  const fs::path dir = s.root() / "empty_results";
+  fs::create_directories(dir);
+  const Result r = run(s, "plot " + quote(dir));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, ""));
+  EXPECT_TRUE(contains(r.err, dir.string()) && contains(r.err, "plan.csv")) << describe(r);
+  EXPECT_TRUE(empty_dir(dir)) << listing(dir);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Command line.
+
+TEST(CommandLine, UsageErrorsExitWithOneAndWriteNothing) {
+  Scratch s;
+  const std::string good = quote(kGood);
+  const std::vector<std::string> usage_errors{
+      "", "frobnicate", "check", "plan", "track", "plot", "plan " + good + " -o", "check " + good + " --bogus",
+      "plan " + good + " --bogus", "check " + good + " " + good, "paper --bogus"};
+  for (const auto& args : usage_errors) {
+    const Result r = run(s, args);
+    EXPECT_EQ(r.code, 1) << describe(r);
+    EXPECT_FALSE(r.err.empty()) << "a usage error must say what is wrong" << describe(r);
+    EXPECT_TRUE(empty_dir(s.cwd())) << "'" << args << "' wrote:" << listing(s.cwd());
+  }
+}
+
+TEST(CommandLine, HelpForEachSubcommand) {
+  Scratch s;
+  struct H {
+    std::string args;
+    std::vector<std::string> mentions;
+  };
+  const std::vector<H> helps{
+      {"--help", {"check", "plan", "track", "plot", "paper", "Exit codes"}},
+      {"-h", {"check", "plan", "track", "plot", "paper"}},
+      {"check --help", {"file", "Scenario file"}},
+      {"plan --help", {"file", "-o,--output", "-q,--quiet"}},
+      {"track --help", {"file", "-o,--output", "-q,--quiet"}},
+      {"plot --help", {"dir", "Results folder"}},
+      {"paper --help", {"-o,--output", "-q,--quiet"}},
+  };
+  for (const auto& h : helps) {
+    const Result r = run(s, h.args);
+    EXPECT_EQ(r.code, 0) << describe(r);
+    for (const auto& m : h.mentions)
+      EXPECT_TRUE(contains(r.out + r.err, m)) << "'refdyn " << h.args << "' does not mention " << m << describe(r);
+  }
+  EXPECT_TRUE(empty_dir(s.cwd())) << "--help wrote:" << listing(s.cwd());
+}
+
+}  // namespace
