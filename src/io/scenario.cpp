@@ -30,7 +30,22 @@ class Ctx {
   [[noreturn]] void fail(const YAML::Node& at, const std::string& key, const std::string& msg) const {
     std::string where = file_;
     if (at.IsDefined() && !at.Mark().is_null()) where += ":" + std::to_string(at.Mark().line + 1);
-    throw Error(where + ": " + key + ": " + msg);
+    throw Error(where + ": " + (key.empty() ? std::string() : key + ": ") + one_line(msg));
+  }
+
+  /// Messages are one line: multi-line diagnostics (e.g. an expression with a ^^^ marker under
+  /// it) are joined with "; " and marker-only lines dropped.
+  static std::string one_line(const std::string& msg) {
+    std::string out, line;
+    std::istringstream is(msg);
+    while (std::getline(is, line)) {
+      const auto b = line.find_first_not_of(" \t");
+      if (b == std::string::npos) continue;
+      line = line.substr(b);
+      if (line.find_first_not_of("^~ ") == std::string::npos) continue;
+      out += (out.empty() ? "" : "; ") + line;
+    }
+    return out;
   }
 
   void keys(const YAML::Node& n, const std::string& key, const std::vector<std::string>& allowed) const {
@@ -51,7 +66,7 @@ class Ctx {
 
   YAML::Node need(const YAML::Node& parent, const std::string& k, const std::string& key) const {
     const YAML::Node n = parent[k];
-    if (!n.IsDefined() || n.IsNull()) fail(parent, key + "." + k, "missing (this key is required)");
+    if (!n.IsDefined() || n.IsNull()) fail(parent, key.empty() ? k : key + "." + k, "missing (this key is required)");
     return n;
   }
 
@@ -65,6 +80,13 @@ class Ctx {
     if (r.ec == std::errc() && r.ptr == e) {
       if (!std::isfinite(v)) fail(n, key, "expected a finite number, got " + s);
       return v;
+    }
+    {  // YAML's special floats: .nan, .inf, -.inf (any case)
+      std::string low;
+      for (char ch : s) low += static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      if (low == ".nan" || low == ".inf" || low == "+.inf" || low == "-.inf" || low == "nan" || low == "inf" ||
+          low == "-inf")
+        fail(n, key, "expected a finite number, got " + s);
     }
     std::map<std::string, double> p = params;
     if (extra) p.insert(extra->begin(), extra->end());
@@ -492,7 +514,18 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   try {
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
-    throw Error(source + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg);
+    std::string hint;
+    std::istringstream lines(text);
+    std::string l;
+    for (int k = 0; std::getline(lines, l); ++k) {
+      const auto b = l.find_first_not_of(" \t");
+      if (b != std::string::npos && l.substr(0, b).find('\t') != std::string::npos) {
+        hint = " (line " + std::to_string(k + 1) + " is indented with a tab; YAML allows only spaces for indentation)";
+        break;
+      }
+    }
+    throw Error(source + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
+                ": YAML syntax error: " + e.msg + hint);
   }
   if (!root.IsMap()) throw Error(source + ": expected a YAML mapping at the top level (keys such as model:, constraints:)");
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
@@ -656,7 +689,9 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   if (root["effort_limit"]) {
     s->effort_limit = c.joint_vector(root["effort_limit"], "effort_limit", m, false, std::numeric_limits<double>::infinity());
     for (int i = 0; i < m.nq; ++i)
-      if (!(s->effort_limit[i] >= 0)) c.fail(root["effort_limit"], "effort_limit", "limits must be >= 0");
+      if (!(s->effort_limit[i] >= 0))
+        c.fail(root["effort_limit"], "effort_limit." + m.joint_name[i],
+               "expected a limit >= 0 [N m or N], got " + fmt(s->effort_limit[i]));
   }
   if (const YAML::Node ex = root["experiments"]) {
     if (!ex.IsSequence()) c.fail(ex, "experiments", "expected a list of experiments");
