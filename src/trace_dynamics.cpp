@@ -62,16 +62,19 @@ const Eigen::MatrixXd& trace_mass_matrix(const Model& model, Data& data, const E
   trace_kinematics(model, data, q);
   const int n = model.nq;
   data.M_trace.setZero();
+  // Per body l: T_i^(l) = D_i T^(l) for every i in its support (each computed once), then
+  // m_ij^(l) = tr(T_i H T_jᵀ) = Σ (T_i H) ∘ T_j. O(n³) 4×4 work in total.
+  std::vector<Mat4> Ti;
   for (int l = 0; l < n; ++l) {
     const auto& sup = model.support[l];
-    for (int i : sup) {
-      const Mat4 TiH = trace_dT(model, data, l, i) * data.H[l];
-      for (int j : sup) {
-        if (j > i) continue;
-        const Mat4 Tj = trace_dT(model, data, l, j);
-        const double m = (TiH.cwiseProduct(Tj)).sum();  // tr(A Bᵀ) = Σ A∘B
-        data.M_trace(i, j) += m;
-        if (i != j) data.M_trace(j, i) += m;
+    Ti.resize(sup.size());
+    for (size_t a = 0; a < sup.size(); ++a) Ti[a] = data.D[sup[a]] * data.T[l];
+    for (size_t a = 0; a < sup.size(); ++a) {
+      const Mat4 TiH = Ti[a] * data.H[l];
+      for (size_t b = 0; b <= a; ++b) {
+        const double m = TiH.cwiseProduct(Ti[b]).sum();
+        data.M_trace(sup[a], sup[b]) += m;
+        if (a != b) data.M_trace(sup[b], sup[a]) += m;
       }
     }
   }
@@ -85,16 +88,22 @@ const Eigen::VectorXd& trace_coriolis(const Model& model, Data& data, const Eige
   const int n = model.nq;
   data.c_trace.setZero();
   for (int l = 0; l < n; ++l) {
-    const auto& sup = model.support[l];
+    const auto& sup = model.support[l];  // ancestors first, so sup[a] is an ancestor of sup[b] for a < b
     Mat4 A = Mat4::Zero(), Td = Mat4::Zero();
-    for (int j : sup) {
-      Td += trace_dT(model, data, l, j) * qd[j];
-      for (int k : sup) A += trace_ddT(model, data, l, j, k) * (qd[j] * qd[k]);
+    // Σ_jk T_jk q̇_j q̇_k with T_jk = D_a D_b T (a the ancestor): diagonal terms once, the
+    // off-diagonal ones twice.
+    for (size_t a = 0; a < sup.size(); ++a) {
+      const Mat4 DaT = data.D[sup[a]] * data.T[l];
+      Td += DaT * qd[sup[a]];
+      for (size_t b = a; b < sup.size(); ++b) {
+        const double w = (a == b ? 1.0 : 2.0) * qd[sup[a]] * qd[sup[b]];
+        A += (data.D[sup[a]] * (data.D[sup[b]] * data.T[l])) * w;
+      }
     }
     data.Tdd[l] = A;
     data.Td[l] = Td;
     const Mat4 HA = data.H[l] * A.transpose();
-    for (int i : sup) data.c_trace[i] += (trace_dT(model, data, l, i) * HA).trace();
+    for (int i : sup) data.c_trace[i] += (data.D[i] * data.T[l] * HA).trace();
   }
   return data.c_trace;
 }
@@ -106,7 +115,7 @@ const Eigen::VectorXd& trace_gravity(const Model& model, Data& data, const Eigen
   data.g_trace.setZero();
   for (int l = 0; l < model.nq; ++l) {
     const Eigen::Vector4d He4 = data.H[l].col(3);
-    for (int i : model.support[l]) data.g_trace[i] -= gt.dot(trace_dT(model, data, l, i) * He4);
+    for (int i : model.support[l]) data.g_trace[i] -= gt.dot(data.D[i] * (data.T[l] * He4));
   }
   return data.g_trace;
 }
@@ -118,7 +127,7 @@ double trace_kinetic_energy(const Model& model, Data& data, const Eigen::VectorX
   double T = 0;
   for (int l = 0; l < model.nq; ++l) {
     Mat4 Td = Mat4::Zero();
-    for (int i : model.support[l]) Td += trace_dT(model, data, l, i) * qd[i];
+    for (int i : model.support[l]) Td += data.D[i] * data.T[l] * qd[i];
     T += 0.5 * (Td * data.H[l] * Td.transpose()).trace();
   }
   return T;
