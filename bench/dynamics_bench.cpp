@@ -248,8 +248,8 @@ std::string fmt_ns(double ns) {
   char buf[32];
   if (!std::isfinite(ns)) return "-";
   if (ns < 1e4) std::snprintf(buf, sizeof buf, "%.0f ns", ns);
-  else if (ns < 1e7) std::snprintf(buf, sizeof buf, "%.1f us", ns / 1e3);
-  else std::snprintf(buf, sizeof buf, "%.1f ms", ns / 1e6);
+  else if (ns < 1e6) std::snprintf(buf, sizeof buf, "%.1f us", ns / 1e3);
+  else std::snprintf(buf, sizeof buf, "%.2f ms", ns / 1e6);
   return buf;
 }
 std::string fmt_ratio(double r) {

@@ -25,16 +25,28 @@ SE3 joint_placement(const Model& model, int i, double qi) {
     X.p = P.p;
   } else {
     X.R = P.R;
-    X.p = P.p + P.R * (u * x);
+    if (u.x() == 0.0 && u.y() == 0.0)  // axis ±z: a column instead of a product
+      X.p = P.p + (u.z() * x) * P.R.col(2);
+    else
+      X.p = P.p + P.R * (u * x);
   }
   return X;
 }
 
 void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::VectorXd& q) {
   for (int i = 0; i < model.nq; ++i) {
-    data.liMi[i] = joint_placement(model, i, q[i]);
+    const SE3 X = joint_placement(model, i, q[i]);
+    data.liMi[i] = X;
     const int p = model.parent[i];
-    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
+    SE3& O = data.oMi[i];
+    if (p < 0) {
+      O = X;
+    } else {
+      const SE3& Op = data.oMi[p];
+      O.R.noalias() = Op.R * X.R;
+      O.p.noalias() = Op.R * X.p;
+      O.p += Op.p;
+    }
   }
 }
 
