@@ -11,8 +11,8 @@
 // against the independent trace route to 1e-10 and bench/dynamics_bench.cpp times them against
 // Orocos KDL (see bench/README.md).
 //  - 3-vectors live in 4-lane SIMD registers (GCC/Clang vector extensions: one AVX instruction
-//    per vector operation, a cross product is four). The fourth lane is padding: no result
-//    lane 0–2 ever reads it, so it may hold anything finite.
+//    per vector operation, a cross product is four; without AVX a struct of four doubles). The
+//    fourth lane is padding: no result lane 0–2 ever reads it, so it may hold anything.
 //  - Joints whose axis is ±z of the joint frame (every DH joint) are special-cased: S is a unit
 //    vector, so S·F is one lane of F, S q̇ adds to one lane of v, v ×m S q̇ is a lane swap. The
 //    sign of the axis is folded into q̇, q̈ and τ. X = P·Rz(q) costs four vector operations.
@@ -27,25 +27,58 @@
 //    ancestor of i is a 6-term dot product S_j·(Ic_i S_i) instead of a frame-by-frame transport.
 //  - Everything is fixed-size and lives in Data: no allocation.
 
-#if !(defined(__GNUC__) || defined(__clang__))
-#error "refdyn's recursive_dynamics.cpp uses GCC/Clang vector extensions"
+#if defined(__GNUC__) || defined(__clang__)
+#define REFDYN_INLINE inline __attribute__((always_inline))
+#else
+#define REFDYN_INLINE inline
 #endif
 
-#define REFDYN_INLINE inline __attribute__((always_inline))
+// With AVX (the default build uses -march=native) a 4-lane vector is one register and one
+// instruction per operation; without it the same code runs on a plain struct of four doubles.
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__AVX__)
+#define REFDYN_V4_SIMD 1
+#endif
 
 namespace refdyn {
 namespace {
 
 // ---- 4-lane vectors ----------------------------------------------------------------------------
 
+#if REFDYN_V4_SIMD
 typedef double v4 __attribute__((vector_size(4 * sizeof(double))));
 typedef std::int64_t v4l __attribute__((vector_size(4 * sizeof(double))));
 
-#if defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 12)
-#define REFDYN_SHUF(a, i, j, k, l) __builtin_shufflevector(a, a, i, j, k, l)
+/// Lanes (i, j, k, l) of the concatenation (a, b) (indices 4–7 pick from b).
+template <int i, int j, int k, int l>
+REFDYN_INLINE v4 shuf2(v4 a, v4 b) {
+#if defined(__clang__) || __GNUC__ >= 12
+  return __builtin_shufflevector(a, b, i, j, k, l);
 #else
-#define REFDYN_SHUF(a, i, j, k, l) __builtin_shuffle(a, v4l{i, j, k, l})
+  return __builtin_shuffle(a, b, v4l{i, j, k, l});
 #endif
+}
+#else
+struct v4 {
+  double e[4];
+  double& operator[](int k) { return e[k]; }
+  double operator[](int k) const { return e[k]; }
+};
+REFDYN_INLINE v4 operator+(v4 a, v4 b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]}; }
+REFDYN_INLINE v4 operator-(v4 a, v4 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]}; }
+REFDYN_INLINE v4 operator*(v4 a, v4 b) { return {a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]}; }
+REFDYN_INLINE v4 operator-(v4 a) { return {-a[0], -a[1], -a[2], -a[3]}; }
+REFDYN_INLINE v4& operator+=(v4& a, v4 b) { return a = a + b; }
+REFDYN_INLINE v4& operator-=(v4& a, v4 b) { return a = a - b; }
+template <int i, int j, int k, int l>
+REFDYN_INLINE v4 shuf2(v4 a, v4 b) {
+  auto pick = [&](int n) { return n < 4 ? a[n] : b[n - 4]; };
+  return {pick(i), pick(j), pick(k), pick(l)};
+}
+#endif
+template <int i, int j, int k, int l>
+REFDYN_INLINE v4 shuf(v4 a) {
+  return shuf2<i, j, k, l>(a, a);
+}
 
 /// x, y, z, 0 from three consecutive doubles.
 REFDYN_INLINE v4 ld3(const double* p) { return v4{p[0], p[1], p[2], 0.0}; }
@@ -67,9 +100,9 @@ REFDYN_INLINE void st4(v4 a, double* p) { std::memcpy(p, &a, sizeof a); }
 REFDYN_INLINE v4 splat(double s) { return v4{s, s, s, s}; }
 template <int k>
 REFDYN_INLINE v4 bc(v4 a) {
-  return REFDYN_SHUF(a, k, k, k, k);
+  return shuf<k, k, k, k>(a);
 }
-REFDYN_INLINE v4 yzx(v4 a) { return REFDYN_SHUF(a, 1, 2, 0, 3); }
+REFDYN_INLINE v4 yzx(v4 a) { return shuf<1, 2, 0, 3>(a); }
 REFDYN_INLINE v4 cross(v4 a, v4 b) { return yzx(a * yzx(b) - yzx(a) * b); }
 REFDYN_INLINE double dot3(v4 a, v4 b) {
   const v4 m = a * b;
@@ -77,7 +110,7 @@ REFDYN_INLINE double dot3(v4 a, v4 b) {
 }
 /// ez × x = (−x.y, x.x, 0) and x × ez = (x.y, −x.x, 0).
 REFDYN_INLINE v4 x_cross_ez(v4 x) {
-  return __builtin_shufflevector(x, v4{0.0, 0.0, 0.0, 0.0}, 1, 0, 4, 4) * v4{1.0, -1.0, 1.0, 1.0};
+  return shuf2<1, 0, 4, 4>(x, v4{0.0, 0.0, 0.0, 0.0}) * v4{1.0, -1.0, 1.0, 1.0};
 }
 REFDYN_INLINE v4 ez(double s) { return splat(s) * v4{0.0, 0.0, 1.0, 0.0}; }
 
@@ -87,10 +120,9 @@ struct M3 {
 };
 REFDYN_INLINE v4 mul(const M3& A, v4 x) { return A.c0 * bc<0>(x) + A.c1 * bc<1>(x) + A.c2 * bc<2>(x); }
 REFDYN_INLINE M3 transpose(const M3& A) {
-  const v4 lo = __builtin_shufflevector(A.c0, A.c1, 0, 4, 1, 5);  // a0x a1x a0y a1y
-  const v4 hi = __builtin_shufflevector(A.c0, A.c1, 2, 6, 3, 7);  // a0z a1z . .
-  return {__builtin_shufflevector(lo, A.c2, 0, 1, 4, 7), __builtin_shufflevector(lo, A.c2, 2, 3, 5, 7),
-          __builtin_shufflevector(hi, A.c2, 0, 1, 6, 7)};
+  const v4 lo = shuf2<0, 4, 1, 5>(A.c0, A.c1);  // a0x a1x a0y a1y
+  const v4 hi = shuf2<2, 6, 3, 7>(A.c0, A.c1);  // a0z a1z . .
+  return {shuf2<0, 1, 4, 7>(lo, A.c2), shuf2<2, 3, 5, 7>(lo, A.c2), shuf2<0, 1, 6, 7>(hi, A.c2)};
 }
 /// Columns of a Mat3 (column-major); the padding lanes of c0, c1 hold the next column's x.
 REFDYN_INLINE M3 ld(const Mat3& R) {
@@ -130,6 +162,7 @@ REFDYN_INLINE JointKind joint_kind(const Model& m, int i) {
 /// one vector instruction per step. Angles with |x| ≥ 1e6 (or not finite) take std::sin/cos.
 constexpr int kBlock = 4;
 
+#if REFDYN_V4_SIMD
 REFDYN_INLINE void sincos4(v4 x, double* s, double* c) {
   constexpr double two_over_pi = 0.636619772367581343075535053490057;
   constexpr double P1 = 1.57079625129699707031e+00;  // π/2 = P1 + P2 + P3
@@ -164,6 +197,14 @@ REFDYN_INLINE void sincos4(v4 x, double* s, double* c) {
         c[k] = std::cos(x[k]);
       }
 }
+#else
+REFDYN_INLINE void sincos4(v4 x, double* s, double* c) {
+  for (int k = 0; k < kBlock; ++k) {
+    s[k] = std::sin(x[k]);
+    c[k] = std::cos(x[k]);
+  }
+}
+#endif
 
 /// sin, cos of the joint angles q + offset of bodies b .. b+3 (zero past the end).
 REFDYN_INLINE void joint_sincos(const Model& m, const double* q, int b, double* s, double* c) {
