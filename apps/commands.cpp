@@ -188,6 +188,13 @@ int run_check(const std::string& file) {
   for (size_t i = 0; i < rd.dependent().size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[rd.dependent()[i]];
   std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
             << rd.partition_condition() << " at t0\n";
+  if (s.project_initial) {
+    std::cout << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
+    for (int j = 0; j < m.nq; ++j)
+      if (s.initial_dq[j] != 0 || s.initial_dqd[j] != 0)
+        std::printf("  %-12s q %+.6g -> %.10g   qd %+.6g -> %.10g\n", m.joint_name[j].c_str(), s.initial_dq[j],
+                    s.q0[j], s.initial_dqd[j], s.qd0[j]);
+  }
   std::cout << "initial residuals at t0 = " << s.integrator.t0 << " s" << (s.project_initial ? " (after projection)" : "")
             << ":\n";
   for (int r = 0; r < s.constraints.rows(); ++r)

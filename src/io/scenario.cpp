@@ -421,8 +421,13 @@ void read_constraints(const Ctx& c, const YAML::Node& n, const Model& m, Constra
     if (!e.IsMap()) c.fail(e, k, "expected a mapping with 'name' and 'expression' or 'kind', got " + Ctx::kind(e));
     const std::string name = c.string(c.need(e, "name", k), k + ".name");
     const std::string kk = "constraints." + name;
-    const ConstraintOrigin origin = e["origin"] && c.choice(e["origin"], kk + ".origin", {"material", "programmed"}) == "material"
-                                        ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
+    // Default origin: material for the physical kinds (loop closure, knife edge), else programmed.
+    const bool physical = e["kind"] && e["kind"].IsScalar() &&
+                          (e["kind"].Scalar() == "points_coincide" || e["kind"].Scalar() == "knife_edge");
+    const ConstraintOrigin origin =
+        e["origin"] ? (c.choice(e["origin"], kk + ".origin", {"material", "programmed"}) == "material"
+                           ? ConstraintOrigin::Material : ConstraintOrigin::Programmed)
+                    : (physical ? ConstraintOrigin::Material : ConstraintOrigin::Programmed);
     auto point = [&](const char* field) {
       const std::string p = c.string(c.need(e, field, kk), kk + "." + field);
       if (std::find(m.point_name.begin(), m.point_name.end(), p) == m.point_name.end())
@@ -637,6 +642,8 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   }
 
   // Initial consistency and partition at t0 (with a temporary ReferenceDynamics).
+  s->initial_dq = Eigen::VectorXd::Zero(m.nq);
+  s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
   {
     ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
     const double t0 = s->integrator.t0;
@@ -652,6 +659,8 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
                                    fmt(cons.residual_after) + "); start closer to a consistent configuration");
       s->q0 = cons.q;
       s->qd0 = cons.qd;
+      s->initial_dq = cons.dq;
+      s->initial_dqd = cons.dqd;
     }
     Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
     const double r = rd.residual(t0, x);

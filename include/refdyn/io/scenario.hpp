@@ -48,6 +48,7 @@ struct Scenario {
   Eigen::VectorXd q0, qd0;                  ///< reference initial state (as written)
   bool project_initial = false;             ///< make (q0, qd0) consistent by Newton projection
   double initial_tolerance = 1e-8;          ///< accepted initial constraint residual
+  Eigen::VectorXd initial_dq, initial_dqd;  ///< correction applied by the projection (zeros if none)
   IntegratorOptions integrator;
   double residual_from = 0.0;               ///< report max residual over t >= this
   ControllerSpec controller;
