@@ -156,7 +156,8 @@ struct Data {
   Eigen::VectorXd nle;              ///< c(q,q̇) + g(q), result of bias_forces
   Eigen::VectorXd g;                ///< g(q), result of gravity_forces
   // mass_matrix
-  std::vector<Inertia> Ic;          ///< composite inertias
+  std::vector<Inertia> Ic;          ///< composite inertias (scratch of mass_matrix: body frames below
+                                    ///< 7 bodies, the world frame {0} from 7 on)
   Eigen::MatrixXd M;                ///< joint-space mass matrix (both triangles filled)
   // forward_dynamics
   Eigen::LLT<Eigen::MatrixXd> llt;
