@@ -48,12 +48,14 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   Kic_.setZero(m_, n_ - m_);
   Kinv_.setZero(m_, m_);
   G_.setZero(m_, n_ - m_);
-  S_.setZero(n_, n_);
   Y_.setZero(n_, m_);
+  MN_.setZero(n_, n_ - m_);
+  NMN_.setZero(n_ - m_, n_ - m_);
+  qp_.setZero(n_);
+  rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
-  rhs_n_.setZero(n_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
-  lu_n_ = Eigen::PartialPivLU<Eigen::MatrixXd>(n_);
+  llt_k_ = Eigen::LLT<Eigen::MatrixXd>(n_ - m_);
   llt_m_ = Eigen::LLT<Eigen::MatrixXd>(m_);
   if (!opt_.independent.empty()) {
     std::vector<int> ind;
@@ -243,20 +245,38 @@ void ReferenceDynamics::solve_projection(double t) {
   } else {
     tmp_n_ = F_;
   }
-  // Rows of Nᵀ M and Nᵀ F: row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
+  // The stacked system [Nᵀ M; A] q̈ = [Nᵀ F; rhs] is solved by the null-space method, which
+  // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
+  //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
+  //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
+  qp_.setZero();
+  for (int r = 0; r < m_; ++r) qp_[dep_[r]] = Kinv_.row(r).dot(rhs_);
+  tmp_n_.noalias() -= M * qp_;  // F − M q̈_p
+  // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
   for (int c = 0; c < k; ++c) {
-    S_.row(c) = M.row(ind_[c]);
-    rhs_n_[c] = tmp_n_[ind_[c]];
+    MN_.col(c) = M.col(ind_[c]);
+    for (int r = 0; r < m_; ++r) MN_.col(c) += G_(r, c) * M.col(dep_[r]);
+  }
+  // Nᵀ (M N) and Nᵀ (F − M q̈_p): row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
+  for (int c = 0; c < k; ++c) {
+    NMN_.row(c) = MN_.row(ind_[c]);
+    rk_[c] = tmp_n_[ind_[c]];
     for (int r = 0; r < m_; ++r) {
-      const double g = G_(r, c);
-      S_.row(c) += g * M.row(dep_[r]);
-      rhs_n_[c] += g * tmp_n_[dep_[r]];
+      NMN_.row(c) += G_(r, c) * MN_.row(dep_[r]);
+      rk_[c] += G_(r, c) * tmp_n_[dep_[r]];
     }
   }
-  S_.bottomRows(m_) = ev_.A;
-  rhs_n_.tail(m_) = rhs_;
-  lu_n_.compute(S_);
-  qdd_ = lu_n_.solve(rhs_n_);
+  qdd_ = qp_;
+  if (k > 0) {
+    llt_k_.compute(NMN_);
+    if (llt_k_.info() != Eigen::Success)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+    llt_k_.solveInPlace(rk_);
+    for (int c = 0; c < k; ++c) {
+      qdd_[ind_[c]] += rk_[c];
+      for (int r = 0; r < m_; ++r) qdd_[dep_[r]] += G_(r, c) * rk_[c];
+    }
+  }
   // λ from the dependent rows: K_dcᵀ λ = (F − M q̈)_dc.
   if (m_ > 0) {
     tmp_n_.noalias() = M * qdd_;

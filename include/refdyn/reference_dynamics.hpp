@@ -11,6 +11,8 @@
 ///     Nᵀ (M q̈ − F) = 0                             (n − m rows)
 ///     A q̈ = −γ − 2α Φ̇ − β² Φ      holonomic rows   (Baumgarte: Φ̈ + 2αΦ̇ + β²Φ = 0)
 ///     A q̈ = −γ − β₁ c              first-order rows (ċ + β₁ c = 0)
+/// solved by the null-space method (q̈ = q̈_p + N u with A q̈_p = rhs, (NᵀMN) u = Nᵀ(F − M q̈_p)),
+/// which is the same system with an (n−m)×(n−m) SPD solve.
 /// Lagrange (KKT) form, the independent check: [[M, Aᵀ],[A, 0]] [q̈; λ] = [F; rhs], i.e.
 ///     M q̈ = F − Aᵀ λ,
 /// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
@@ -134,10 +136,10 @@ class ReferenceDynamics {
   bool partition_set_ = false;
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
-  Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, S_, Y_, Smm_;
-  Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_, lu_n_;
-  Eigen::LLT<Eigen::MatrixXd> llt_m_;
-  Eigen::VectorXd rhs_n_;
+  Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, Y_, Smm_, MN_, NMN_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
+  Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
+  Eigen::VectorXd qp_, rk_;
   double cond_ = 1.0;
 };
 
