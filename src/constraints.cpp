@@ -83,7 +83,7 @@ class PointOnSurface final : public Constraint {
     const ImplicitSurface::Value f = s_->eval(P.r, in.t);
     phi[0] = f.f;
     phid[0] = f.grad.dot(P.v) + f.ft;
-    A.row(0).noalias() = f.grad.transpose() * P.C;
+    A.row(0).noalias() = f.grad.transpose().lazyProduct(P.C);
     gamma[0] = f.grad.dot(P.d) + P.v.dot(f.hess * P.v) + 2 * f.grad_t.dot(P.v) + f.ftt;
   }
   std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
@@ -180,7 +180,7 @@ class KnifeEdge final : public Constraint {
     const Vec3 n = P.R * a_;
     phi[0] = n.dot(P.v);
     phid[0] = phi[0];
-    A.row(0).noalias() = n.transpose() * P.C;
+    A.row(0).noalias() = n.transpose().lazyProduct(P.C);
     gamma[0] = P.w.cross(n).dot(P.v) + n.dot(P.d);
   }
   std::string describe() const override { return "no lateral slip at " + pn_; }
@@ -203,7 +203,7 @@ class PointSpeed final : public Constraint {
     const TimeValue s = s_->eval(in.t);
     phi[0] = u_.dot(P.v) - s.f;
     phid[0] = phi[0];
-    A.row(0).noalias() = u_.transpose() * P.C;
+    A.row(0).noalias() = u_.transpose().lazyProduct(P.C);
     gamma[0] = u_.dot(P.d) - s.df;
   }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }

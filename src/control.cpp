@@ -26,7 +26,7 @@ void ComputedTorquePD::compute(double, const Eigen::VectorXd& q, const Eigen::Ve
   }
   unchecked::crba(model_, data_, q);
   unchecked::rnea(model_, data_, q, &qd, nullptr, true, data_.nle);
-  tau.noalias() = data_.M * u_;
+  tau.noalias() = data_.M.lazyProduct(u_);
   tau += data_.nle;
 }
 

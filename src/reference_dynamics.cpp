@@ -12,6 +12,21 @@
 
 namespace refdyn {
 
+namespace {
+/// Inverse of a small M×M matrix with Eigen's fixed-size closed form; false when singular.
+template <int M>
+bool small_inverse(const Eigen::MatrixXd& K, Eigen::MatrixXd& Kinv) {
+  const Eigen::Matrix<double, M, M> k = K;
+  Eigen::Matrix<double, M, M> inv;
+  double det = 0;
+  bool ok = false;
+  k.computeInverseAndDetWithCheck(inv, det, ok, 0.0);
+  if (!ok || !std::isfinite(det)) return false;
+  Kinv = inv;
+  return true;
+}
+}  // namespace
+
 void ReferenceDynamicsOptions::validate() const {
   auto need = [](bool ok, const char* what, const char* expected, double got) {
     if (!ok) throw Error(expected_got(std::string("reference dynamics option ") + what, expected, fmt(got)));
@@ -102,13 +117,27 @@ bool ReferenceDynamics::factor_partition() {
     cond_ = 1.0;
     return true;
   }
-  lu_m_.compute(Kdc_);
-  // K⁻¹ = U⁻¹ L⁻¹ P in place (no temporaries), and the exact 1-norm condition number.
-  Kinv_.setZero();
-  const auto& perm = lu_m_.permutationP().indices();  // P e_i = e_perm[i]
-  for (int i = 0; i < m_; ++i) Kinv_(perm[i], i) = 1.0;
-  lu_m_.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(Kinv_);
-  lu_m_.matrixLU().triangularView<Eigen::Upper>().solveInPlace(Kinv_);
+  // K_dc⁻¹: Eigen's closed-form fixed-size inverse for m ≤ 4 (the common case), else an LU
+  // applied in place (U⁻¹ L⁻¹ P, no temporaries). A singular K_dc gives an infinite κ.
+  bool regular = true;
+  switch (m_) {
+    case 1: regular = small_inverse<1>(Kdc_, Kinv_); break;
+    case 2: regular = small_inverse<2>(Kdc_, Kinv_); break;
+    case 3: regular = small_inverse<3>(Kdc_, Kinv_); break;
+    case 4: regular = small_inverse<4>(Kdc_, Kinv_); break;
+    default: {
+      lu_m_.compute(Kdc_);
+      Kinv_.setZero();
+      const auto& perm = lu_m_.permutationP().indices();  // P e_i = e_perm[i]
+      for (int i = 0; i < m_; ++i) Kinv_(perm[i], i) = 1.0;
+      lu_m_.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(Kinv_);
+      lu_m_.matrixLU().triangularView<Eigen::Upper>().solveInPlace(Kinv_);
+    }
+  }
+  if (!regular) {
+    cond_ = std::numeric_limits<double>::infinity();
+    return false;
+  }
   auto norm1 = [](const Eigen::MatrixXd& X) {
     double best = 0;
     for (Eigen::Index c = 0; c < X.cols(); ++c) best = std::max(best, X.col(c).cwiseAbs().sum());
@@ -120,7 +149,7 @@ bool ReferenceDynamics::factor_partition() {
   const double inorm = norm1(Kinv_);
   cond_ = norm * inorm;
   if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
-  G_.noalias() = -Kinv_ * Kic_;
+  G_.noalias() = -Kinv_.lazyProduct(Kic_);
   return true;
 }
 
@@ -222,8 +251,13 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   else
     solve_lagrange(t);
 
-  Qc_.noalias() = data_.M * qdd_;
+  Qc_.noalias() = data_.M.lazyProduct(qdd_);
   Qc_ -= F_;
+  // Projection: λ from the dependent rows, K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
+  if (opt_.solver == ReferenceSolver::Projection && m_ > 0) {
+    for (int r = 0; r < m_; ++r) tmp_m_[r] = -Qc_[dep_[r]];
+    lambda_.noalias() = Kinv_.transpose().lazyProduct(tmp_m_);
+  }
   xdot.head(n_) = qd_;
   xdot.segment(n_, n_) = qdd_;
   if (nz) xdot.tail(nz) = zdot_.head(nz);
@@ -251,7 +285,7 @@ void ReferenceDynamics::solve_projection(double t) {
   //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
   qp_.setZero();
   for (int r = 0; r < m_; ++r) qp_[dep_[r]] = Kinv_.row(r).dot(rhs_);
-  tmp_n_.noalias() -= M * qp_;  // F − M q̈_p
+  for (int r = 0; r < m_; ++r) tmp_n_ -= qp_[dep_[r]] * M.col(dep_[r]);  // F − M q̈_p
   // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
   for (int c = 0; c < k; ++c) {
     MN_.col(c) = M.col(ind_[c]);
@@ -277,12 +311,6 @@ void ReferenceDynamics::solve_projection(double t) {
       for (int r = 0; r < m_; ++r) qdd_[dep_[r]] += G_(r, c) * rk_[c];
     }
   }
-  // λ from the dependent rows: K_dcᵀ λ = (F − M q̈)_dc.
-  if (m_ > 0) {
-    tmp_n_.noalias() = M * qdd_;
-    for (int r = 0; r < m_; ++r) tmp_m_[r] = F_[dep_[r]] - tmp_n_[dep_[r]];
-    lambda_.noalias() = Kinv_.transpose() * tmp_m_;
-  }
 }
 
 void ReferenceDynamics::solve_lagrange(double t) {
@@ -295,17 +323,17 @@ void ReferenceDynamics::solve_lagrange(double t) {
   if (m_ == 0) return;
   Y_ = ev_.A.transpose();
   data_.llt.solveInPlace(Y_);
-  Smm_.noalias() = ev_.A * Y_;
+  Smm_.noalias() = ev_.A.lazyProduct(Y_);
   llt_m_.compute(Smm_);
   if (llt_m_.info() != Eigen::Success)
     throw NumericalFailure(t, "at t = " + fmt(t) +
                                   " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
                                   "hint: remove redundant constraints");
-  tmp_m_.noalias() = ev_.A * qdd_;
+  tmp_m_.noalias() = ev_.A.lazyProduct(qdd_);
   tmp_m_ -= rhs_;
   lambda_ = tmp_m_;
   llt_m_.solveInPlace(lambda_);
-  qdd_.noalias() -= Y_ * lambda_;
+  qdd_.noalias() -= Y_.lazyProduct(lambda_);
 }
 
 double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
