@@ -319,22 +319,10 @@ ConstraintEval::ConstraintEval(const Model& model, const ConstraintSet& set)
 void compute_point_states(const Model& model, Data& data, const std::vector<int>& pts, const Eigen::VectorXd& qd,
                           std::vector<PointState>& out) {
   // Body velocities and drift accelerations (q̈ = 0), body frames.
-  for (int i = 0; i < model.nq; ++i) {
-    const int p = model.parent[i];
-    const Motion vj = model.motion_subspace(i) * qd[i];
-    if (p < 0) {
-      data.v[i] = vj;
-      data.a[i] = Motion::Zero();
-    } else {
-      data.v[i] = data.liMi[i].act_inv(data.v[p]) + vj;
-      data.a[i] = data.liMi[i].act_inv(data.a[p]) + data.v[i].cross(vj);
-    }
-  }
+  for (int i = 0; i < model.nq; ++i) kinematics_detail::propagate_velocity_drift(model, data, i, qd);
   for (int k : pts) {
     PointState& P = out[k];
     const int b = model.point_body[k];
-    P.C.setZero();
-    P.Jw.setZero();
     if (b < 0) {
       P.r = model.point_position[k];
       P.v.setZero();
@@ -342,28 +330,18 @@ void compute_point_states(const Model& model, Data& data, const std::vector<int>
       P.w.setZero();
       P.wd.setZero();
       P.R.setIdentity();
+      P.C.setZero();
+      P.Jw.setZero();
       continue;
     }
-    const SE3& X = data.oMi[b];
-    const Vec3& rb = model.point_position[k];
-    const Motion& v = data.v[b];
-    const Motion& a = data.a[b];
-    const Vec3 vel_b = v.v + v.w.cross(rb);
-    P.r = X.act_point(rb);
-    P.R = X.R;
-    P.v = X.R * vel_b;
-    P.d = X.R * (a.v + a.w.cross(rb) + v.w.cross(vel_b));
-    P.w = X.R * v.w;
-    P.wd = X.R * a.w;
-    for (int i : model.support[b]) {
-      const Vec3 u = data.oMi[i].R * model.axis[i];
-      if (model.joint_type[i] == JointType::Revolute) {
-        P.Jw.col(i) = u;
-        P.C.col(i) = u.cross(P.r - data.oMi[i].p);
-      } else {
-        P.C.col(i) = u;
-      }
-    }
+    const PointDrift pd = kinematics_detail::point_drift_on_body(data, b, model.point_position[k]);
+    P.r = data.oMi[b].act_point(model.point_position[k]);
+    P.R = data.oMi[b].R;
+    P.v = pd.velocity;
+    P.d = pd.drift;
+    P.w = pd.omega;
+    P.wd = pd.omega_drift;
+    kinematics_detail::point_jacobian_at(model, data, b, P.r, P.C, P.Jw);
   }
 }
 

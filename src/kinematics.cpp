@@ -69,22 +69,52 @@ Vec3 point_position(const Model& model, const Data& data, int point) {
   return b < 0 ? model.point_position[point] : data.oMi[b].act_point(model.point_position[point]);
 }
 
-void point_jacobian(const Model& model, Data& data, int point) {
-  check_point(model, point);
-  data.Jp.setZero();
-  data.Jw.setZero();
-  const int b = model.point_body[point];
+namespace kinematics_detail {
+
+void propagate_velocity_drift(const Model& model, Data& data, int i, const Eigen::VectorXd& qd) {
+  const int p = model.parent[i];
+  const Motion vj = model.motion_subspace(i) * qd[i];
+  if (p < 0) {
+    data.v[i] = vj;
+    data.a[i] = Motion::Zero();
+  } else {
+    data.v[i] = data.liMi[i].act_inv(data.v[p]) + vj;
+    data.a[i] = data.liMi[i].act_inv(data.a[p]) + data.v[i].cross(vj);
+  }
+}
+
+void point_jacobian_at(const Model& model, const Data& data, int b, const Vec3& r,
+                       Eigen::Matrix<double, 3, Eigen::Dynamic>& C, Eigen::Matrix<double, 3, Eigen::Dynamic>& Jw) {
+  C.setZero();
+  Jw.setZero();
   if (b < 0) return;
-  const Vec3 r = data.oMi[b].act_point(model.point_position[point]);
   for (int i : model.support[b]) {
     const Vec3 u = data.oMi[i].R * model.axis[i];
     if (model.joint_type[i] == JointType::Revolute) {
-      data.Jw.col(i) = u;
-      data.Jp.col(i) = u.cross(r - data.oMi[i].p);
+      Jw.col(i) = u;
+      C.col(i) = u.cross(r - data.oMi[i].p);
     } else {
-      data.Jp.col(i) = u;
+      C.col(i) = u;
     }
   }
+}
+
+PointDrift point_drift_on_body(const Data& data, int b, const Vec3& r) {
+  const Motion& v = data.v[b];
+  const Motion& a = data.a[b];
+  const Vec3 vel_b = v.v + v.w.cross(r);
+  const Vec3 acc_b = a.v + a.w.cross(r) + v.w.cross(vel_b);
+  const Mat3& R = data.oMi[b].R;
+  return {R * vel_b, R * acc_b, R * v.w, R * a.w};
+}
+
+}  // namespace kinematics_detail
+
+void point_jacobian(const Model& model, Data& data, int point) {
+  check_point(model, point);
+  const int b = model.point_body[point];
+  const Vec3 r = b < 0 ? model.point_position[point] : data.oMi[b].act_point(model.point_position[point]);
+  kinematics_detail::point_jacobian_at(model, data, b, r, data.Jp, data.Jw);
 }
 
 SE3 link_transform(const Model& model, const Data& data, int body) {
@@ -100,27 +130,8 @@ PointDrift point_drift(const Model& model, Data& data, int point, const Eigen::V
   const int b = model.point_body[point];
   if (b < 0) return out;
   // Spatial velocity and drift acceleration along the support chain, in body frames.
-  for (int i : model.support[b]) {
-    const int p = model.parent[i];
-    const Motion vj = model.motion_subspace(i) * qd[i];
-    if (p < 0) {
-      data.v[i] = vj;
-      data.a[i] = Motion::Zero();
-    } else {
-      data.v[i] = data.liMi[i].act_inv(data.v[p]) + vj;
-      data.a[i] = data.liMi[i].act_inv(data.a[p]) + data.v[i].cross(vj);
-    }
-  }
-  const Vec3& r = model.point_position[point];
-  const Motion& v = data.v[b];
-  const Motion& a = data.a[b];
-  const Vec3 vel_b = v.v + v.w.cross(r);
-  const Vec3 acc_b = a.v + a.w.cross(r) + v.w.cross(vel_b);
-  const Mat3& R = data.oMi[b].R;
-  out.velocity = R * vel_b;
-  out.drift = R * acc_b;
-  out.omega = R * v.w;
-  out.omega_drift = R * a.w;
+  for (int i : model.support[b]) kinematics_detail::propagate_velocity_drift(model, data, i, qd);
+  out = kinematics_detail::point_drift_on_body(data, b, model.point_position[point]);
   return out;
 }
 

@@ -40,4 +40,18 @@ struct PointDrift {
 };
 PointDrift point_drift(const Model& model, Data& data, int point, const Eigen::VectorXd& qd);
 
+/// Building blocks shared by point_jacobian / point_drift and the constraint kinematics
+/// (compute_point_states); no argument checks.
+namespace kinematics_detail {
+/// data.v[i], data.a[i]: body i's spatial velocity and drift acceleration (q̈ = 0) in its own
+/// frame, from its parent's (which must be done). Requires data.liMi.
+void propagate_velocity_drift(const Model& model, Data& data, int i, const Eigen::VectorXd& qd);
+/// C and Jw (3×n, zeroed first) of a point at world position r on body b. Requires data.oMi.
+void point_jacobian_at(const Model& model, const Data& data, int b, const Vec3& r,
+                       Eigen::Matrix<double, 3, Eigen::Dynamic>& C, Eigen::Matrix<double, 3, Eigen::Dynamic>& Jw);
+/// World-frame velocity, drift, ω and ω̇-drift of the point r_body (body frame) on body b, from
+/// data.v[b], data.a[b] and data.oMi[b].
+PointDrift point_drift_on_body(const Data& data, int b, const Vec3& r_body);
+}  // namespace kinematics_detail
+
 }  // namespace refdyn
