@@ -345,16 +345,34 @@ void compute_point_states(const Model& model, Data& data, const std::vector<int>
   }
 }
 
-void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev, double t,
-                          const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
-  forward_kinematics_unchecked(model, data, q);
-  compute_point_states(model, data, set.points(), qd, ev.points);
+namespace {
+void evaluate_rows(const ConstraintSet& set, ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                   const Eigen::VectorXd& qd) {
   const ConstraintInput in{t, q, qd, ev.points};
   for (int k = 0; k < set.size(); ++k) {
     const auto& c = set.constraints()[k];
     const int r = set.row_offset(k), m = c->rows();
     c->evaluate(in, ev.phi.segment(r, m), ev.phid.segment(r, m), ev.A.middleRows(r, m), ev.gamma.segment(r, m));
   }
+}
+}  // namespace
+
+void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev, double t,
+                          const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  forward_kinematics_unchecked(model, data, q);
+  compute_point_states(model, data, set.points(), qd, ev.points);
+  evaluate_rows(set, ev, t, q, qd);
+}
+
+void evaluate_constraints_reusing_placements(const Model& model, Data& data, const ConstraintSet& set,
+                                             ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                             const Eigen::VectorXd& qd) {
+  for (int i = 0; i < model.nq; ++i) {
+    const int p = model.parent[i];
+    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
+  }
+  compute_point_states(model, data, set.points(), qd, ev.points);
+  evaluate_rows(set, ev, t, q, qd);
 }
 
 }  // namespace refdyn

@@ -703,6 +703,11 @@ void rnea(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen:
 
 void crba(const Model& model, Data& data, const Eigen::VectorXd& q) { crba_impl(model, data, q); }
 
+void rnea_reusing_placements(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
+                             const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out) {
+  rnea_dispatch(model, data, q, qd, qdd, gravity, out, true);
+}
+
 }  // namespace unchecked
 
 const Eigen::VectorXd& inverse_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,

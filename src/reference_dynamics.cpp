@@ -236,10 +236,12 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   const double* z = nz ? x.data() + 2 * n_ : nullptr;
   if (!x.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
 
-  evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
-  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
+  // One set of joint placements per evaluation: CRBA computes them, RNEA and the constraint
+  // kinematics reuse them.
   unchecked::crba(model_, data_, q_);
-  unchecked::rnea(model_, data_, q_, &qd_, nullptr, true, data_.nle);
+  unchecked::rnea_reusing_placements(model_, data_, q_, &qd_, nullptr, true, data_.nle);
+  evaluate_constraints_reusing_placements(model_, data_, constraints_, ev_, t, q_, qd_);
+  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
   F_ = Q_ - data_.nle;
   for (int r = 0; r < m_; ++r)
     rhs_[r] = constraints_.row_first_order(r)

@@ -153,6 +153,11 @@ struct ConstraintEval {
 /// the point kinematics of every point the set reads. No heap allocation.
 void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev,
                           double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+/// The same when data.liMi already holds the joint placements of this q (e.g. left by
+/// unchecked::crba): only composes data.oMi from them.
+void evaluate_constraints_reusing_placements(const Model& model, Data& data, const ConstraintSet& set,
+                                             ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                             const Eigen::VectorXd& qd);
 
 /// Point kinematics of every listed point into `out` (FK must be done; uses data.v, data.a).
 void compute_point_states(const Model& model, Data& data, const std::vector<int>& points,

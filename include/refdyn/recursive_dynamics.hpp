@@ -40,6 +40,9 @@ namespace unchecked {
 void rnea(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
           const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out);
 void crba(const Model& model, Data& data, const Eigen::VectorXd& q);
+/// RNEA reusing the joint placements data.liMi left by crba for the same q (no joint sincos).
+void rnea_reusing_placements(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
+                             const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out);
 }  // namespace unchecked
 
 }  // namespace refdyn
