@@ -25,7 +25,7 @@ void ComputedTorquePD::compute(double, const Eigen::VectorXd& q, const Eigen::Ve
     u_[i] = r.qdd[i] - 2.0 * delta_[i] * ed - delta_[i] * delta_[i] * e;
   }
   unchecked::crba(model_, data_, q);
-  unchecked::rnea(model_, data_, q, &qd, nullptr, true, data_.nle);
+  unchecked::rnea_reusing_placements(model_, data_, q, &qd, nullptr, true, data_.nle);
   tau.noalias() = data_.M.lazyProduct(u_);
   tau += data_.nle;
 }
@@ -129,7 +129,7 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   control(c, w, t, limit);
   forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
   unchecked::crba(m, w.data, w.q);
-  unchecked::rnea(m, w.data, w.q, &w.qd, nullptr, true, w.data.nle);
+  unchecked::rnea_reusing_placements(m, w.data, w.q, &w.qd, nullptr, true, w.data.nle);
   w.data.llt.compute(w.data.M);
   if (w.data.llt.info() != Eigen::Success)
     throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
