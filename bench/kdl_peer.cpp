@@ -3,14 +3,22 @@
 
 #include <kdl/chain.hpp>
 #include <kdl/chaindynparam.hpp>
+#include <kdl/chainfksolvervel_recursive.hpp>
+#include <kdl/chainhdsolver_vereshchagin.hpp>
 #include <kdl/chainidsolver_recursive_newton_euler.hpp>
+#include <kdl/chainjnttojacdotsolver.hpp>
+#include <kdl/chainjnttojacsolver.hpp>
 #include <kdl/frames.hpp>
+#include <kdl/framevel.hpp>
+#include <kdl/jacobian.hpp>
 #include <kdl/jntarray.hpp>
+#include <kdl/jntarrayvel.hpp>
 #include <kdl/jntspaceinertiamatrix.hpp>
 #include <kdl/rigidbodyinertia.hpp>
 #include <kdl/rotationalinertia.hpp>
 #include <kdl/segment.hpp>
 
+#include <memory>
 #include <vector>
 
 namespace refdyn_bench {
@@ -50,6 +58,12 @@ struct KdlPeer::Impl {
   KDL::JntSpaceInertiaMatrix M;
   KDL::JntArray c, g, tau;
   KDL::Wrenches fext;
+  // Vereshchagin (after setup_vereshchagin). The solver keeps a reference to `chain`.
+  std::unique_ptr<KDL::ChainHdSolver_Vereshchagin> hd;
+  int nc = 0;
+  std::vector<KDL::Jacobian> alfa;
+  std::vector<KDL::JntArray> beta, ff;
+  KDL::JntArray hd_qdd, hd_tau_c;
 };
 
 KdlPeer::KdlPeer(const DHTable& table) : impl_(std::make_unique<Impl>(table)) {}
@@ -91,6 +105,87 @@ void KdlPeer::get_gravity(double* g) const {
 }
 void KdlPeer::get_tau(double* tau) const {
   for (int i = 0; i < impl_->n; ++i) tau[i] = impl_->tau(i);
+}
+
+// ---- Vereshchagin ----
+
+void KdlPeer::setup_vereshchagin(const double* root_acc, int nc) {
+  Impl& s = *impl_;
+  const KDL::Twist acc(KDL::Vector(root_acc[0], root_acc[1], root_acc[2]),
+                       KDL::Vector(root_acc[3], root_acc[4], root_acc[5]));
+  s.hd = std::make_unique<KDL::ChainHdSolver_Vereshchagin>(s.chain, acc, static_cast<unsigned>(nc));
+  s.nc = nc;
+  s.hd_qdd = KDL::JntArray(s.n);
+  s.hd_tau_c = KDL::JntArray(s.n);
+}
+
+void KdlPeer::load_vereshchagin_inputs(const double* alfa, const double* beta, const double* ff_torques,
+                                       int count) {
+  Impl& s = *impl_;
+  const int n = s.n, nc = s.nc;
+  s.alfa.assign(count, KDL::Jacobian(nc));
+  s.beta.assign(count, KDL::JntArray(nc));
+  s.ff.assign(count, KDL::JntArray(n));
+  for (int k = 0; k < count; ++k) {
+    for (int c = 0; c < nc; ++c) {
+      for (int r = 0; r < 6; ++r) s.alfa[k](r, c) = alfa[(k * nc + c) * 6 + r];
+      s.beta[k](c) = beta[k * nc + c];
+    }
+    for (int i = 0; i < n; ++i) s.ff[k](i) = ff_torques[k * n + i];
+  }
+}
+
+int KdlPeer::vereshchagin(int k) {
+  Impl& s = *impl_;
+  return s.hd->CartToJnt(s.q[k], s.qd[k], s.hd_qdd, s.alfa[k], s.beta[k], s.fext, s.ff[k], s.hd_tau_c);
+}
+
+void KdlPeer::get_vereshchagin_qdd(double* qdd) const {
+  for (int i = 0; i < impl_->n; ++i) qdd[i] = impl_->hd_qdd(i);
+}
+void KdlPeer::get_vereshchagin_constraint_torques(double* tau_c) const {
+  for (int i = 0; i < impl_->n; ++i) tau_c[i] = impl_->hd_tau_c(i);
+}
+void KdlPeer::get_vereshchagin_nu(double* nu) const {
+  Eigen::VectorXd v(impl_->nc);
+  impl_->hd->getContraintForceMagnitude(v);
+  for (int c = 0; c < impl_->nc; ++c) nu[c] = v(c);
+}
+void KdlPeer::get_vereshchagin_tip_acceleration(double* acc6) const {
+  std::vector<KDL::Twist> xdd(impl_->chain.getNrOfSegments() + 1);
+  impl_->hd->getTransformedLinkAcceleration(xdd);
+  const KDL::Twist& a = xdd.back();
+  for (int i = 0; i < 3; ++i) {
+    acc6[i] = a.vel(i);
+    acc6[3 + i] = a.rot(i);
+  }
+}
+
+int KdlPeer::tip_kinematics(int k, const double* qdd, double* pos3, double* twist6, double* acc6) {
+  Impl& s = *impl_;
+  const int n = s.n;
+  KDL::JntArrayVel qv(s.q[k], s.qd[k]);
+  KDL::FrameVel fv;
+  KDL::ChainFkSolverVel_recursive fk(s.chain);
+  if (int e = fk.JntToCart(qv, fv); e < 0) return e;
+  KDL::Jacobian J(n);
+  KDL::ChainJntToJacSolver jac(s.chain);
+  if (int e = jac.JntToJac(s.q[k], J); e < 0) return e;
+  KDL::ChainJntToJacDotSolver jacdot(s.chain);  // hybrid representation (the default)
+  KDL::Twist jdqd;
+  if (int e = jacdot.JntToJacDot(qv, jdqd); e < 0) return e;
+  const KDL::Twist t = fv.GetTwist();
+  for (int i = 0; i < 3; ++i) {
+    pos3[i] = fv.GetFrame().p(i);
+    twist6[i] = t.vel(i);
+    twist6[3 + i] = t.rot(i);
+  }
+  for (int r = 0; r < 6; ++r) {
+    double a = r < 3 ? jdqd.vel(r) : jdqd.rot(r - 3);
+    for (int j = 0; j < n; ++j) a += J(r, j) * qdd[j];
+    acc6[r] = a;
+  }
+  return 0;
 }
 
 }  // namespace refdyn_bench

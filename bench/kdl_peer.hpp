@@ -47,6 +47,34 @@ class REFDYN_KDL_PEER_API KdlPeer {
   void get_gravity(double* g) const;
   void get_tau(double* tau) const;
 
+  // ---- Vereshchagin hybrid dynamics (KDL::ChainHdSolver_Vereshchagin) ----
+  // Six-vectors here are [linear x, y, z; angular x, y, z] (KDL's Twist / Jacobian row order).
+
+  /// Creates the solver with `nc` end-effector constraints and the root acceleration
+  /// `root_acc` (6). KDL's convention: root_acc is the acceleration of the base, i.e. MINUS
+  /// gravity (e.g. [0, 0, +9.81, 0, 0, 0] for gravity −9.81 z).
+  void setup_vereshchagin(const double* root_acc, int nc);
+  /// Stores the solver inputs for `count` states (used with the q, q̇ of load_states): per state
+  /// k, alfa (6 × nc, column-major, offset k·6·nc: unit constraint forces in the base frame,
+  /// applied at the tip), beta (nc, offset k·nc) and ff_torques (n, offset k·n). f_ext is zero.
+  void load_vereshchagin_inputs(const double* alfa, const double* beta, const double* ff_torques, int count);
+  /// The timed kernel: ChainHdSolver_Vereshchagin::CartToJnt on stored state k. Returns KDL's
+  /// error code (0 on success).
+  int vereshchagin(int k);
+  void get_vereshchagin_qdd(double* qdd) const;                   ///< n
+  void get_vereshchagin_constraint_torques(double* tau_c) const;  ///< n
+  void get_vereshchagin_nu(double* nu) const;                     ///< nc (constraint force magnitudes)
+  /// The solver's own spatial acceleration of the last segment (getTransformedLinkAcceleration:
+  /// base orientation, reference point at the tip; it includes root_acc).
+  void get_vereshchagin_tip_acceleration(double* acc6) const;
+
+  /// Tip kinematics of stored state k with joint accelerations `qdd`, from KDL's kinematic
+  /// solvers (not the dynamics solver): ChainFkSolverVel_recursive gives the tip position (3)
+  /// and twist (6, base frame, reference point at the tip); ChainJntToJacSolver and
+  /// ChainJntToJacDotSolver (hybrid representation) give acc6 = J q̈ + J̇ q̇, the classical
+  /// acceleration [r̈_tip; ω̇]. Returns 0 on success.
+  int tip_kinematics(int k, const double* qdd, double* pos3, double* twist6, double* acc6);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
