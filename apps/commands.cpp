@@ -28,8 +28,9 @@ namespace {
 /// A progress bar on stderr for runs longer than a second (only on a terminal).
 class Progress {
  public:
-  Progress(std::string what, double t0, double t1) : what_(std::move(what)), t0_(t0), t1_(t1), start_(clock::now()) {
-    tty_ = ::isatty(STDERR_FILENO);
+  Progress(std::string what, double t0, double t1, bool enabled = true)
+      : what_(std::move(what)), t0_(t0), t1_(t1), start_(clock::now()) {
+    tty_ = enabled && ::isatty(STDERR_FILENO);
   }
   void update(double t) {
     if (!tty_ || ++calls_ % 64) return;
@@ -72,9 +73,8 @@ PlannedScenario plan_scenario(const std::string& file, bool quiet) {
   io::Scenario& s = *p.sc;
   p.rd = std::make_unique<ReferenceDynamics>(s.model, s.forces, s.constraints, s.options);
   const Eigen::VectorXd x0 = p.rd->make_state(s.q0, s.qd0);
-  Progress bar(quiet ? "" : "planning", s.integrator.t0, s.integrator.t1);
-  (void)bar;
-  p.plan = plan_motion(*p.rd, x0, s.integrator, s.residual_from);
+  Progress bar("planning", s.integrator.t0, s.integrator.t1, !quiet);
+  p.plan = plan_motion(*p.rd, x0, s.integrator, s.residual_from, [&bar](double t) { bar.update(t); });
   return p;
 }
 
@@ -248,6 +248,8 @@ int run_track(const std::string& file, const std::string& out_dir, bool quiet) {
     o.integrator = s.integrator;
     o.integrator.t1 = std::min(s.integrator.t1, p.plan.summary.t_end);
     o.effort_limit = s.effort_limit;
+    Progress bar("experiment " + ex.name, o.integrator.t0, o.integrator.t1, !quiet);
+    o.progress = [&bar](double t) { bar.update(t); };
     Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
     x0.head(n) = ex.q0;
     x0.segment(n, n) = ex.qd0;

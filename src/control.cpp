@@ -43,7 +43,7 @@ void PDGravity::compute(double, const Eigen::VectorXd& q, const Eigen::VectorXd&
 }
 
 Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                 double residual_from) {
+                 double residual_from, const std::function<void(double)>& progress) {
   options.validate();
   check_vector("x0", x0, rd.state_size(), "x0 = [q; qd; z], see ReferenceDynamics::make_state");
   const int n = rd.nq();
@@ -70,6 +70,7 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     plan.t.push_back(t);
     plan.x.push_back(x);
     if (t >= residual_from - 1e-12) worst = std::max(worst, rd.residual(t, x));
+    if (progress) progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
@@ -175,6 +176,7 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     out.tau.push_back(w.tau);
     out.q_ref.push_back(w.qr);
     out.qd_ref.push_back(w.qdr);
+    if (options.progress) options.progress(t);
   };
 
   if (io.method == IntegratorMethod::RK4) {

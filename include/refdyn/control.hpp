@@ -17,6 +17,7 @@
 #include "refdyn/model.hpp"
 #include "refdyn/reference_dynamics.hpp"
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -88,12 +89,14 @@ struct Plan {
 /// Solves the reference dynamics from x0 with the given integrator; records samples (and, for
 /// RK4, the stage values used by simulate_closed_loop). summary.max_constraint_residual is the
 /// largest |Φ| / |c| over the samples with t >= residual_from.
+/// `progress`, when given, is called with the time of every sample (e.g. for a progress bar).
 Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                 double residual_from = 0.0);
+                 double residual_from = 0.0, const std::function<void(double)>& progress = {});
 
 struct ClosedLoopOptions {
   IntegratorOptions integrator;      ///< must match the plan's RK4 grid when method is RK4
   Eigen::VectorXd effort_limit;      ///< optional per-joint |τ| limit (saturation); empty: none
+  std::function<void(double)> progress;  ///< optional: called with the time of every sample
 };
 
 struct ClosedLoopResult {

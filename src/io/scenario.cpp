@@ -739,7 +739,9 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
           if (in["qd"]) exp->qd0 = c.joint_vector(in["qd"], k + ".initial.qd", m, false, 0.0, &extra);
         }
         const YAML::Node pf = e["plant_forces"] ? e["plant_forces"] : root["plant_forces"];
-        read_forces(c, pf, e["plant_forces"] ? k + ".plant_forces" : "plant_forces", m, exp->plant_forces);
+        Ctx ce = c;  // the sweep parameter is visible in the run's plant forces too
+        ce.params.insert(extra.begin(), extra.end());
+        read_forces(ce, pf, e["plant_forces"] ? k + ".plant_forces" : "plant_forces", m, exp->plant_forces);
         s->experiments.push_back(std::move(exp));
       }
     }
