@@ -304,10 +304,16 @@ void ReferenceDynamics::solve_projection(double t) {
   }
   qdd_ = qp_;
   if (k > 0) {
-    llt_k_.compute(NMN_);
-    if (llt_k_.info() != Eigen::Success)
-      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-    llt_k_.solveInPlace(rk_);
+    if (k == 1) {  // one independent coordinate (the paper's case): a scalar division
+      if (!(NMN_(0, 0) > 0))
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      rk_[0] /= NMN_(0, 0);
+    } else {
+      llt_k_.compute(NMN_);
+      if (llt_k_.info() != Eigen::Success)
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      llt_k_.solveInPlace(rk_);
+    }
     for (int c = 0; c < k; ++c) {
       qdd_[ind_[c]] += rk_[c];
       for (int r = 0; r < m_; ++r) qdd_[dep_[r]] += G_(r, c) * rk_[c];
