@@ -43,6 +43,7 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
     : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
       m_(constraints.rows()), data_(model), ev_(model, constraints) {
   opt_.validate();
+  for (int r = 0; r < constraints.rows(); ++r) first_order_row_.push_back(constraints.row_first_order(r));
   if (m_ > n_)
     throw Error(expected_got("number of constraint rows", "at most the number of coordinates (" + std::to_string(n_) + ")",
                              std::to_string(m_), "remove redundant constraints"));
@@ -244,7 +245,7 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
   F_ = Q_ - data_.nle;
   for (int r = 0; r < m_; ++r)
-    rhs_[r] = constraints_.row_first_order(r)
+    rhs_[r] = first_order_row_[r]
                   ? -ev_.gamma[r] - opt_.beta_first_order * ev_.phi[r]
                   : -ev_.gamma[r] - 2.0 * opt_.alpha * ev_.phid[r] - opt_.beta * opt_.beta * ev_.phi[r];
 

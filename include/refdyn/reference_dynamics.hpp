@@ -133,6 +133,7 @@ class ReferenceDynamics {
   Data data_;
   ConstraintEval ev_;
   std::vector<int> ind_, dep_;
+  std::vector<char> first_order_row_;  ///< per constraint row: velocity-level (ċ + β₁c) or not
   bool partition_set_ = false;
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
