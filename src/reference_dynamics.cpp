@@ -112,8 +112,14 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 }
 
 bool ReferenceDynamics::factor_partition() {
-  for (int c = 0; c < m_; ++c) Kdc_.col(c) = ev_.A.col(dep_[c]);
-  for (int c = 0; c < n_ - m_; ++c) Kic_.col(c) = ev_.A.col(ind_[c]);
+  // Small dense glue below is written as plain loops over column-major storage: for the sizes
+  // of interest (m, n of a few) Eigen's dynamic-size expression set-up costs more than the flops.
+  const int k = n_ - m_;
+  const double* A = ev_.A.data();  // m × n, column-major
+  for (int c = 0; c < m_; ++c)
+    for (int r = 0; r < m_; ++r) Kdc_.data()[c * m_ + r] = A[dep_[c] * m_ + r];
+  for (int c = 0; c < k; ++c)
+    for (int r = 0; r < m_; ++r) Kic_.data()[c * m_ + r] = A[ind_[c] * m_ + r];
   if (m_ == 0) {
     cond_ = 1.0;
     return true;
@@ -139,18 +145,31 @@ bool ReferenceDynamics::factor_partition() {
     cond_ = std::numeric_limits<double>::infinity();
     return false;
   }
-  auto norm1 = [](const Eigen::MatrixXd& X) {
+  auto norm1 = [](const double* X, int rows, int cols) {  // max column abs sum
     double best = 0;
-    for (Eigen::Index c = 0; c < X.cols(); ++c) best = std::max(best, X.col(c).cwiseAbs().sum());
+    for (int c = 0; c < cols; ++c) {
+      double sum = 0;
+      for (int r = 0; r < rows; ++r) sum += std::abs(X[c * rows + r]);
+      best = std::max(best, sum);
+    }
     return best;
   };
   // κ = ‖A‖₁ ‖K_dc⁻¹‖₁: the sensitivity of q̇_dc = −K_dc⁻¹ K_ic q̇_ic, measured against the whole
   // constraint Jacobian (a tiny K_dc next to a large K_ic is ill-conditioned even when m = 1).
-  const double norm = norm1(ev_.A);
-  const double inorm = norm1(Kinv_);
+  const double norm = norm1(A, m_, n_);
+  const double inorm = norm1(Kinv_.data(), m_, m_);
   cond_ = norm * inorm;
   if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
-  G_.noalias() = -Kinv_.lazyProduct(Kic_);
+  // G = −K_dc⁻¹ K_ic (m × k)
+  const double* Ki = Kinv_.data();
+  const double* Kc = Kic_.data();
+  double* G = G_.data();
+  for (int c = 0; c < k; ++c)
+    for (int r = 0; r < m_; ++r) {
+      double sum = 0;
+      for (int j = 0; j < m_; ++j) sum += Ki[j * m_ + r] * Kc[c * m_ + j];
+      G[c * m_ + r] = -sum;
+    }
   return true;
 }
 
@@ -254,12 +273,23 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   else
     solve_lagrange(t);
 
-  Qc_.noalias() = data_.M.lazyProduct(qdd_);
-  Qc_ -= F_;
+  {  // Q_c = M q̈ − F
+    const double* Mp = data_.M.data();
+    for (int i = 0; i < n_; ++i) Qc_[i] = -F_[i];
+    for (int j = 0; j < n_; ++j) {
+      const double a = qdd_[j];
+      const double* col = Mp + static_cast<size_t>(j) * n_;
+      for (int i = 0; i < n_; ++i) Qc_[i] += a * col[i];
+    }
+  }
   // Projection: λ from the dependent rows, K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
   if (opt_.solver == ReferenceSolver::Projection && m_ > 0) {
-    for (int r = 0; r < m_; ++r) tmp_m_[r] = -Qc_[dep_[r]];
-    lambda_.noalias() = Kinv_.transpose().lazyProduct(tmp_m_);
+    const double* Ki = Kinv_.data();
+    for (int c = 0; c < m_; ++c) {
+      double sum = 0;
+      for (int r = 0; r < m_; ++r) sum -= Ki[c * m_ + r] * Qc_[dep_[r]];  // (K⁻¹)ᵀ(c, r) = K⁻¹(r, c)
+      lambda_[c] = sum;
+    }
   }
   xdot.head(n_) = qd_;
   xdot.segment(n_, n_) = qdd_;
@@ -286,22 +316,47 @@ void ReferenceDynamics::solve_projection(double t) {
   // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
   //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
   //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
-  qp_.setZero();
-  for (int r = 0; r < m_; ++r) qp_[dep_[r]] = Kinv_.row(r).dot(rhs_);
-  for (int r = 0; r < m_; ++r) tmp_n_ -= qp_[dep_[r]] * M.col(dep_[r]);  // F − M q̈_p
+  const int n = n_, m = m_;
+  const double* Mp = M.data();   // n × n, column-major
+  const double* G = G_.data();   // m × k
+  const double* Ki = Kinv_.data();
+  double* f = tmp_n_.data();
+  double* qp = qp_.data();
+  for (int i = 0; i < n; ++i) qp[i] = 0.0;
+  for (int r = 0; r < m; ++r) {
+    double sum = 0;
+    for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs_[j];
+    qp[dep_[r]] = sum;
+  }
+  for (int r = 0; r < m; ++r) {  // F − M q̈_p
+    const double a = qp[dep_[r]];
+    const double* col = Mp + static_cast<size_t>(dep_[r]) * n;
+    for (int i = 0; i < n; ++i) f[i] -= a * col[i];
+  }
   // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
+  double* MN = MN_.data();  // n × k
   for (int c = 0; c < k; ++c) {
-    MN_.col(c) = M.col(ind_[c]);
-    for (int r = 0; r < m_; ++r) MN_.col(c) += G_(r, c) * M.col(dep_[r]);
+    double* out = MN + static_cast<size_t>(c) * n;
+    const double* col = Mp + static_cast<size_t>(ind_[c]) * n;
+    for (int i = 0; i < n; ++i) out[i] = col[i];
+    for (int r = 0; r < m; ++r) {
+      const double g = G[c * m + r];
+      const double* d = Mp + static_cast<size_t>(dep_[r]) * n;
+      for (int i = 0; i < n; ++i) out[i] += g * d[i];
+    }
   }
   // Nᵀ (M N) and Nᵀ (F − M q̈_p): row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
+  double* NMN = NMN_.data();  // k × k
   for (int c = 0; c < k; ++c) {
-    NMN_.row(c) = MN_.row(ind_[c]);
-    rk_[c] = tmp_n_[ind_[c]];
-    for (int r = 0; r < m_; ++r) {
-      NMN_.row(c) += G_(r, c) * MN_.row(dep_[r]);
-      rk_[c] += G_(r, c) * tmp_n_[dep_[r]];
+    for (int c2 = 0; c2 < k; ++c2) {
+      const double* col = MN + static_cast<size_t>(c2) * n;
+      double v = col[ind_[c]];
+      for (int r = 0; r < m; ++r) v += G[c * m + r] * col[dep_[r]];
+      NMN[c2 * k + c] = v;
     }
+    double v = f[ind_[c]];
+    for (int r = 0; r < m; ++r) v += G[c * m + r] * f[dep_[r]];
+    rk_[c] = v;
   }
   qdd_ = qp_;
   if (k > 0) {
@@ -317,7 +372,7 @@ void ReferenceDynamics::solve_projection(double t) {
     }
     for (int c = 0; c < k; ++c) {
       qdd_[ind_[c]] += rk_[c];
-      for (int r = 0; r < m_; ++r) qdd_[dep_[r]] += G_(r, c) * rk_[c];
+      for (int r = 0; r < m; ++r) qdd_[dep_[r]] += G[c * m + r] * rk_[c];
     }
   }
 }
