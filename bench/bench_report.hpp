@@ -77,4 +77,18 @@ inline std::string fmt_ratio(double r) {
   return buf;
 }
 
+/// benchmark::Initialize with refdyn's defaults (10 repetitions, random interleaving with the
+/// peer, min time 0.05 s); later command-line flags override them. False on unknown flags.
+inline bool initialize_with_defaults(int argc, char** argv) {
+  static char rep[] = "--benchmark_repetitions=10";
+  static char inter[] = "--benchmark_enable_random_interleaving=true";
+  static char mt[] = "--benchmark_min_time=0.05";
+  static std::vector<char*> args;
+  args = {argv[0], rep, inter, mt};
+  for (int i = 1; i < argc; ++i) args.push_back(argv[i]);
+  int nargs = static_cast<int>(args.size());
+  benchmark::Initialize(&nargs, args.data());
+  return !benchmark::ReportUnrecognizedArguments(nargs, args.data());
+}
+
 }  // namespace refdyn_bench

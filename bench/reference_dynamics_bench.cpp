@@ -505,18 +505,7 @@ void print_tables(const Reporter& rep) {
 
 int main(int argc, char** argv) {
   // Defaults (overridable on the command line, later flags win): interleaved repetitions.
-  std::vector<char*> args;
-  args.push_back(argv[0]);
-  static char rep[] = "--benchmark_repetitions=10";
-  static char inter[] = "--benchmark_enable_random_interleaving=true";
-  static char mt[] = "--benchmark_min_time=0.05";
-  args.push_back(rep);
-  args.push_back(inter);
-  args.push_back(mt);
-  for (int i = 1; i < argc; ++i) args.push_back(argv[i]);
-  int nargs = static_cast<int>(args.size());
-  benchmark::Initialize(&nargs, args.data());
-  if (benchmark::ReportUnrecognizedArguments(nargs, args.data())) return 1;
+  if (!refdyn_bench::initialize_with_defaults(argc, argv)) return 1;
 
   auto b = std::make_unique<Bench>();
   build(*b);

@@ -13,6 +13,7 @@
 #include <numbers>
 
 using namespace refdyn;
+using refdyn::test::expect_error_mentioning;
 using refdyn::test::near;
 
 namespace {
@@ -36,18 +37,6 @@ LuGreHand lugre_by_hand(const LuGreParams& p, double v, double z) {
   const double g = p.mu_k + (p.mu_s - p.mu_k) * std::exp(-(v / p.v_stribeck) * (v / p.v_stribeck));
   const double zd = v - p.sigma0 * std::abs(v) * z / g;
   return {zd, -(p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v)};
-}
-
-template <typename Fn>
-void expect_error_mentioning(Fn&& fn, const std::vector<std::string>& needles) {
-  try {
-    fn();
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    for (const auto& n : needles) EXPECT_NE(what.find(n), std::string::npos) << "'" << n << "' not in: " << what;
-    return;
-  }
-  ADD_FAILURE() << "expected refdyn::Error";
 }
 
 }  // namespace

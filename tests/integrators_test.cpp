@@ -11,6 +11,7 @@
 #include <numbers>
 
 using namespace refdyn;
+using refdyn::test::expect_error_mentioning;
 using refdyn::test::near;
 
 namespace {
@@ -60,18 +61,6 @@ double rk4_error_oscillator(double h) {
   EXPECT_TRUE(s.ok()) << s.message;
   Eigen::Vector2d exact(std::cos(w * 2.0), -w * std::sin(w * 2.0));
   return (x - exact).cwiseAbs().maxCoeff();
-}
-
-template <typename Fn>
-void expect_error_mentioning(Fn&& fn, const std::vector<std::string>& needles) {
-  try {
-    fn();
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    for (const auto& n : needles) EXPECT_NE(what.find(n), std::string::npos) << "'" << n << "' not in: " << what;
-    return;
-  }
-  ADD_FAILURE() << "expected refdyn::Error";
 }
 
 }  // namespace

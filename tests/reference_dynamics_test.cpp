@@ -16,6 +16,7 @@
 #include <numbers>
 
 using namespace refdyn;
+using refdyn::test::expect_error_mentioning;
 using refdyn::test::near;
 
 namespace {
@@ -128,18 +129,6 @@ class ForwardForce final : public ForceElement {
  private:
   double F_;
 };
-
-template <typename Fn>
-void expect_error_mentioning(Fn&& fn, const std::vector<std::string>& needles) {
-  try {
-    fn();
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    for (const auto& n : needles) EXPECT_NE(what.find(n), std::string::npos) << "'" << n << "' not in: " << what;
-    return;
-  }
-  ADD_FAILURE() << "expected refdyn::Error mentioning '" << needles.front() << "'";
-}
 
 /// Signed constraint values Φ (or c) at (t, x), evaluated independently of the solver.
 struct Residuals {

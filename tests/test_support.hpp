@@ -1,5 +1,6 @@
 #pragma once
 // Shared helpers for the test suite: seeded random models and states, and one tolerance check.
+#include "refdyn/error.hpp"
 #include "refdyn/model.hpp"
 
 #include <gtest/gtest.h>
@@ -7,6 +8,7 @@
 #include <Eigen/Core>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace refdyn::test {
 
@@ -31,6 +33,19 @@ struct RandomChainOptions {
 ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt = {});
 
 Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale = 1.0);
+
+/// Expects fn() to throw refdyn::Error whose message contains every needle.
+template <typename Fn>
+void expect_error_mentioning(Fn&& fn, const std::vector<std::string>& needles) {
+  try {
+    fn();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    for (const auto& n : needles) EXPECT_NE(what.find(n), std::string::npos) << "'" << n << "' not in: " << what;
+    return;
+  }
+  ADD_FAILURE() << "expected refdyn::Error mentioning '" << (needles.empty() ? std::string() : needles.front()) << "'";
+}
 
 }  // namespace refdyn::test
 
