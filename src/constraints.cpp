@@ -316,10 +316,11 @@ ConstraintEval::ConstraintEval(const Model& model, const ConstraintSet& set)
   }
 }
 
-void compute_point_states(const Model& model, Data& data, const std::vector<int>& pts, const Eigen::VectorXd& qd,
-                          std::vector<PointState>& out) {
-  // Body velocities and drift accelerations (q̈ = 0), body frames.
-  for (int i = 0; i < model.nq; ++i) kinematics_detail::propagate_velocity_drift(model, data, i, qd);
+namespace {
+/// Point states from body motions already in data.v, data.a (and data.oMi). `a_offset` is
+/// subtracted from every world-frame drift: the base acceleration data.a was propagated with.
+void point_states_from_body_motion(const Model& model, const Data& data, const std::vector<int>& pts,
+                                   const Vec3& a_offset, std::vector<PointState>& out) {
   for (int k : pts) {
     PointState& P = out[k];
     const int b = model.point_body[k];
@@ -338,11 +339,26 @@ void compute_point_states(const Model& model, Data& data, const std::vector<int>
     P.r = data.oMi[b].act_point(model.point_position[k]);
     P.R = data.oMi[b].R;
     P.v = pd.velocity;
-    P.d = pd.drift;
+    P.d = pd.drift - a_offset;
     P.w = pd.omega;
     P.wd = pd.omega_drift;
     kinematics_detail::point_jacobian_at(model, data, b, P.r, P.C, P.Jw);
   }
+}
+
+void compose_world_placements(const Model& model, Data& data) {
+  for (int i = 0; i < model.nq; ++i) {
+    const int p = model.parent[i];
+    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
+  }
+}
+}  // namespace
+
+void compute_point_states(const Model& model, Data& data, const std::vector<int>& pts, const Eigen::VectorXd& qd,
+                          std::vector<PointState>& out) {
+  // Body velocities and drift accelerations (q̈ = 0), body frames.
+  for (int i = 0; i < model.nq; ++i) kinematics_detail::propagate_velocity_drift(model, data, i, qd);
+  point_states_from_body_motion(model, data, pts, Vec3::Zero(), out);
 }
 
 namespace {
@@ -364,14 +380,13 @@ void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& s
   evaluate_rows(set, ev, t, q, qd);
 }
 
-void evaluate_constraints_reusing_placements(const Model& model, Data& data, const ConstraintSet& set,
-                                             ConstraintEval& ev, double t, const Eigen::VectorXd& q,
-                                             const Eigen::VectorXd& qd) {
-  for (int i = 0; i < model.nq; ++i) {
-    const int p = model.parent[i];
-    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
-  }
-  compute_point_states(model, data, set.points(), qd, ev.points);
+void evaluate_constraints_after_bias_forces(const Model& model, Data& data, const ConstraintSet& set,
+                                            ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                            const Eigen::VectorXd& qd) {
+  compose_world_placements(model, data);
+  // RNEA with q̈ = 0 left the drift accelerations plus the base acceleration −g, carried into
+  // every body as a pure translation: subtract it in the world frame.
+  point_states_from_body_motion(model, data, set.points(), -model.gravity, ev.points);
   evaluate_rows(set, ev, t, q, qd);
 }
 

@@ -257,10 +257,11 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   if (!x.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
 
   // One set of joint placements per evaluation: CRBA computes them, RNEA and the constraint
-  // kinematics reuse them.
+  // kinematics reuse them; the constraint kinematics also reuse RNEA's body velocities and
+  // accelerations.
   unchecked::crba(model_, data_, q_);
   unchecked::rnea_reusing_placements(model_, data_, q_, &qd_, nullptr, true, data_.nle);
-  evaluate_constraints_reusing_placements(model_, data_, constraints_, ev_, t, q_, qd_);
+  evaluate_constraints_after_bias_forces(model_, data_, constraints_, ev_, t, q_, qd_);
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
   F_ = Q_ - data_.nle;
   for (int r = 0; r < m_; ++r)

@@ -13,6 +13,7 @@
 #include "refdyn/constraints.hpp"
 #include "refdyn/error.hpp"
 #include "refdyn/kinematics.hpp"
+#include "refdyn/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>
@@ -243,6 +244,42 @@ TEST(Constraints, ValuesMatchTheReferenceKinematics) {
     const std::vector<SE3> T2 = test::reference_link_poses(c.desc, q2);
     EXPECT_TRUE(near(T2[static_cast<size_t>(link)].R.transpose() * ev.points[tip_index].R, fixed, 1e-12, 1e-12))
         << c.label;
+  }
+}
+
+// The reference dynamics evaluates the constraints right after CRBA + RNEA and takes the body
+// velocities and accelerations RNEA left (minus the propagated gravity) instead of a second
+// velocity recursion: the two routes must give the same rows and point states, on chains and
+// trees, with a rotated base and a gravity vector in a random direction.
+TEST(Constraints, AfterBiasForcesEqualsTheStandaloneEvaluation) {
+  std::mt19937 rng(36);
+  for (Case& c : model_zoo(rng, 5)) {
+    c.desc.gravity = 9.81 * random_unit(rng);
+    c.desc.base = SE3{Eigen::AngleAxisd(0.7, random_unit(rng)).toRotationMatrix(), test::random_vector(rng, 3)};
+    const Model model = build_model(c.desc);
+    const ConstraintSet set = all_kinds(model, rng);
+    for (int trial = 0; trial < 3; ++trial) {
+      const Eigen::VectorXd q = test::random_vector(rng, model.nq, 3.0);
+      const Eigen::VectorXd qd = test::random_vector(rng, model.nq, 2.0);
+      const double t = 0.3 + trial;
+      Data d1(model), d2(model);
+      ConstraintEval e1(model, set), e2(model, set);
+      evaluate_constraints(model, d1, set, e1, t, q, qd);
+      unchecked::crba(model, d2, q);
+      unchecked::rnea_reusing_placements(model, d2, q, &qd, nullptr, true, d2.nle);
+      evaluate_constraints_after_bias_forces(model, d2, set, e2, t, q, qd);
+      EXPECT_TRUE(near(e2.phi, e1.phi, 1e-12, 1e-12)) << c.label;
+      EXPECT_TRUE(near(e2.phid, e1.phid, 1e-12, 1e-12)) << c.label;
+      EXPECT_TRUE(near(e2.A, e1.A, 1e-12, 1e-12)) << c.label;
+      EXPECT_TRUE(near(e2.gamma, e1.gamma, 1e-12, 1e-12)) << c.label;
+      for (int k : set.points()) {
+        EXPECT_TRUE(near(e2.points[k].d, e1.points[k].d, 1e-12, 1e-12)) << c.label << " point " << k;
+        EXPECT_TRUE(near(e2.points[k].wd, e1.points[k].wd, 1e-12, 1e-12)) << c.label << " point " << k;
+      }
+      // Gravity is really in RNEA's accelerations (else the subtraction above would be untested).
+      const int b = model.point_body[set.points().back()] >= 0 ? model.point_body[set.points().back()] : 0;
+      EXPECT_GT((d2.a[b].v - d1.a[b].v).norm(), 1.0) << c.label;
+    }
   }
 }
 

@@ -153,11 +153,14 @@ struct ConstraintEval {
 /// the point kinematics of every point the set reads. No heap allocation.
 void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev,
                           double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
-/// The same when data.liMi already holds the joint placements of this q (e.g. left by
-/// unchecked::crba): only composes data.oMi from them.
-void evaluate_constraints_reusing_placements(const Model& model, Data& data, const ConstraintSet& set,
-                                             ConstraintEval& ev, double t, const Eigen::VectorXd& q,
-                                             const Eigen::VectorXd& qd);
+/// The same right after unchecked::crba + unchecked::rnea_reusing_placements(q, q̇, q̈ = none,
+/// gravity on) at this (q, q̇): reuses the joint placements data.liMi (only composes data.oMi)
+/// and the body velocities data.v and accelerations data.a that RNEA left (its accelerations
+/// are the drift accelerations plus the base acceleration −g, which is taken off). This skips a
+/// second velocity recursion; tests/constraints_test checks it against evaluate_constraints.
+void evaluate_constraints_after_bias_forces(const Model& model, Data& data, const ConstraintSet& set,
+                                            ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                            const Eigen::VectorXd& qd);
 
 /// Point kinematics of every listed point into `out` (FK must be done; uses data.v, data.a).
 void compute_point_states(const Model& model, Data& data, const std::vector<int>& points,
