@@ -67,7 +67,6 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   Y_.setZero(n_, m_);
   MN_.setZero(n_, n_ - m_);
   NMN_.setZero(n_ - m_, n_ - m_);
-  qp_.setZero(n_);
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
@@ -112,22 +111,28 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 }
 
 bool ReferenceDynamics::factor_partition() {
-  // Small dense glue below is written as plain loops over column-major storage: for the sizes
-  // of interest (m, n of a few) Eigen's dynamic-size expression set-up costs more than the flops.
-  const int k = n_ - m_;
-  const double* A = ev_.A.data();  // m × n, column-major
-  for (int c = 0; c < m_; ++c)
-    for (int r = 0; r < m_; ++r) Kdc_.data()[c * m_ + r] = A[dep_[c] * m_ + r];
+  // Small dense glue below is written as plain loops over column-major storage, with every size,
+  // index list and buffer in a local (restrict) pointer: for the sizes of interest (m, n of a
+  // few) Eigen's dynamic-size expression set-up costs more than the flops, and stores through
+  // double* would otherwise force the members to be reloaded in every iteration.
+  const int n = n_, m = m_, k = n - m;
+  const int* __restrict dep = dep_.data();
+  const int* __restrict ind = ind_.data();
+  const double* __restrict A = ev_.A.data();  // m × n, column-major
+  double* Kdc = Kdc_.data();  // also read by small_inverse through Kdc_: no restrict
+  double* __restrict Kic = Kic_.data();
+  for (int c = 0; c < m; ++c)
+    for (int r = 0; r < m; ++r) Kdc[c * m + r] = A[dep[c] * m + r];
   for (int c = 0; c < k; ++c)
-    for (int r = 0; r < m_; ++r) Kic_.data()[c * m_ + r] = A[ind_[c] * m_ + r];
-  if (m_ == 0) {
+    for (int r = 0; r < m; ++r) Kic[c * m + r] = A[ind[c] * m + r];
+  if (m == 0) {
     cond_ = 1.0;
     return true;
   }
   // K_dc⁻¹: Eigen's closed-form fixed-size inverse for m ≤ 4 (the common case), else an LU
   // applied in place (U⁻¹ L⁻¹ P, no temporaries). A singular K_dc gives an infinite κ.
   bool regular = true;
-  switch (m_) {
+  switch (m) {
     case 1: regular = small_inverse<1>(Kdc_, Kinv_); break;
     case 2: regular = small_inverse<2>(Kdc_, Kinv_); break;
     case 3: regular = small_inverse<3>(Kdc_, Kinv_); break;
@@ -136,7 +141,7 @@ bool ReferenceDynamics::factor_partition() {
       lu_m_.compute(Kdc_);
       Kinv_.setZero();
       const auto& perm = lu_m_.permutationP().indices();  // P e_i = e_perm[i]
-      for (int i = 0; i < m_; ++i) Kinv_(perm[i], i) = 1.0;
+      for (int i = 0; i < m; ++i) Kinv_(perm[i], i) = 1.0;
       lu_m_.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(Kinv_);
       lu_m_.matrixLU().triangularView<Eigen::Upper>().solveInPlace(Kinv_);
     }
@@ -145,7 +150,7 @@ bool ReferenceDynamics::factor_partition() {
     cond_ = std::numeric_limits<double>::infinity();
     return false;
   }
-  auto norm1 = [](const double* X, int rows, int cols) {  // max column abs sum
+  auto norm1 = [](const double* __restrict X, int rows, int cols) {  // max column abs sum
     double best = 0;
     for (int c = 0; c < cols; ++c) {
       double sum = 0;
@@ -154,21 +159,21 @@ bool ReferenceDynamics::factor_partition() {
     }
     return best;
   };
+  const double* __restrict Ki = Kinv_.data();
   // κ = ‖A‖₁ ‖K_dc⁻¹‖₁: the sensitivity of q̇_dc = −K_dc⁻¹ K_ic q̇_ic, measured against the whole
   // constraint Jacobian (a tiny K_dc next to a large K_ic is ill-conditioned even when m = 1).
-  const double norm = norm1(A, m_, n_);
-  const double inorm = norm1(Kinv_.data(), m_, m_);
-  cond_ = norm * inorm;
-  if (!std::isfinite(cond_) || cond_ > opt_.max_condition || norm == 0) return false;
+  const double norm = norm1(A, m, n);
+  const double inorm = norm1(Ki, m, m);
+  const double cond = norm * inorm;
+  cond_ = cond;
+  if (!std::isfinite(cond) || cond > opt_.max_condition || norm == 0) return false;
   // G = −K_dc⁻¹ K_ic (m × k)
-  const double* Ki = Kinv_.data();
-  const double* Kc = Kic_.data();
-  double* G = G_.data();
+  double* __restrict G = G_.data();
   for (int c = 0; c < k; ++c)
-    for (int r = 0; r < m_; ++r) {
+    for (int r = 0; r < m; ++r) {
       double sum = 0;
-      for (int j = 0; j < m_; ++j) sum += Ki[j * m_ + r] * Kc[c * m_ + j];
-      G[c * m_ + r] = -sum;
+      for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * Kic[c * m + j];
+      G[c * m + r] = -sum;
     }
   return true;
 }
@@ -246,15 +251,21 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
 }
 
 void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
-  const int nz = forces_.num_states();
+  const int n = n_, m = m_, nz = forces_.num_states();
   if (x.size() != state_size() || xdot.size() != state_size()) {
     check_size("x", state_size(), x.size(), "x = [q; qd; z] with z the force-element states");
     check_size("xdot", state_size(), xdot.size());
   }
-  q_ = x.head(n_);
-  qd_ = x.segment(n_, n_);
-  const double* z = nz ? x.data() + 2 * n_ : nullptr;
-  if (!x.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
+  {  // A NaN or infinity in x makes the sum non-finite; only then is the exact check needed.
+    const double* __restrict xp = x.data();
+    double sum = 0;
+    for (Eigen::Index i = 0; i < x.size(); ++i) sum += xp[i];
+    if (!std::isfinite(sum) && !x.allFinite())
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
+  }
+  q_ = x.head(n);
+  qd_ = x.segment(n, n);
+  const double* z = nz ? x.data() + 2 * n : nullptr;
 
   // One set of joint placements per evaluation: CRBA computes them, RNEA and the constraint
   // kinematics reuse them; the constraint kinematics also reuse RNEA's body velocities and
@@ -263,38 +274,55 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   unchecked::rnea_reusing_placements(model_, data_, q_, &qd_, nullptr, true, data_.nle);
   evaluate_constraints_after_bias_forces(model_, data_, constraints_, ev_, t, q_, qd_);
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
-  F_ = Q_ - data_.nle;
-  for (int r = 0; r < m_; ++r)
-    rhs_[r] = first_order_row_[r]
-                  ? -ev_.gamma[r] - opt_.beta_first_order * ev_.phi[r]
-                  : -ev_.gamma[r] - 2.0 * opt_.alpha * ev_.phid[r] - opt_.beta * opt_.beta * ev_.phi[r];
+  {
+    const double* __restrict Q = Q_.data();
+    const double* __restrict nle = data_.nle.data();
+    double* __restrict F = F_.data();
+    for (int i = 0; i < n; ++i) F[i] = Q[i] - nle[i];
+    // Baumgarte: Φ̈ + 2αΦ̇ + β²Φ = 0 (holonomic rows), ċ + β₁c = 0 (first-order rows).
+    const double* __restrict gamma = ev_.gamma.data();
+    const double* __restrict phi = ev_.phi.data();
+    const double* __restrict phid = ev_.phid.data();
+    const char* __restrict first = first_order_row_.data();
+    const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
+    double* __restrict rhs = rhs_.data();
+    for (int r = 0; r < m; ++r) rhs[r] = first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
+  }
 
   if (opt_.solver == ReferenceSolver::Projection)
     solve_projection(t);
   else
     solve_lagrange(t);
 
+  const double* __restrict qdd = qdd_.data();
+  const double* __restrict F = F_.data();
+  double* __restrict Qc = Qc_.data();
   {  // Q_c = M q̈ − F
-    const double* Mp = data_.M.data();
-    for (int i = 0; i < n_; ++i) Qc_[i] = -F_[i];
-    for (int j = 0; j < n_; ++j) {
-      const double a = qdd_[j];
-      const double* col = Mp + static_cast<size_t>(j) * n_;
-      for (int i = 0; i < n_; ++i) Qc_[i] += a * col[i];
+    const double* __restrict Mp = data_.M.data();
+    for (int i = 0; i < n; ++i) Qc[i] = -F[i];
+    for (int j = 0; j < n; ++j) {
+      const double a = qdd[j];
+      const double* __restrict col = Mp + static_cast<size_t>(j) * n;
+      for (int i = 0; i < n; ++i) Qc[i] += a * col[i];
     }
   }
   // Projection: λ from the dependent rows, K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
-  if (opt_.solver == ReferenceSolver::Projection && m_ > 0) {
-    const double* Ki = Kinv_.data();
-    for (int c = 0; c < m_; ++c) {
+  if (opt_.solver == ReferenceSolver::Projection && m > 0) {
+    const double* __restrict Ki = Kinv_.data();
+    const int* __restrict dep = dep_.data();
+    double* __restrict lambda = lambda_.data();
+    for (int c = 0; c < m; ++c) {
       double sum = 0;
-      for (int r = 0; r < m_; ++r) sum -= Ki[c * m_ + r] * Qc_[dep_[r]];  // (K⁻¹)ᵀ(c, r) = K⁻¹(r, c)
-      lambda_[c] = sum;
+      for (int r = 0; r < m; ++r) sum -= Ki[c * m + r] * Qc[dep[r]];  // (K⁻¹)ᵀ(c, r) = K⁻¹(r, c)
+      lambda[c] = sum;
     }
   }
-  xdot.head(n_) = qd_;
-  xdot.segment(n_, n_) = qdd_;
-  if (nz) xdot.tail(nz) = zdot_.head(nz);
+  double* __restrict out = xdot.data();
+  const double* __restrict qd = qd_.data();
+  for (int i = 0; i < n; ++i) out[i] = qd[i];
+  for (int i = 0; i < n; ++i) out[n + i] = qdd[i];
+  const double* __restrict zd = zdot_.data();
+  for (int i = 0; i < nz; ++i) out[2 * n + i] = zd[i];
 }
 
 void ReferenceDynamics::solve_projection(double t) {
@@ -304,8 +332,7 @@ void ReferenceDynamics::solve_projection(double t) {
     choose_partition(t, q_, qd_);
     if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
   }
-  const int k = n_ - m_;
-  const Eigen::MatrixXd& M = data_.M;
+  const int n = n_, m = m_, k = n - m;
   // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
   if (opt_.paper_literal_forces) {
     tmp_n_.noalias() = dQ_.transpose() * qd_;
@@ -317,54 +344,56 @@ void ReferenceDynamics::solve_projection(double t) {
   // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
   //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
   //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
-  const int n = n_, m = m_;
-  const double* Mp = M.data();   // n × n, column-major
-  const double* G = G_.data();   // m × k
-  const double* Ki = Kinv_.data();
-  double* f = tmp_n_.data();
-  double* qp = qp_.data();
-  for (int i = 0; i < n; ++i) qp[i] = 0.0;
+  const int* __restrict dep = dep_.data();
+  const int* __restrict ind = ind_.data();
+  const double* __restrict Mp = data_.M.data();  // n × n, column-major
+  const double* __restrict G = G_.data();        // m × k
+  const double* __restrict Ki = Kinv_.data();
+  const double* __restrict rhs = rhs_.data();
+  double* __restrict f = tmp_n_.data();
+  double* __restrict qdd = qdd_.data();
+  for (int i = 0; i < n; ++i) qdd[i] = 0.0;
   for (int r = 0; r < m; ++r) {
     double sum = 0;
-    for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs_[j];
-    qp[dep_[r]] = sum;
+    for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs[j];
+    qdd[dep[r]] = sum;
   }
   for (int r = 0; r < m; ++r) {  // F − M q̈_p
-    const double a = qp[dep_[r]];
-    const double* col = Mp + static_cast<size_t>(dep_[r]) * n;
+    const double a = qdd[dep[r]];
+    const double* __restrict col = Mp + static_cast<size_t>(dep[r]) * n;
     for (int i = 0; i < n; ++i) f[i] -= a * col[i];
   }
   // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
-  double* MN = MN_.data();  // n × k
+  double* __restrict MN = MN_.data();  // n × k
   for (int c = 0; c < k; ++c) {
-    double* out = MN + static_cast<size_t>(c) * n;
-    const double* col = Mp + static_cast<size_t>(ind_[c]) * n;
+    double* __restrict out = MN + static_cast<size_t>(c) * n;
+    const double* __restrict col = Mp + static_cast<size_t>(ind[c]) * n;
     for (int i = 0; i < n; ++i) out[i] = col[i];
     for (int r = 0; r < m; ++r) {
       const double g = G[c * m + r];
-      const double* d = Mp + static_cast<size_t>(dep_[r]) * n;
+      const double* __restrict d = Mp + static_cast<size_t>(dep[r]) * n;
       for (int i = 0; i < n; ++i) out[i] += g * d[i];
     }
   }
   // Nᵀ (M N) and Nᵀ (F − M q̈_p): row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
-  double* NMN = NMN_.data();  // k × k
+  double* NMN = NMN_.data();  // k × k; NMN, rk also reach the LLT through the members: no restrict
+  double* rk = rk_.data();
   for (int c = 0; c < k; ++c) {
     for (int c2 = 0; c2 < k; ++c2) {
-      const double* col = MN + static_cast<size_t>(c2) * n;
-      double v = col[ind_[c]];
-      for (int r = 0; r < m; ++r) v += G[c * m + r] * col[dep_[r]];
+      const double* __restrict col = MN + static_cast<size_t>(c2) * n;
+      double v = col[ind[c]];
+      for (int r = 0; r < m; ++r) v += G[c * m + r] * col[dep[r]];
       NMN[c2 * k + c] = v;
     }
-    double v = f[ind_[c]];
-    for (int r = 0; r < m; ++r) v += G[c * m + r] * f[dep_[r]];
-    rk_[c] = v;
+    double v = f[ind[c]];
+    for (int r = 0; r < m; ++r) v += G[c * m + r] * f[dep[r]];
+    rk[c] = v;
   }
-  qdd_ = qp_;
   if (k > 0) {
     if (k == 1) {  // one independent coordinate (the paper's case): a scalar division
-      if (!(NMN_(0, 0) > 0))
+      if (!(NMN[0] > 0))
         throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-      rk_[0] /= NMN_(0, 0);
+      rk[0] /= NMN[0];
     } else {
       llt_k_.compute(NMN_);
       if (llt_k_.info() != Eigen::Success)
@@ -372,8 +401,8 @@ void ReferenceDynamics::solve_projection(double t) {
       llt_k_.solveInPlace(rk_);
     }
     for (int c = 0; c < k; ++c) {
-      qdd_[ind_[c]] += rk_[c];
-      for (int r = 0; r < m; ++r) qdd_[dep_[r]] += G[c * m + r] * rk_[c];
+      qdd[ind[c]] += rk[c];
+      for (int r = 0; r < m; ++r) qdd[dep[r]] += G[c * m + r] * rk[c];
     }
   }
 }

@@ -140,7 +140,7 @@ class ReferenceDynamics {
   Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, Y_, Smm_, MN_, NMN_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
-  Eigen::VectorXd qp_, rk_;
+  Eigen::VectorXd rk_;
   double cond_ = 1.0;
 };
 
