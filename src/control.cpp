@@ -24,8 +24,7 @@ void ComputedTorquePD::compute(double, const Eigen::VectorXd& q, const Eigen::Ve
     const double e = q[i] - r.q[i], ed = qd[i] - r.qd[i];
     u_[i] = r.qdd[i] - 2.0 * delta_[i] * ed - delta_[i] * delta_[i] * e;
   }
-  unchecked::crba(model_, data_, q);
-  unchecked::rnea_reusing_placements(model_, data_, q, &qd, nullptr, true, data_.nle);
+  unchecked::mass_matrix_and_bias(model_, data_, q, qd);
   tau.noalias() = data_.M.lazyProduct(u_);
   tau += data_.nle;
 }
@@ -129,8 +128,7 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
   control(c, w, t, limit);
   forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
-  unchecked::crba(m, w.data, w.q);
-  unchecked::rnea_reusing_placements(m, w.data, w.q, &w.qd, nullptr, true, w.data.nle);
+  unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
   w.data.llt.compute(w.data.M);
   if (w.data.llt.info() != Eigen::Success)
     throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");

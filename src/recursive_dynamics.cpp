@@ -311,6 +311,141 @@ REFDYN_INLINE double project(const Model& m, int i, const JointKind& k, v4 n, v4
 
 // ---- RNEA --------------------------------------------------------------------------------------
 
+/// Motion of the previous body, carried in registers along a serial chain.
+struct MotionCarry {
+  v4 w, vv, aw, av;  ///< angular/linear velocity, angular/linear acceleration
+};
+
+/// RNEA forward step of body i with its joint transform X = (R, p): body motion from the
+/// parent's (registers when the parent is body i−1, else data.v/a), stored in data.v[i],
+/// data.a[i], and the body's own force in data.f[i]. a0: base acceleration (−g or 0).
+template <bool QD, bool QDD>
+REFDYN_INLINE void rnea_forward_body(const Model& model, Data& data, int i, const JointKind& k, const M3& R, v4 p,
+                                     const double* qd, const double* qdd, v4 a0, MotionCarry& m) {
+  const v4 zero = splat(0.0);
+  v4 w = m.w, vv = m.vv, aw = m.aw, av = m.av;
+  const M3 Rt = transpose(R);
+  const int par = model.parent[i];
+  if (par >= 0) {
+    if (par != i - 1) {  // tree: the parent's motion from memory
+      aw = ld3(data.a[par].w);
+      av = ld3(data.a[par].v);
+      if constexpr (QD) {
+        w = ld3(data.v[par].w);
+        vv = ld3(data.v[par].v);
+      }
+    }
+    av = mul(Rt, av - cross(p, aw));
+    aw = mul(Rt, aw);
+    if constexpr (QD) {
+      vv = mul(Rt, vv - cross(p, w));
+      w = mul(Rt, w);
+    }
+  } else {
+    aw = zero;
+    av = mul(Rt, a0);
+    if constexpr (QD) {
+      w = zero;
+      vv = zero;
+    }
+  }
+  // Joint terms: v += S q̇, a += v ×m S q̇ + S q̈.
+  const double dq = QD ? k.sign * qd[i] : 0.0;
+  const double ddq = QDD ? k.sign * qdd[i] : 0.0;
+  switch (k.kind) {
+    case Kind::RevZ:
+      if constexpr (QD) {
+        const v4 d = splat(dq);
+        aw += d * x_cross_ez(w);
+        av += d * x_cross_ez(vv);
+        w += ez(dq);
+      }
+      if constexpr (QDD) aw += ez(ddq);
+      break;
+    case Kind::PrisZ:
+      if constexpr (QD) {
+        av += splat(dq) * x_cross_ez(w);
+        vv += ez(dq);
+      }
+      if constexpr (QDD) av += ez(ddq);
+      break;
+    case Kind::Rev: {
+      const v4 u = ld3(model.axis[i]);
+      if constexpr (QD) {
+        const v4 d = splat(dq);
+        aw += d * cross(w, u);
+        av += d * cross(vv, u);
+        w += d * u;
+      }
+      if constexpr (QDD) aw += splat(ddq) * u;
+      break;
+    }
+    case Kind::Pris: {
+      const v4 u = ld3(model.axis[i]);
+      if constexpr (QD) {
+        const v4 d = splat(dq);
+        av += d * cross(w, u);
+        vv += d * u;
+      }
+      if constexpr (QDD) av += splat(ddq) * u;
+      break;
+    }
+  }
+  // f = I a + v ×* (I v) = (I_O α + ω × I_O ω + h × b,  m b + α × h + ω × (ω × h)).
+  const In I = ld(model.inertia[i]);
+  v4 fn, ff;
+  if constexpr (QD) {
+    const v4 b = av + cross(w, vv);
+    const v4 wh = cross(w, I.h);
+    fn = mul(I.I, aw) + cross(w, mul(I.I, w)) + cross(I.h, b);
+    ff = splat(I.m) * b + cross(aw, I.h) + cross(w, wh);
+    st3(w, data.v[i].w);
+    st3(vv, data.v[i].v);
+  } else {
+    fn = mul(I.I, aw) + cross(I.h, av);
+    ff = splat(I.m) * av + cross(aw, I.h);
+    data.v[i].w.setZero();
+    data.v[i].v.setZero();
+  }
+  st3(aw, data.a[i].w);
+  st3(av, data.a[i].v);
+  st3(fn, data.f[i].n);
+  st3(ff, data.f[i].f);
+  m = {w, vv, aw, av};
+}
+
+/// The force a child passes to its parent, carried in registers along a serial chain.
+struct ForceCarry {
+  bool set = false;
+  v4 n, f;
+};
+
+/// RNEA backward step of body i (X = (R, p) its joint transform): total force = own + the
+/// children's, its joint component into out[i], and its share passed on to the parent.
+REFDYN_INLINE void rnea_backward_body(const Model& model, Data& data, int i, const M3& R, v4 p, ForceCarry& c,
+                                      double* out) {
+  v4 fn = ld3(data.f[i].n), ff = ld3(data.f[i].f);
+  if (c.set) {
+    fn += c.n;
+    ff += c.f;
+    st3(fn, data.f[i].n);
+    st3(ff, data.f[i].f);
+  }
+  out[i] = project(model, i, joint_kind(model, i), fn, ff);
+  const int par = model.parent[i];
+  c.set = false;
+  if (par >= 0) {
+    const v4 tf = mul(R, ff);
+    const v4 tn = mul(R, fn) + cross(p, tf);
+    if (par == i - 1) {
+      c = {true, tn, tf};
+    } else {
+      st3(ld3(data.f[par].n) + tn, data.f[par].n);
+      st3(ld3(data.f[par].f) + tf, data.f[par].f);
+    }
+  }
+}
+
 /// QD: q̇ given (else zero); QDD: q̈ given (else zero). With `have_X` the joint transforms in
 /// data.liMi are reused (computed by the caller for the same q).
 template <bool QD, bool QDD>
@@ -318,8 +453,7 @@ void rnea_impl(const Model& model, Data& data, const double* q, const double* qd
                bool gravity, double* out, bool have_X) {
   const int n = model.nq;
   const v4 a0 = gravity ? -ld3(model.gravity) : splat(0.0);
-  const v4 zero = splat(0.0);
-  v4 w = zero, vv = zero, aw = zero, av = zero;  // motion of the previous body
+  MotionCarry motion{splat(0.0), splat(0.0), splat(0.0), splat(0.0)};
   double sn[kBlock], cs[kBlock];
   for (int i = 0; i < n; ++i) {
     const JointKind k = joint_kind(model, i);
@@ -331,123 +465,15 @@ void rnea_impl(const Model& model, Data& data, const double* q, const double* qd
       if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
       joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
     }
-    const M3 Rt = transpose(R);
-    const int par = model.parent[i];
-    if (par >= 0) {
-      if (par != i - 1) {  // tree: the parent's motion from memory
-        aw = ld3(data.a[par].w);
-        av = ld3(data.a[par].v);
-        if constexpr (QD) {
-          w = ld3(data.v[par].w);
-          vv = ld3(data.v[par].v);
-        }
-      }
-      av = mul(Rt, av - cross(p, aw));
-      aw = mul(Rt, aw);
-      if constexpr (QD) {
-        vv = mul(Rt, vv - cross(p, w));
-        w = mul(Rt, w);
-      }
-    } else {
-      aw = zero;
-      av = mul(Rt, a0);
-      if constexpr (QD) {
-        w = zero;
-        vv = zero;
-      }
-    }
-    // Joint terms: v += S q̇, a += v ×m S q̇ + S q̈.
-    const double dq = QD ? k.sign * qd[i] : 0.0;
-    const double ddq = QDD ? k.sign * qdd[i] : 0.0;
-    switch (k.kind) {
-      case Kind::RevZ:
-        if constexpr (QD) {
-          const v4 d = splat(dq);
-          aw += d * x_cross_ez(w);
-          av += d * x_cross_ez(vv);
-          w += ez(dq);
-        }
-        if constexpr (QDD) aw += ez(ddq);
-        break;
-      case Kind::PrisZ:
-        if constexpr (QD) {
-          av += splat(dq) * x_cross_ez(w);
-          vv += ez(dq);
-        }
-        if constexpr (QDD) av += ez(ddq);
-        break;
-      case Kind::Rev: {
-        const v4 u = ld3(model.axis[i]);
-        if constexpr (QD) {
-          const v4 d = splat(dq);
-          aw += d * cross(w, u);
-          av += d * cross(vv, u);
-          w += d * u;
-        }
-        if constexpr (QDD) aw += splat(ddq) * u;
-        break;
-      }
-      case Kind::Pris: {
-        const v4 u = ld3(model.axis[i]);
-        if constexpr (QD) {
-          const v4 d = splat(dq);
-          av += d * cross(w, u);
-          vv += d * u;
-        }
-        if constexpr (QDD) av += splat(ddq) * u;
-        break;
-      }
-    }
-    // f = I a + v ×* (I v) = (I_O α + ω × I_O ω + h × b,  m b + α × h + ω × (ω × h)).
-    const In I = ld(model.inertia[i]);
-    v4 fn, ff;
-    if constexpr (QD) {
-      const v4 b = av + cross(w, vv);
-      const v4 wh = cross(w, I.h);
-      fn = mul(I.I, aw) + cross(w, mul(I.I, w)) + cross(I.h, b);
-      ff = splat(I.m) * b + cross(aw, I.h) + cross(w, wh);
-      st3(w, data.v[i].w);
-      st3(vv, data.v[i].v);
-    } else {
-      fn = mul(I.I, aw) + cross(I.h, av);
-      ff = splat(I.m) * av + cross(aw, I.h);
-      data.v[i].w.setZero();
-      data.v[i].v.setZero();
-    }
-    st3(aw, data.a[i].w);
-    st3(av, data.a[i].v);
-    st3(fn, data.f[i].n);
-    st3(ff, data.f[i].f);
+    rnea_forward_body<QD, QDD>(model, data, i, k, R, p, qd, qdd, a0, motion);
   }
   // Backward: f_i (total) = own + children's; the child i+1's share is carried in registers.
-  bool carry = false;
-  v4 cn = zero, cf = zero;
+  ForceCarry force;
   for (int i = n - 1; i >= 0; --i) {
-    v4 fn = ld3(data.f[i].n), ff = ld3(data.f[i].f);
-    if (carry) {
-      fn += cn;
-      ff += cf;
-      st3(fn, data.f[i].n);
-      st3(ff, data.f[i].f);
-    }
-    out[i] = project(model, i, joint_kind(model, i), fn, ff);
-    const int par = model.parent[i];
-    carry = false;
-    if (par >= 0) {
-      M3 R;
-      v4 p;
-      load_transform(data.liMi[i], R, p);
-      const v4 tf = mul(R, ff);
-      const v4 tn = mul(R, fn) + cross(p, tf);
-      if (par == i - 1) {
-        cn = tn;
-        cf = tf;
-        carry = true;
-      } else {
-        st3(ld3(data.f[par].n) + tn, data.f[par].n);
-        st3(ld3(data.f[par].f) + tf, data.f[par].f);
-      }
-    }
+    M3 R;
+    v4 p;
+    load_transform(data.liMi[i], R, p);
+    rnea_backward_body(model, data, i, R, p, force, out);
   }
 }
 
@@ -500,9 +526,93 @@ REFDYN_INLINE void inertia_times_axis(const Model& m, int i, const JointKind& k,
   }
 }
 
+/// The composite inertia a child passes to its parent, carried in registers along a chain.
+struct InertiaCarry {
+  bool set = false;
+  In I{};
+};
+
+/// Body-frame CRBA backward step of body i (X = (R, p) its joint transform): composite inertia
+/// = own (chain) or data.Ic[i] (trees: own + non-adjacent children) + the carried child's;
+/// column i of M up the support; the composite passed on to the parent.
+REFDYN_INLINE void crba_backward_body(const Model& model, Data& data, int i, bool chain, const M3& R, v4 p,
+                                      InertiaCarry& c, double* M, Eigen::Index ld_M) {
+  In Ic = ld(chain ? model.inertia[i] : data.Ic[i]);
+  if (c.set) add(Ic, c.I);
+  st(Ic, data.Ic[i]);
+  const JointKind k = joint_kind(model, i);
+  v4 Fn, Ff;
+  double Mii;
+  inertia_times_axis(model, i, k, Ic, Fn, Ff, Mii);
+  M[i + ld_M * i] = Mii;
+  for (int j = i; model.parent[j] >= 0;) {
+    M3 Rj;
+    v4 pj;
+    if (j == i) {
+      Rj = R;
+      pj = p;
+    } else {
+      load_transform(data.liMi[j], Rj, pj);
+    }
+    Ff = mul(Rj, Ff);
+    Fn = mul(Rj, Fn) + cross(pj, Ff);
+    j = model.parent[j];
+    const double mij = project(model, j, joint_kind(model, j), Fn, Ff);
+    M[i + ld_M * j] = mij;
+    M[j + ld_M * i] = mij;
+  }
+  const int par = model.parent[i];
+  c.set = false;
+  if (par >= 0) {
+    const In T = transform(Ic, R, p);
+    if (par == i - 1) {
+      c = {true, T};
+    } else {
+      In Ip = ld(data.Ic[par]);
+      add(Ip, T);
+      st(Ip, data.Ic[par]);
+    }
+  }
+}
+
+/// Joint transforms of all bodies into data.liMi (sin/cos four at a time); true for a serial
+/// chain (every parent is the previous body).
+REFDYN_INLINE bool all_joint_transforms(const Model& model, Data& data, const double* q) {
+  bool chain = true;
+  double sn[kBlock], cs[kBlock];
+  for (int i = 0; i < model.nq; ++i) {
+    M3 R;
+    v4 p;
+    if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
+    joint_transform(model, i, joint_kind(model, i), q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
+    chain &= model.parent[i] == i - 1;
+  }
+  return chain;
+}
+
 /// Body-frame CRBA (Featherstone's): best for small models.
 void crba_local(const Model& model, Data& data, const double* q) {
   const int n = model.nq;
+  const bool chain = all_joint_transforms(model, data, q);
+  if (!chain) {  // trees accumulate the composites of non-adjacent children in data.Ic, and
+    for (int i = 0; i < n; ++i) data.Ic[i] = model.inertia[i];
+    data.M.setZero();  // M_ij of bodies on different branches is 0 (never written below)
+  }
+  InertiaCarry c;
+  for (int i = n - 1; i >= 0; --i) {
+    M3 R;
+    v4 p;
+    load_transform(data.liMi[i], R, p);
+    crba_backward_body(model, data, i, chain, R, p, c, data.M.data(), data.M.rows());
+  }
+}
+
+/// Body-frame CRBA and RNEA (q̈ = 0, gravity) in one forward and one backward sweep: each
+/// joint transform is computed once and loaded once on the way back (small models).
+void crba_bias_local(const Model& model, Data& data, const double* q, const double* qd, double* nle) {
+  const int n = model.nq;
+  const v4 a0 = -ld3(model.gravity);
+  MotionCarry motion{splat(0.0), splat(0.0), splat(0.0), splat(0.0)};
   bool chain = true;
   double sn[kBlock], cs[kBlock];
   for (int i = 0; i < n; ++i) {
@@ -512,49 +622,20 @@ void crba_local(const Model& model, Data& data, const double* q) {
     if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
     joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
     chain &= model.parent[i] == i - 1;
+    rnea_forward_body<true, false>(model, data, i, k, R, p, qd, nullptr, a0, motion);
   }
-  if (!chain)  // trees accumulate the composites of non-adjacent children in data.Ic
+  if (!chain) {  // as in crba_local
     for (int i = 0; i < n; ++i) data.Ic[i] = model.inertia[i];
-  double* M = data.M.data();
-  const Eigen::Index ld_M = data.M.rows();
-  bool carry = false;
-  In c{};
+    data.M.setZero();
+  }
+  ForceCarry force;
+  InertiaCarry inertia;
   for (int i = n - 1; i >= 0; --i) {
-    In Ic = ld(chain ? model.inertia[i] : data.Ic[i]);
-    if (carry) add(Ic, c);
-    st(Ic, data.Ic[i]);
-    const JointKind k = joint_kind(model, i);
-    v4 Fn, Ff;
-    double Mii;
-    inertia_times_axis(model, i, k, Ic, Fn, Ff, Mii);
-    M[i + ld_M * i] = Mii;
-    for (int j = i; model.parent[j] >= 0;) {
-      M3 R;
-      v4 p;
-      load_transform(data.liMi[j], R, p);
-      Ff = mul(R, Ff);
-      Fn = mul(R, Fn) + cross(p, Ff);
-      j = model.parent[j];
-      const double mij = project(model, j, joint_kind(model, j), Fn, Ff);
-      M[i + ld_M * j] = mij;
-      M[j + ld_M * i] = mij;
-    }
-    const int par = model.parent[i];
-    carry = false;
-    if (par >= 0) {
-      M3 R;
-      v4 p;
-      load_transform(data.liMi[i], R, p);
-      const In T = transform(Ic, R, p);
-      if (par == i - 1) {
-        c = T;
-        carry = true;
-      } else {
-        In Ip = ld(data.Ic[par]);
-        add(Ip, T);
-        st(Ip, data.Ic[par]);
-      }
-    }
+    M3 R;
+    v4 p;
+    load_transform(data.liMi[i], R, p);
+    rnea_backward_body(model, data, i, R, p, force, nle);
+    crba_backward_body(model, data, i, chain, R, p, inertia, data.M.data(), data.M.rows());
   }
 }
 
@@ -611,8 +692,10 @@ void crba_world(const Model& model, Data& data, const double* q) {
       }
     }
   }
-  if (!chain)  // trees accumulate the composites of non-adjacent children in data.Ic
+  if (!chain) {  // trees accumulate the composites of non-adjacent children in data.Ic, and
     for (int i = 0; i < n; ++i) data.Ic[i] = Inertia::Zero();
+    data.M.setZero();  // M_ij of bodies on different branches is 0 (never written below)
+  }
   double* M = data.M.data();
   const Eigen::Index ld_M = data.M.rows();
   bool carry = false;
@@ -706,6 +789,15 @@ void crba(const Model& model, Data& data, const Eigen::VectorXd& q) { crba_impl(
 void rnea_reusing_placements(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
                              const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out) {
   rnea_dispatch(model, data, q, qd, qdd, gravity, out, true);
+}
+
+void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  if (model.nq < kWorldCrbaFrom) {
+    crba_bias_local(model, data, q.data(), qd.data(), data.nle.data());
+  } else {
+    crba_world(model, data, q.data());
+    rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), true);
+  }
 }
 
 }  // namespace unchecked

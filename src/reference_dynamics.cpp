@@ -267,11 +267,9 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   qd_ = x.segment(n, n);
   const double* z = nz ? x.data() + 2 * n : nullptr;
 
-  // One set of joint placements per evaluation: CRBA computes them, RNEA and the constraint
-  // kinematics reuse them; the constraint kinematics also reuse RNEA's body velocities and
-  // accelerations.
-  unchecked::crba(model_, data_, q_);
-  unchecked::rnea_reusing_placements(model_, data_, q_, &qd_, nullptr, true, data_.nle);
+  // One set of joint placements per evaluation, computed with M and c + g in one sweep; the
+  // constraint kinematics reuse them and RNEA's body velocities and accelerations.
+  unchecked::mass_matrix_and_bias(model_, data_, q_, qd_);
   evaluate_constraints_after_bias_forces(model_, data_, constraints_, ev_, t, q_, qd_);
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
   {

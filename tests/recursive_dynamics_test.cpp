@@ -116,6 +116,30 @@ TEST(RecursiveDynamics, BiasAndGravityAreInverseDynamicsWithZeroArguments) {
   }
 }
 
+// The fused sweep (small models) and the CRBA + RNEA fallback (larger ones) behind
+// unchecked::mass_matrix_and_bias give what the separate public calls give, including the
+// body velocities and accelerations the constraint kinematics read afterwards.
+TEST(RecursiveDynamics, MassMatrixAndBiasTogetherEqualTheSeparateCalls) {
+  std::mt19937 rng(109);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    Data d1(c.model), d2(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0);
+    const Eigen::MatrixXd M = mass_matrix(c.model, d1, q);
+    const Eigen::VectorXd nle = bias_forces(c.model, d1, q, qd);
+    d2.M.setConstant(std::nan(""));  // every entry must be written
+    unchecked::mass_matrix_and_bias(c.model, d2, q, qd);
+    EXPECT_TRUE(near(d2.M, M, 1e-14, 1e-14)) << c.label;
+    EXPECT_TRUE(near(d2.nle, nle, 1e-14, 1e-14)) << c.label;
+    for (int i = 0; i < n; ++i) {
+      EXPECT_TRUE(near(d2.v[i].w, d1.v[i].w, 1e-14, 1e-14)) << c.label << " body " << i;
+      EXPECT_TRUE(near(d2.v[i].v, d1.v[i].v, 1e-14, 1e-14)) << c.label << " body " << i;
+      EXPECT_TRUE(near(d2.a[i].w, d1.a[i].w, 1e-14, 1e-14)) << c.label << " body " << i;
+      EXPECT_TRUE(near(d2.a[i].v, d1.a[i].v, 1e-14, 1e-14)) << c.label << " body " << i;
+    }
+  }
+}
+
 TEST(RecursiveDynamics, ForwardDynamicsInvertsInverseDynamics) {
   std::mt19937 rng(103);
   for (const Case& c : random_models(rng)) {

@@ -43,6 +43,10 @@ void crba(const Model& model, Data& data, const Eigen::VectorXd& q);
 /// RNEA reusing the joint placements data.liMi left by crba for the same q (no joint sincos).
 void rnea_reusing_placements(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd* qd,
                              const Eigen::VectorXd* qdd, bool gravity, Eigen::VectorXd& out);
+/// data.M = M(q) and data.nle = c(q, q̇) + g(q) together (what crba followed by
+/// rnea_reusing_placements(q, &q̇, nullptr, true, data.nle) gives, and the same data.liMi,
+/// data.v, data.a): for small models in one forward and one backward sweep.
+void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
 }  // namespace unchecked
 
 }  // namespace refdyn
