@@ -110,12 +110,27 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
   partition_set_ = true;
 }
 
-bool ReferenceDynamics::factor_partition() {
-  // Small dense glue below is written as plain loops over column-major storage, with every size,
-  // index list and buffer in a local (restrict) pointer: for the sizes of interest (m, n of a
-  // few) Eigen's dynamic-size expression set-up costs more than the flops, and stores through
-  // double* would otherwise force the members to be reloaded in every iteration.
-  const int n = n_, m = m_, k = n - m;
+// The small dense glue of the projection route (factor_partition, solve_projection) is written
+// as plain loops over column-major storage, with every size, index list and buffer in a local
+// (restrict) pointer: for the sizes of interest (m, n of a few) Eigen's dynamic-size expression
+// set-up costs more than the flops, and stores through double* would otherwise force the
+// members to be reloaded in every iteration. The loops are templates on the sizes: N = 0 reads
+// n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
+// which the compiler unrolls completely (one source, no second copy of the algorithm).
+#define REFDYN_SIZED_DISPATCH(call, args)                     \
+  if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
+  if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
+  if (n_ == 3 && m_ == 2) return call<3, 2> args;             \
+  if (n_ == 4 && m_ == 1) return call<4, 1> args;             \
+  if (n_ == 4 && m_ == 2) return call<4, 2> args;             \
+  if (n_ == 4 && m_ == 3) return call<4, 3> args;             \
+  return call<0, 0> args;
+
+bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
+
+template <int N, int Mr>
+bool ReferenceDynamics::factor_partition_sized() {
+  const int n = N > 0 ? N : n_, m = N > 0 ? Mr : m_, k = n - m;
   const int* __restrict dep = dep_.data();
   const int* __restrict ind = ind_.data();
   const double* __restrict A = ev_.A.data();  // m × n, column-major
@@ -132,7 +147,8 @@ bool ReferenceDynamics::factor_partition() {
   // K_dc⁻¹: Eigen's closed-form fixed-size inverse for m ≤ 4 (the common case), else an LU
   // applied in place (U⁻¹ L⁻¹ P, no temporaries). A singular K_dc gives an infinite κ.
   bool regular = true;
-  switch (m) {
+  if constexpr (N > 0) regular = small_inverse<Mr>(Kdc_, Kinv_);
+  else switch (m) {
     case 1: regular = small_inverse<1>(Kdc_, Kinv_); break;
     case 2: regular = small_inverse<2>(Kdc_, Kinv_); break;
     case 3: regular = small_inverse<3>(Kdc_, Kinv_); break;
@@ -330,7 +346,12 @@ void ReferenceDynamics::solve_projection(double t) {
     choose_partition(t, q_, qd_);
     if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
   }
-  const int n = n_, m = m_, k = n - m;
+  REFDYN_SIZED_DISPATCH(solve_projection_sized, (t))
+}
+
+template <int N, int Mr>
+void ReferenceDynamics::solve_projection_sized(double t) {
+  const int n = N > 0 ? N : n_, m = N > 0 ? Mr : m_, k = n - m;
   // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
   if (opt_.paper_literal_forces) {
     tmp_n_.noalias() = dQ_.transpose() * qd_;

@@ -123,6 +123,10 @@ class ReferenceDynamics {
   void solve_projection(double t);
   void solve_lagrange(double t);
   bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
+  template <int N, int Mr>
+  bool factor_partition_sized();  // N = 0: sizes at run time
+  template <int N, int Mr>
+  void solve_projection_sized(double t);
   std::string partition_message(double t) const;
 
   const Model& model_;
