@@ -25,6 +25,10 @@
 //  - CRBA: for small models in body frames (composite inertia carried to the parent, the force
 //    Ic S carried up the chain); for larger ones in the world frame, where every M_ij with j an
 //    ancestor of i is a 6-term dot product S_j·(Ic_i S_i) instead of a frame-by-frame transport.
+//  - mass_matrix_and_bias fuses the two for small models: one forward sweep (joint transform,
+//    RNEA motion and body force) and one backward sweep (RNEA force, CRBA composite and column),
+//    each joint transform computed once and loaded once; the per-body steps are shared inline
+//    functions (rnea_forward_body, rnea_backward_body, crba_backward_body), not copies.
 //  - Everything is fixed-size and lives in Data: no allocation.
 
 #if defined(__GNUC__) || defined(__clang__)
