@@ -348,6 +348,7 @@ void ReferenceDynamics::solve_projection(double t) {
   }
   REFDYN_SIZED_DISPATCH(solve_projection_sized, (t))
 }
+#undef REFDYN_SIZED_DISPATCH
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_projection_sized(double t) {
