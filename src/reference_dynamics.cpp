@@ -116,7 +116,8 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 // set-up costs more than the flops, and stores through double* would otherwise force the
 // members to be reloaded in every iteration. The loops are templates on the sizes: N = 0 reads
 // n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
-// which the compiler unrolls completely (one source, no second copy of the algorithm).
+// which the compiler unrolls completely (one source, no second copy of the algorithm). The KKT
+// route (solve_lagrange) is dispatched the same way onto fixed- or dynamic-size Eigen objects.
 #define REFDYN_SIZED_DISPATCH(call, args)                     \
   if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
   if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
@@ -348,7 +349,6 @@ void ReferenceDynamics::solve_projection(double t) {
   }
   REFDYN_SIZED_DISPATCH(solve_projection_sized, (t))
 }
-#undef REFDYN_SIZED_DISPATCH
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_projection_sized(double t) {
@@ -427,27 +427,62 @@ void ReferenceDynamics::solve_projection_sized(double t) {
   }
 }
 
-void ReferenceDynamics::solve_lagrange(double t) {
-  data_.llt.compute(data_.M);
-  if (data_.llt.info() != Eigen::Success)
+namespace {
+enum class KktStatus { Ok, MassNotPositiveDefinite, RowsDependent };
+
+/// u = M⁻¹F, Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ, on Eigen objects of fixed or
+/// dynamic size (one source for both; the caller supplies the factorizations and workspaces).
+KktStatus kkt_solve(const auto& M, const auto& A, const auto& F, const auto& rhs, auto& llt_n, auto& llt_m,
+                    auto& Y, auto& S, auto& tmp, auto& qdd, auto& lambda) {
+  llt_n.compute(M);
+  if (llt_n.info() != Eigen::Success) return KktStatus::MassNotPositiveDefinite;
+  qdd = F;
+  llt_n.solveInPlace(qdd);
+  if (A.rows() == 0) return KktStatus::Ok;
+  Y = A.transpose();
+  llt_n.solveInPlace(Y);
+  S.noalias() = A.lazyProduct(Y);
+  llt_m.compute(S);
+  if (llt_m.info() != Eigen::Success) return KktStatus::RowsDependent;
+  tmp.noalias() = A.lazyProduct(qdd);
+  tmp -= rhs;
+  lambda = tmp;
+  llt_m.solveInPlace(lambda);
+  qdd.noalias() -= Y.lazyProduct(lambda);
+  return KktStatus::Ok;
+}
+}  // namespace
+
+void ReferenceDynamics::solve_lagrange(double t) { REFDYN_SIZED_DISPATCH(solve_lagrange_sized, (t)) }
+#undef REFDYN_SIZED_DISPATCH
+
+template <int N, int Mr>
+void ReferenceDynamics::solve_lagrange_sized(double t) {
+  KktStatus status;
+  if constexpr (N > 0) {  // fixed sizes: factorizations and workspaces on the stack
+    using MatN = Eigen::Matrix<double, N, N>;
+    using MatM = Eigen::Matrix<double, Mr, Mr>;
+    const Eigen::Map<const MatN> M(data_.M.data());
+    const Eigen::Map<const Eigen::Matrix<double, Mr, N>> A(ev_.A.data());
+    const Eigen::Map<const Eigen::Matrix<double, N, 1>> F(F_.data());
+    const Eigen::Map<const Eigen::Matrix<double, Mr, 1>> rhs(rhs_.data());
+    Eigen::Map<Eigen::Matrix<double, N, 1>> qdd(qdd_.data());
+    Eigen::Map<Eigen::Matrix<double, Mr, 1>> lambda(lambda_.data());
+    Eigen::LLT<MatN> llt_n;
+    Eigen::LLT<MatM> llt_m;
+    Eigen::Matrix<double, N, Mr> Y;
+    MatM S;
+    Eigen::Matrix<double, Mr, 1> tmp;
+    status = kkt_solve(M, A, F, rhs, llt_n, llt_m, Y, S, tmp, qdd, lambda);
+  } else {
+    status = kkt_solve(data_.M, ev_.A, F_, rhs_, data_.llt, llt_m_, Y_, Smm_, tmp_m_, qdd_, lambda_);
+  }
+  if (status == KktStatus::MassNotPositiveDefinite)
     throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
-  // u = M⁻¹F, Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ.
-  qdd_ = F_;
-  data_.llt.solveInPlace(qdd_);
-  if (m_ == 0) return;
-  Y_ = ev_.A.transpose();
-  data_.llt.solveInPlace(Y_);
-  Smm_.noalias() = ev_.A.lazyProduct(Y_);
-  llt_m_.compute(Smm_);
-  if (llt_m_.info() != Eigen::Success)
+  if (status == KktStatus::RowsDependent)
     throw NumericalFailure(t, "at t = " + fmt(t) +
                                   " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
                                   "hint: remove redundant constraints");
-  tmp_m_.noalias() = ev_.A.lazyProduct(qdd_);
-  tmp_m_ -= rhs_;
-  lambda_ = tmp_m_;
-  llt_m_.solveInPlace(lambda_);
-  qdd_.noalias() -= Y_.lazyProduct(lambda_);
 }
 
 double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {

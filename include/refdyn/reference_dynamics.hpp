@@ -127,6 +127,8 @@ class ReferenceDynamics {
   bool factor_partition_sized();  // N = 0: sizes at run time
   template <int N, int Mr>
   void solve_projection_sized(double t);
+  template <int N, int Mr>
+  void solve_lagrange_sized(double t);
   std::string partition_message(double t) const;
 
   const Model& model_;
