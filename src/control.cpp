@@ -17,16 +17,29 @@ ComputedTorquePD::ComputedTorquePD(const Model& model, Eigen::VectorXd delta)
       throw Error(expected_got("computed-torque gain delta[" + std::to_string(i) + "]", "a value >= 0", fmt(delta_[i])));
 }
 
-void ComputedTorquePD::compute(double, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r,
-                               Eigen::VectorXd& tau) {
+void ComputedTorquePD::outer_loop(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r) {
   // u = q̂̈ − 2δ ė − δ² e
   for (int i = 0; i < model_.nv; ++i) {
     const double e = q[i] - r.q[i], ed = qd[i] - r.qd[i];
     u_[i] = r.qdd[i] - 2.0 * delta_[i] * ed - delta_[i] * delta_[i] * e;
   }
+}
+
+void ComputedTorquePD::compute(double, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r,
+                               Eigen::VectorXd& tau) {
+  outer_loop(q, qd, r);
   unchecked::mass_matrix_and_bias(model_, data_, q, qd);
   tau.noalias() = data_.M.lazyProduct(u_);
   tau += data_.nle;
+}
+
+void ComputedTorquePD::compute_with_dynamics(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                             const ReferenceSample& r, const Model& model, const Data& dynamics,
+                                             Eigen::VectorXd& tau) {
+  if (&model != &model_) return compute(t, q, qd, r, tau);
+  outer_loop(q, qd, r);
+  tau.noalias() = dynamics.M.lazyProduct(u_);
+  tau += dynamics.nle;
 }
 
 PDGravity::PDGravity(const Model& model, Eigen::VectorXd kp, Eigen::VectorXd kd)
@@ -109,9 +122,15 @@ struct PlantWorkspace {
   Eigen::VectorXd q, qd, tau, Q, zdot, qr, qdr, qddr;
 };
 
-// τ from the controller, saturated; returns true when a joint was saturated.
-bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit) {
-  c.compute(t, w.q, w.qd, ReferenceSample{w.qr, w.qdr, w.qddr}, w.tau);
+// τ from the controller, saturated; returns true when a joint was saturated. With `plant`, the
+// plant's M and c + g at this state are already in w.data and the controller may reuse them.
+bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit,
+             const Model* plant = nullptr) {
+  const ReferenceSample ref{w.qr, w.qdr, w.qddr};
+  if (plant)
+    c.compute_with_dynamics(t, w.q, w.qd, ref, *plant, w.data, w.tau);
+  else
+    c.compute(t, w.q, w.qd, ref, w.tau);
   bool sat = false;
   for (int i = 0; i < limit.size(); ++i) {
     if (w.tau[i] > limit[i]) w.tau[i] = limit[i], sat = true;
@@ -126,14 +145,12 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   const int n = m.nv, nz = forces.num_states();
   w.q = Eigen::Map<const Eigen::VectorXd>(x, n);
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
-  control(c, w, t, limit);
-  forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
   unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
-  w.data.llt.compute(w.data.M);
-  if (w.data.llt.info() != Eigen::Success)
-    throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
+  control(c, w, t, limit, &m);
+  forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
   w.data.ddq = w.tau + w.Q - w.data.nle;
-  w.data.llt.solveInPlace(w.data.ddq);
+  if (!unchecked::solve_mass_matrix(w.data, w.data.ddq))
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
   Eigen::Map<Eigen::VectorXd>(dx, n) = w.qd;
   Eigen::Map<Eigen::VectorXd>(dx + n, n) = w.data.ddq;
   for (int k = 0; k < nz; ++k) dx[2 * n + k] = w.zdot[k];

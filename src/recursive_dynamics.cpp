@@ -795,6 +795,31 @@ void rnea_reusing_placements(const Model& model, Data& data, const Eigen::Vector
   rnea_dispatch(model, data, q, qd, qdd, gravity, out, true);
 }
 
+namespace {
+template <int N>
+bool solve_fixed(const Eigen::MatrixXd& M, Eigen::VectorXd& b) {
+  const Eigen::LLT<Eigen::Matrix<double, N, N>> llt(Eigen::Map<const Eigen::Matrix<double, N, N>>(M.data()));
+  if (llt.info() != Eigen::Success) return false;
+  Eigen::Map<Eigen::Matrix<double, N, 1>> x(b.data());
+  llt.solveInPlace(x);
+  return true;
+}
+}  // namespace
+
+bool solve_mass_matrix(Data& data, Eigen::VectorXd& b) {
+  switch (data.M.rows()) {  // fixed-size Cholesky on the stack for small models
+    case 1: return solve_fixed<1>(data.M, b);
+    case 2: return solve_fixed<2>(data.M, b);
+    case 3: return solve_fixed<3>(data.M, b);
+    case 4: return solve_fixed<4>(data.M, b);
+    default:
+      data.llt.compute(data.M);
+      if (data.llt.info() != Eigen::Success) return false;
+      data.llt.solveInPlace(b);
+      return true;
+  }
+}
+
 void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
   if (model.nq < kWorldCrbaFrom) {
     crba_bias_local(model, data, q.data(), qd.data(), data.nle.data());
@@ -843,12 +868,10 @@ const Eigen::VectorXd& forward_dynamics(const Model& model, Data& data, const Ei
   crba_impl(model, data, q);
   // The joint transforms in data.liMi are those of this q: reuse them.
   rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), true);
-  data.llt.compute(data.M);
-  if (data.llt.info() != Eigen::Success)
+  data.ddq = tau - data.nle;
+  if (!unchecked::solve_mass_matrix(data, data.ddq))
     throw Error("forward_dynamics: the mass matrix is not positive definite at this q "
                 "(hint: a massless link at the end of a chain, or a joint that moves no mass)");
-  data.ddq = tau - data.nle;
-  data.llt.solveInPlace(data.ddq);
   return data.ddq;
 }
 

@@ -61,6 +61,44 @@ TEST(Control, PerfectModelErrorIsCriticallyDampedClosedForm) {
   }
 }
 
+// The closed loop computes the plant's M and c + g first and hands them to the controller;
+// ComputedTorquePD uses them only when they belong to its own model (same Model object).
+TEST(Control, ComputedTorqueReusesThePlantDynamicsOnlyForItsOwnModel) {
+  Fixture& f = fixture();
+  const Eigen::Vector3d delta(40, 3, 60);
+  ComputedTorquePD ctrl(f.ex.model, delta);
+  std::mt19937 rng(71);
+  const Eigen::VectorXd q = test::random_vector(rng, 3, 2.0), qd = test::random_vector(rng, 3, 1.0);
+  const Eigen::VectorXd qr = test::random_vector(rng, 3, 2.0), qdr = test::random_vector(rng, 3, 1.0),
+                        qddr = test::random_vector(rng, 3, 1.0);
+  const ReferenceSample ref{qr, qdr, qddr};
+  Eigen::VectorXd tau(3), tau_reused(3);
+  ctrl.compute(0.0, q, qd, ref, tau);
+  Data d(f.ex.model);
+  unchecked::mass_matrix_and_bias(f.ex.model, d, q, qd);
+  ctrl.compute_with_dynamics(0.0, q, qd, ref, f.ex.model, d, tau_reused);
+  EXPECT_TRUE(near(tau_reused, tau, 1e-14, 1e-14));
+  // Proof that the given dynamics are really used for the own model ...
+  d.M *= 2.0;
+  d.nle.setZero();
+  ctrl.compute_with_dynamics(0.0, q, qd, ref, f.ex.model, d, tau_reused);
+  EXPECT_GT((tau_reused - tau).norm(), 1e-3 * tau.norm());
+  // ... and ignored for another model object, even an equal one.
+  const Model copy = f.ex.model;
+  ctrl.compute_with_dynamics(0.0, q, qd, ref, copy, d, tau_reused);
+  EXPECT_TRUE(near(tau_reused, tau, 0, 0));
+  // Whole closed loops: controller on the plant's own model (reuse) vs on a copy (recompute).
+  ClosedLoopOptions o;
+  o.integrator = f.ex.integrator();
+  const ForceSet none;
+  ComputedTorquePD own(f.ex.model, delta), other(copy, delta);
+  const ClosedLoopResult a = simulate_closed_loop(f.ex.model, none, own, f.plan, nullptr, plant_start(70), o);
+  const ClosedLoopResult b = simulate_closed_loop(f.ex.model, none, other, f.plan, nullptr, plant_start(70), o);
+  ASSERT_TRUE(a.summary.ok() && b.summary.ok());
+  ASSERT_EQ(a.x.size(), b.x.size());
+  for (size_t k = 0; k < a.x.size(); ++k) ASSERT_TRUE(near(a.x[k], b.x[k], 1e-12, 1e-12)) << "sample " << k;
+}
+
 TEST(Control, ExactStartTracksToRoundoffAndTorqueEqualsPlanForces) {
   Fixture& f = fixture();
   ComputedTorquePD ctrl(f.ex.model, Eigen::Vector3d(40, 3, 60));

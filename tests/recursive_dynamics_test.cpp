@@ -140,6 +140,25 @@ TEST(RecursiveDynamics, MassMatrixAndBiasTogetherEqualTheSeparateCalls) {
   }
 }
 
+TEST(RecursiveDynamics, SolveMassMatrixMatchesAnIndependentFactorization) {
+  std::mt19937 rng(110);
+  for (const Case& c : random_models(rng)) {  // sizes 1 .. 30: the fixed-size and the dynamic path
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), b = test::random_vector(rng, n, 2.0);
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+    Eigen::VectorXd x = b;
+    ASSERT_TRUE(unchecked::solve_mass_matrix(data, x)) << c.label;
+    const Eigen::VectorXd expected = M.fullPivLu().solve(b);
+    EXPECT_TRUE(near(x, expected, 1e-9, 1e-12)) << c.label;
+    EXPECT_TRUE(near(M * x, b, 1e-10, 1e-12)) << c.label;
+    // Not positive definite: reported, not solved.
+    data.M = -M;
+    x = b;
+    EXPECT_FALSE(unchecked::solve_mass_matrix(data, x)) << c.label;
+  }
+}
+
 TEST(RecursiveDynamics, ForwardDynamicsInvertsInverseDynamics) {
   std::mt19937 rng(103);
   for (const Case& c : random_models(rng)) {

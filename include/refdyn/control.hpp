@@ -37,6 +37,15 @@ class Controller {
   /// τ (size nq) from time, plant state and reference. May use internal workspace.
   virtual void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                        Eigen::VectorXd& tau) = 0;
+  /// The same, when the caller has already evaluated M(q) and c(q, q̇) + g(q) of `model` at this
+  /// (q, q̇) into `dynamics` (dynamics.M, dynamics.nle). A controller whose own model is that
+  /// same Model object may use them instead of recomputing; the closed loop passes the plant's.
+  /// The default ignores them.
+  virtual void compute_with_dynamics(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                     const ReferenceSample& ref, const Model& model, const Data& dynamics,
+                                     Eigen::VectorXd& tau) {
+    compute(t, q, qd, ref, tau);
+  }
 };
 
 /// Feedback linearization + PD, paper (3.2)–(3.4):
@@ -49,7 +58,12 @@ class ComputedTorquePD final : public Controller {
   std::string name() const override { return "computed_torque_pd"; }
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                Eigen::VectorXd& tau) override;
+  /// Uses dynamics.M and dynamics.nle when `model` is this controller's model (same object).
+  void compute_with_dynamics(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                             const ReferenceSample& ref, const Model& model, const Data& dynamics,
+                             Eigen::VectorXd& tau) override;
  private:
+  void outer_loop(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r);  // u_
   const Model& model_;
   Data data_;
   Eigen::VectorXd delta_, u_;

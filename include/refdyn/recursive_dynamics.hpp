@@ -47,6 +47,9 @@ void rnea_reusing_placements(const Model& model, Data& data, const Eigen::Vector
 /// rnea_reusing_placements(q, &q̇, nullptr, true, data.nle) gives, and the same data.liMi,
 /// data.v, data.a): for small models in one forward and one backward sweep.
 void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+/// Solves data.M x = b in place by Cholesky (fixed-size for up to 4 coordinates, else data.llt);
+/// false, with b unspecified, when data.M is not positive definite.
+bool solve_mass_matrix(Data& data, Eigen::VectorXd& b);
 }  // namespace unchecked
 
 }  // namespace refdyn
