@@ -375,6 +375,12 @@ void evaluate_rows(const ConstraintSet& set, ConstraintEval& ev, double t, const
 
 void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev, double t,
                           const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  check_data(model, data);
+  if (q.size() != model.nq) model.check_q(q);
+  if (qd.size() != model.nv) check_vector("qd", qd, model.nv);
+  if (ev.phi.size() != set.rows() || ev.A.cols() != model.nv || ev.points.size() != model.point_name.size())
+    throw Error("evaluate_constraints: the ConstraintEval was built for another model or constraint set (hint: "
+                "ConstraintEval ev(model, set) with the same model and set)");
   forward_kinematics_unchecked(model, data, q);
   compute_point_states(model, data, set.points(), qd, ev.points);
   evaluate_rows(set, ev, t, q, qd);

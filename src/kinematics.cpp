@@ -51,6 +51,7 @@ void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::V
 }
 
 void forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  check_data(model, data);
   model.check_q(q);
   forward_kinematics_unchecked(model, data, q);
 }
@@ -64,6 +65,7 @@ void check_point(const Model& model, int point) {
 }  // namespace
 
 Vec3 point_position(const Model& model, const Data& data, int point) {
+  check_data(model, data);
   check_point(model, point);
   const int b = model.point_body[point];
   return b < 0 ? model.point_position[point] : data.oMi[b].act_point(model.point_position[point]);
@@ -111,6 +113,7 @@ PointDrift point_drift_on_body(const Data& data, int b, const Vec3& r) {
 }  // namespace kinematics_detail
 
 void point_jacobian(const Model& model, Data& data, int point) {
+  check_data(model, data);
   check_point(model, point);
   const int b = model.point_body[point];
   const Vec3 r = b < 0 ? model.point_position[point] : data.oMi[b].act_point(model.point_position[point]);
@@ -118,12 +121,14 @@ void point_jacobian(const Model& model, Data& data, int point) {
 }
 
 SE3 link_transform(const Model& model, const Data& data, int body) {
+  check_data(model, data);
   if (body < 0 || body >= model.nq)
     throw Error(expected_got("body index", "0 .. nq-1", std::to_string(body)));
   return data.oMi[body] * model.link_offset[body];
 }
 
 PointDrift point_drift(const Model& model, Data& data, int point, const Eigen::VectorXd& qd) {
+  check_data(model, data);
   check_point(model, point);
   check_vector("qd", qd, model.nv);
   PointDrift out{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};

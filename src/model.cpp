@@ -4,6 +4,7 @@
 #include "refdyn/text.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -138,7 +139,9 @@ Model build_model(const ModelDescription& d) {
   // the link frame in that body's frame.
   std::vector<int> body_of(nl, -1);
   std::vector<SE3> link_in_body(nl);  // pose of link frame in its body frame (or world)
+  static std::atomic<std::uint64_t> next_id{1};
   Model m;
+  m.id = next_id++;
   m.name = d.name;
   m.gravity = d.gravity;
   for (int i = 0; i < nl; ++i) {
@@ -244,12 +247,19 @@ std::string Model::summary() const {
   return os.str();
 }
 
+void check_data(const Model& model, const Data& data) {
+  if (data.model_id == model.id && data.nq == model.nq) return;
+  throw Error("this Data was built for another model (" + std::to_string(data.nq) + " coordinates) than model '" +
+              model.name + "' (" + std::to_string(model.nq) +
+              " coordinates); hint: create one workspace per model, refdyn::Data data(model)");
+}
+
 void Model::check_q(const Eigen::VectorXd& q, const char* what) const {
   check_vector(what, q, nq, "one entry per joint, in the model's joint order");
 }
 
 Data::Data(const Model& model)
-    : liMi(model.nq), oMi(model.nq), v(model.nq), a(model.nq), f(model.nq),
+    : model_id(model.id), nq(model.nq), liMi(model.nq), oMi(model.nq), v(model.nq), a(model.nq), f(model.nq),
       tau(Eigen::VectorXd::Zero(model.nq)), nle(Eigen::VectorXd::Zero(model.nq)),
       g(Eigen::VectorXd::Zero(model.nq)), Ic(model.nq), M(Eigen::MatrixXd::Zero(model.nq, model.nq)),
       llt(model.nq), ddq(Eigen::VectorXd::Zero(model.nq)), T(model.nq, Mat4::Identity()),

@@ -833,6 +833,7 @@ void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd&
 
 const Eigen::VectorXd& inverse_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
                                         const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd) {
+  check_data(model, data);
   check_q_fast(model, q);
   check_vector_fast("qd", qd, model.nv);
   check_vector_fast("qdd", qdd, model.nv);
@@ -842,6 +843,7 @@ const Eigen::VectorXd& inverse_dynamics(const Model& model, Data& data, const Ei
 
 const Eigen::VectorXd& bias_forces(const Model& model, Data& data, const Eigen::VectorXd& q,
                                    const Eigen::VectorXd& qd) {
+  check_data(model, data);
   check_q_fast(model, q);
   check_vector_fast("qd", qd, model.nv);
   rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), false);
@@ -849,12 +851,14 @@ const Eigen::VectorXd& bias_forces(const Model& model, Data& data, const Eigen::
 }
 
 const Eigen::VectorXd& gravity_forces(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  check_data(model, data);
   check_q_fast(model, q);
   rnea_impl<false, false>(model, data, q.data(), nullptr, nullptr, true, data.g.data(), false);
   return data.g;
 }
 
 const Eigen::MatrixXd& mass_matrix(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  check_data(model, data);
   check_q_fast(model, q);
   crba_impl(model, data, q);
   return data.M;
@@ -862,6 +866,7 @@ const Eigen::MatrixXd& mass_matrix(const Model& model, Data& data, const Eigen::
 
 const Eigen::VectorXd& forward_dynamics(const Model& model, Data& data, const Eigen::VectorXd& q,
                                         const Eigen::VectorXd& qd, const Eigen::VectorXd& tau) {
+  check_data(model, data);
   check_q_fast(model, q);
   check_vector_fast("qd", qd, model.nv);
   check_vector_fast("tau", tau, model.nv);
@@ -876,6 +881,7 @@ const Eigen::VectorXd& forward_dynamics(const Model& model, Data& data, const Ei
 }
 
 double kinetic_energy(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  check_data(model, data);
   model.check_q(q);
   check_vector("qd", qd, model.nv);
   double T = 0;
@@ -889,6 +895,7 @@ double kinetic_energy(const Model& model, Data& data, const Eigen::VectorXd& q, 
 }
 
 double potential_energy(const Model& model, Data& data, const Eigen::VectorXd& q) {
+  check_data(model, data);
   forward_kinematics(model, data, q);
   double V = 0;
   for (int i = 0; i < model.nq; ++i) {

@@ -42,6 +42,7 @@ void check_index(const Model& model, int k, const char* what) {
 }  // namespace
 
 Mat4 trace_dT(const Model& model, const Data& data, int l, int i) {
+  check_data(model, data);
   check_index(model, l, "trace_dT body index l");
   check_index(model, i, "trace_dT joint index i");
   if (!in_support(model, l, i)) return Mat4::Zero();
@@ -49,6 +50,7 @@ Mat4 trace_dT(const Model& model, const Data& data, int l, int i) {
 }
 
 Mat4 trace_ddT(const Model& model, const Data& data, int l, int i, int j) {
+  check_data(model, data);
   check_index(model, l, "trace_ddT body index l");
   check_index(model, i, "trace_ddT joint index i");
   check_index(model, j, "trace_ddT joint index j");

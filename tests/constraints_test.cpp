@@ -409,3 +409,26 @@ TEST(Surfaces, DerivativesMatchFiniteDifferences) {
     }
   }
 }
+
+TEST(Constraints, EvaluateRefusesWorkspacesOfAnotherModelOrSet) {
+  std::mt19937 rng(37);
+  ModelDescription d = test::random_chain(rng, {.dof = 4});
+  d.add_point("tip2", d.links.back().name, Vec3(0.1, 0.2, 0.0));
+  const Model model = build_model(d), other = build_model(test::random_chain(rng, {.dof = 2}));
+  ConstraintSet set, set2;
+  set.add(point_coordinate(model, "tip2", 2, constant(0.3)));
+  set2.add(point_coordinate(model, "tip2", 2, constant(0.3)));
+  set2.add(point_coordinate(model, "tip2", 0, constant(0.1)));
+  Data data(model), data_other(other);
+  ConstraintEval ev(model, set), ev2(model, set2);
+  const Eigen::VectorXd q = Eigen::VectorXd::Zero(4), qd = Eigen::VectorXd::Zero(4);
+  test::expect_error_mentioning([&] { evaluate_constraints(model, data_other, set, ev, 0.0, q, qd); },
+                                {"another model"});
+  test::expect_error_mentioning([&] { evaluate_constraints(model, data, set, ev2, 0.0, q, qd); },
+                                {"ConstraintEval", "same model and set"});
+  test::expect_error_mentioning([&] { evaluate_constraints(model, data, set, ev, 0.0, Eigen::VectorXd::Zero(3), qd); },
+                                {"q"});
+  test::expect_error_mentioning([&] { evaluate_constraints(model, data, set, ev, 0.0, q, Eigen::VectorXd::Zero(5)); },
+                                {"qd"});
+  EXPECT_NO_THROW(evaluate_constraints(model, data, set, ev, 0.0, q, qd));
+}

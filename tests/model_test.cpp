@@ -677,3 +677,28 @@ TEST(ModelValidation, ZeroAxisAndBadLimits) {
   d.links[0].limits.upper = -1.0;
   EXPECT_TRUE(build_fails_with(d, {"upperarm", "lower <= upper", "1 > -1"}));
 }
+
+// A Data belongs to the model it was built for (and to copies of it): the checked algorithms
+// refuse another model's workspace with a clear error instead of reading out of its bounds.
+TEST(Data, WorkspaceOfAnotherModelIsRefused) {
+  std::mt19937 rng(57);
+  ModelDescription d3 = test::random_chain(rng, {.dof = 3}), d5 = test::random_chain(rng, {.dof = 5});
+  d3.add_point("p", d3.links.back().name, Vec3(0.1, 0, 0));
+  const Model m3 = build_model(d3), m5 = build_model(d5), m3_again = build_model(d3);
+  const Model m3_copy = m3;
+  Data data5(m5), data3(m3);
+  const Eigen::VectorXd q3 = Eigen::VectorXd::Zero(3);
+  const std::vector<std::string> needles = {"another model", "Data data(model)"};
+  test::expect_error_mentioning([&] { mass_matrix(m3, data5, q3); }, needles);
+  test::expect_error_mentioning([&] { inverse_dynamics(m3, data5, q3, q3, q3); }, needles);
+  test::expect_error_mentioning([&] { forward_kinematics(m3, data5, q3); }, needles);
+  test::expect_error_mentioning([&] { point_position(m3, data5, 0); }, needles);
+  test::expect_error_mentioning([&] { kinetic_energy(m3, data5, q3, q3); }, needles);
+  // Same size, but built by another build_model call: also refused.
+  test::expect_error_mentioning([&] { mass_matrix(m3_again, data3, q3); }, needles);
+  // A copy of the model is the same model.
+  EXPECT_NO_THROW(mass_matrix(m3_copy, data3, q3));
+  EXPECT_TRUE(near(mass_matrix(m3_copy, data3, q3), mass_matrix(m3, data3, q3), 0, 0));
+  EXPECT_NE(m3.id, m3_again.id);
+  EXPECT_EQ(m3.id, m3_copy.id);
+}

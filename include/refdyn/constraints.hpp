@@ -150,7 +150,8 @@ struct ConstraintEval {
 };
 
 /// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and
-/// the point kinematics of every point the set reads. No heap allocation.
+/// the point kinematics of every point the set reads. No heap allocation. Checks that data and
+/// ev belong to this model and set and the sizes of q, q̇ (finiteness is the caller's).
 void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev,
                           double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
 /// The same right after unchecked::crba + unchecked::rnea_reusing_placements(q, q̇, q̈ = none,

@@ -19,6 +19,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -103,6 +104,7 @@ class Model {
   int nq = 0;                       ///< number of generalized coordinates (= nv)
   int nv = 0;
   std::string name;
+  std::uint64_t id = 0;             ///< distinct for every build_model call (copies share it)
   Vec3 gravity = Vec3(0, 0, -9.81);
 
   // --- per body (index = coordinate index) ---
@@ -146,6 +148,9 @@ class Model {
 struct Data {
   explicit Data(const Model& model);
 
+  std::uint64_t model_id;           ///< Model::id of the model it was built for
+  int nq;                           ///< that model's number of coordinates
+
   // forward_kinematics
   std::vector<SE3> liMi;            ///< body i in its parent's frame
   std::vector<SE3> oMi;             ///< body i in the world frame
@@ -174,5 +179,9 @@ struct Data {
   Eigen::Matrix<double, 3, Eigen::Dynamic> Jp; ///< point Jacobian C (3×n)
   Eigen::Matrix<double, 3, Eigen::Dynamic> Jw; ///< angular Jacobian of the point's body (3×n)
 };
+
+/// Throws refdyn::Error unless `data` was built for `model` (or a copy of it). The checked
+/// algorithms call it; a Data of another model would read and write out of its bounds.
+void check_data(const Model& model, const Data& data);
 
 }  // namespace refdyn
