@@ -240,10 +240,10 @@ int run_track(const std::string& file, const std::string& out_dir, bool quiet) {
   for (size_t e = 0; e < s.experiments.size(); ++e) {
     const io::Experiment& ex = *s.experiments[e];
     std::unique_ptr<Controller> ctrl;
-    if (s.controller.type == "computed_torque_pd")
-      ctrl = std::make_unique<ComputedTorquePD>(m, s.controller.delta);
+    if (ex.controller.type == "computed_torque_pd")
+      ctrl = std::make_unique<ComputedTorquePD>(m, ex.controller.delta);
     else
-      ctrl = std::make_unique<PDGravity>(m, s.controller.kp, s.controller.kd);
+      ctrl = std::make_unique<PDGravity>(m, ex.controller.kp, ex.controller.kd);
     ClosedLoopOptions o;
     o.integrator = s.integrator;
     o.integrator.t1 = std::min(s.integrator.t1, p.plan.summary.t_end);

@@ -11,9 +11,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string>
@@ -352,6 +354,63 @@ TEST(GoodScenario, PlanWritesResultsIntoAnExistingFolderQuietly) {
 
 // ---------------------------------------------------------------------------------------------
 // Output folders that cannot be written, missing inputs.
+
+/// Columns of a CSV file written by refdyn, by header name.
+std::map<std::string, std::vector<double>> read_columns(const fs::path& file) {
+  std::istringstream in(read_text(file));
+  std::string line, cell;
+  std::getline(in, line);
+  std::vector<std::string> names;
+  for (std::istringstream h(line); std::getline(h, cell, ',');) names.push_back(cell);
+  std::map<std::string, std::vector<double>> cols;
+  while (std::getline(in, line)) {
+    std::istringstream r(line);
+    for (size_t c = 0; c < names.size() && std::getline(r, cell, ','); ++c) cols[names[c]].push_back(std::stod(cell));
+  }
+  return cols;
+}
+
+// Controller gains per experiment, swept like any parameter. With no plant forces the plant is
+// the controller's own model, so each joint error follows the computed-torque closed form
+// e(t) = (e0 + (ė0 + δ e0) t) e^(−δt) with that experiment's δ.
+TEST(GoodScenario, TrackSweepsControllerGainsPerExperiment) {
+  Scratch s;
+  const fs::path yaml = s.root() / "sweep_gains.yaml", out = s.root() / "out";
+  {
+    std::ofstream f(yaml);
+    f << read_text(kGood) << R"(
+controller: {type: computed_torque_pd, delta: {j1: 10, j2: 10}}
+experiments:
+  - name: d{d}
+    sweep: {d: [5, 20]}
+    initial: {q: {j2: 80*deg}, qd: {j1: 0.3}}
+    controller: {type: computed_torque_pd, delta: {j1: d, j2: 2*d}}
+  - name: top
+    initial: {q: {j2: 80*deg}, qd: {j1: 0.3}}
+)";
+  }
+  const Result r = run(s, "track " + quote(yaml) + " -o " + quote(out));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  const auto plan = read_columns(out / "plan.csv");
+  for (const auto& [name, d1] : std::vector<std::pair<std::string, double>>{{"d5", 5}, {"d20", 20}, {"top", 10}}) {
+    ASSERT_TRUE(fs::is_regular_file(out / ("track_" + name + ".csv"))) << listing(out);
+    const auto tr = read_columns(out / ("track_" + name + ".csv"));
+    const double d2 = name == "top" ? 10 : 2 * d1;
+    double worst = 0, biggest = 0;
+    for (const auto& [j, delta] : std::vector<std::pair<std::string, double>>{{"j1", d1}, {"j2", d2}}) {
+      const std::vector<double>& t = tr.at("t");
+      const std::vector<double>& e = tr.at("e_" + j);
+      ASSERT_EQ(plan.at("t").size(), t.size());
+      const double e0 = e[0], ed0 = tr.at("qd_" + j)[0] - plan.at("qd_" + j)[0];
+      for (size_t k = 0; k < t.size(); ++k) {
+        worst = std::max(worst, std::abs(e[k] - (e0 + (ed0 + delta * e0) * t[k]) * std::exp(-delta * t[k])));
+        biggest = std::max(biggest, std::abs(e[k]));
+      }
+    }
+    EXPECT_GT(biggest, 0.1) << name;  // the start is really disturbed
+    EXPECT_LT(worst, 1e-6) << name << ": error differs from the closed form with this experiment's gains";
+  }
+}
 
 TEST(OutputFolder, UnderARegularFileIsRejectedAndNothingIsWritten) {
   Scratch s;

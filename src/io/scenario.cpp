@@ -682,19 +682,28 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
     }
   }
 
-  // Tracking.
-  if (const YAML::Node ct = root["controller"]) {
-    c.keys(ct, "controller", {"type", "delta", "kp", "kd"});
-    s->controller.type = c.choice(c.need(ct, "type", "controller"), "controller.type", {"computed_torque_pd", "pd_gravity"});
-    if (s->controller.type == "computed_torque_pd") {
-      s->controller.delta = c.joint_vector(c.need(ct, "delta", "controller"), "controller.delta", m, true, 0.0);
+  // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
+  // its sweep parameter).
+  auto read_controller = [&](const YAML::Node& ct, const std::string& key, const std::map<std::string, double>* extra) {
+    ControllerSpec cs;
+    c.keys(ct, key, {"type", "delta", "kp", "kd"});
+    cs.type = c.choice(c.need(ct, "type", key), key + ".type", {"computed_torque_pd", "pd_gravity"});
+    auto gains = [&](const char* name) {
+      const Eigen::VectorXd v = c.joint_vector(c.need(ct, name, key), key + "." + name, m, true, 0.0, extra);
       for (int i = 0; i < m.nq; ++i)
-        if (s->controller.delta[i] < 0) c.fail(ct["delta"], "controller.delta", "gains must be >= 0");
+        if (!(v[i] >= 0))
+          c.fail(ct[name], key + "." + name + "." + m.joint_name[i], "gains must be >= 0, got " + fmt(v[i]));
+      return v;
+    };
+    if (cs.type == "computed_torque_pd") {
+      cs.delta = gains("delta");
     } else {
-      s->controller.kp = c.joint_vector(c.need(ct, "kp", "controller"), "controller.kp", m, true, 0.0);
-      s->controller.kd = c.joint_vector(c.need(ct, "kd", "controller"), "controller.kd", m, true, 0.0);
+      cs.kp = gains("kp");
+      cs.kd = gains("kd");
     }
-  }
+    return cs;
+  };
+  if (const YAML::Node ct = root["controller"]) s->controller = read_controller(ct, "controller", nullptr);
   if (root["effort_limit"]) {
     s->effort_limit = c.joint_vector(root["effort_limit"], "effort_limit", m, false, std::numeric_limits<double>::infinity());
     for (int i = 0; i < m.nq; ++i)
@@ -704,11 +713,13 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   }
   if (const YAML::Node ex = root["experiments"]) {
     if (!ex.IsSequence()) c.fail(ex, "experiments", "expected a list of experiments");
-    if (!root["controller"]) c.fail(ex, "controller", "experiments need a controller (add a 'controller:' section)");
     for (size_t i = 0; i < ex.size(); ++i) {
       const YAML::Node e = ex[i];
       const std::string k = "experiments[" + std::to_string(i) + "]";
-      c.keys(e, k, {"name", "sweep", "initial", "plant_forces"});
+      c.keys(e, k, {"name", "sweep", "initial", "plant_forces", "controller"});
+      if (!root["controller"] && !e["controller"])
+        c.fail(e, "controller",
+               "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
       std::string var;
       std::vector<double> values{0.0};
       if (const YAML::Node sw = e["sweep"]) {
@@ -742,6 +753,7 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
         Ctx ce = c;  // the sweep parameter is visible in the run's plant forces too
         ce.params.insert(extra.begin(), extra.end());
         read_forces(ce, pf, e["plant_forces"] ? k + ".plant_forces" : "plant_forces", m, exp->plant_forces);
+        exp->controller = e["controller"] ? read_controller(e["controller"], k + ".controller", &extra) : s->controller;
         s->experiments.push_back(std::move(exp));
       }
     }

@@ -28,6 +28,7 @@ struct Experiment {
   std::string name;
   Eigen::VectorXd q0, qd0;                  ///< plant initial state
   ForceSet plant_forces;                    ///< the plant's own force elements
+  ControllerSpec controller;                ///< the experiment's own, else the top-level one
 };
 
 /// A loaded, validated scenario. Not movable: ReferenceDynamics objects refer to its members.
