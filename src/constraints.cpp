@@ -140,6 +140,31 @@ class JointTrajectory final : public Constraint {
   TimeFunctionPtr f_;
 };
 
+class JointCoupling final : public Constraint {
+ public:
+  JointCoupling(int j, int l, std::string jn, std::string ln, double ratio, double offset)
+      : j_(j), l_(l), jn_(std::move(jn)), ln_(std::move(ln)), ratio_(ratio), offset_(offset) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return false; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    phi[0] = in.q[j_] - ratio_ * in.q[l_] - offset_;
+    phid[0] = in.qd[j_] - ratio_ * in.qd[l_];
+    A.row(0).setZero();
+    A(0, j_) = 1.0;
+    A(0, l_) = -ratio_;
+    gamma[0] = 0.0;
+  }
+  std::string describe() const override {
+    return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
+  }
+ private:
+  int j_, l_;
+  std::string jn_, ln_;
+  double ratio_, offset_;
+};
+
 class PointsCoincide final : public Constraint {
  public:
   PointsCoincide(int p1, int p2, std::string n1, std::string n2, std::vector<int> axes)
@@ -261,6 +286,14 @@ ConstraintPtr point_coordinate(const Model& m, const std::string& point, int axi
 ConstraintPtr joint_trajectory(const Model& m, const std::string& joint, TimeFunctionPtr f, ConstraintOrigin o) {
   if (!f) throw Error("joint_trajectory: expected a time function, got none");
   return named(std::make_shared<JointTrajectory>(m.joint_index(joint), joint, std::move(f)), "q_" + joint, o);
+}
+ConstraintPtr joint_coupling(const Model& m, const std::string& joint, const std::string& leader, double ratio,
+                             double offset, ConstraintOrigin o) {
+  if (!std::isfinite(ratio) || !std::isfinite(offset))
+    throw Error(expected_got("joint_coupling ratio and offset", "finite numbers", fmt(ratio) + ", " + fmt(offset)));
+  const int j = m.joint_index(joint), l = m.joint_index(leader);
+  if (j == l) throw Error("joint_coupling: joint '" + joint + "' cannot be coupled to itself (hint: name another leader)");
+  return named(std::make_shared<JointCoupling>(j, l, joint, leader, ratio, offset), joint + "_from_" + leader, o);
 }
 ConstraintPtr points_coincide(const Model& m, const std::string& p1, const std::string& p2, std::vector<int> axes,
                               ConstraintOrigin o) {

@@ -72,6 +72,7 @@ ConstraintSet all_kinds(const Model& model, std::mt19937& rng) {
   set.add(point_coordinate(model, "tip", 0, sinusoid(0.2, 1.7, 0.3, 0.5)));
   set.add(point_coordinate(model, "mid", 2, raised_cosine(0.6, 0.1, 5.0)));
   set.add(joint_trajectory(model, model.joint_name[model.nq / 2], polynomial({0.2, -0.4, 0.3, 0.05})));
+  set.add(joint_coupling(model, model.joint_name[0], model.joint_name[model.nq - 1], -1.7, 0.3));
   set.add(points_coincide(model, "tip", "mid"));
   set.add(points_coincide(model, "tip", "anchor", {0, 2}));
   set.add(knife_edge(model, "tip", random_unit(rng)));
@@ -105,7 +106,7 @@ TEST(Constraints, JacobianVelocityAndDriftMatchFiniteDifferences) {
       const Model model = build_model(c.desc);
       const int n = model.nq;
       const ConstraintSet set = all_kinds(model, rng);
-      ASSERT_EQ(set.rows(), 15);
+      ASSERT_EQ(set.rows(), 16);
       for (int trial = 0; trial < 4; ++trial) {
         const Eigen::VectorXd q = test::random_vector(rng, n, 3.0);
         const Eigen::VectorXd qd = test::random_vector(rng, n, 2.0);
@@ -172,7 +173,7 @@ TEST(Constraints, JacobianVelocityAndDriftMatchFiniteDifferences) {
       }
     }
   }
-  EXPECT_EQ(rows_checked, 2 * 8 * 4 * 15);
+  EXPECT_EQ(rows_checked, 2 * 8 * 4 * 16);
   EXPECT_EQ(first_order_rows, 2 * 8 * 4 * 4);
   std::cout << "[ constraints ] worst relative FD mismatch: A " << worst_A << ", phid " << worst_phid << ", gamma "
             << worst_gamma << " over " << rows_checked << " rows\n";
@@ -186,6 +187,7 @@ TEST(Constraints, ValuesMatchTheReferenceKinematics) {
     const Eigen::VectorXd q = test::random_vector(rng, n, 3.0);
     const Eigen::VectorXd qd = test::random_vector(rng, n, 2.0);
     const double t = 0.77;
+    ASSERT_GE(n, 3);
     const Vec3 tip = test::reference_point_position(c.desc, q, "tip");
     const Vec3 mid = test::reference_point_position(c.desc, q, "mid");
     const Vec3 anchor(0.4, -0.3, 0.8);
@@ -204,6 +206,7 @@ TEST(Constraints, ValuesMatchTheReferenceKinematics) {
     set.add(points_coincide(model, "mid", "anchor", {2, 0}));
     set.add(knife_edge(model, "tip", lateral));
     set.add(point_speed(model, "tip", u, constant(0.25)));
+    set.add(joint_coupling(model, model.joint_name[2], model.joint_name[0], 2.5, -0.4));
     Data data(model);
     ConstraintEval ev(model, set);
     evaluate_constraints(model, data, set, ev, t, q, qd);
@@ -227,6 +230,7 @@ TEST(Constraints, ValuesMatchTheReferenceKinematics) {
     expected[6] = mid.x() - anchor.x();
     expected[7] = (P.R * lateral.normalized()).dot(P.v);
     expected[8] = u.normalized().dot(P.v) - 0.25;
+    expected[9] = q[2] - 2.5 * q[0] + 0.4;
     EXPECT_TRUE(near(ev.phi, expected, 1e-12, 1e-12)) << c.label;
     // Lateral axis in the body: R from the reference poses.
     const std::vector<SE3> T = test::reference_link_poses(c.desc, q);

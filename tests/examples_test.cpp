@@ -7,6 +7,7 @@
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
+#include "refdyn/recursive_dynamics.hpp"
 #include "refdyn/reference_dynamics.hpp"
 #include "test_support.hpp"
 
@@ -366,6 +367,93 @@ TEST(Examples, UrdfArmKeepsTheToolOnTheLine) {
       ASSERT_GT(p.q(k)[j], m.limits[j].lower) << m.joint_name[j] << " at t = " << p.plan.t[k];
       ASSERT_LT(p.q(k)[j], m.limits[j].upper) << m.joint_name[j] << " at t = " << p.plan.t[k];
     }
+}
+
+// A URDF <mimic> joint becomes the material constraint mimic_<joint> (joint_coupling). A
+// three-link arm swinging under gravity with its third joint geared to the second: the
+// coupling holds along the plan, and since the coupling is ideal and scleronomic and there is
+// no damping, the energy T + V is conserved.
+TEST(Examples, UrdfMimicJointIsAnIdealCoupling) {
+  const fs::path dir = fs::temp_directory_path() / ("refdyn_mimic_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  auto inertial = [](double m, double len) {
+    std::ostringstream os;
+    os << "<inertial><origin xyz=\"" << len / 2 << " 0 0\" rpy=\"0 0 0\"/><mass value=\"" << m
+       << "\"/><inertia ixx=\"0.001\" ixy=\"0\" ixz=\"0\" iyy=\"" << m * len * len / 12 << "\" iyz=\"0\" izz=\""
+       << m * len * len / 12 << "\"/></inertial>";
+    return os.str();
+  };
+  auto jnt = [](const char* name, const char* parent, const char* child, double x, const char* extra) {
+    return std::string("<joint name=\"") + name + "\" type=\"continuous\"><parent link=\"" + parent +
+           "\"/><child link=\"" + child + "\"/><origin xyz=\"" + std::to_string(x) +
+           " 0 0\" rpy=\"0 0 0\"/><axis xyz=\"0 1 0\"/>" + extra + "</joint>\n";
+  };
+  {
+    std::ofstream u(dir / "arm3.urdf");
+    u << "<?xml version=\"1.0\"?>\n<robot name=\"arm3\">\n<link name=\"base\"/>\n"
+      << "<link name=\"l1\">" << inertial(2.0, 0.5) << "</link>\n<link name=\"l2\">" << inertial(1.5, 0.4)
+      << "</link>\n<link name=\"l3\">" << inertial(1.0, 0.3) << "</link>\n"
+      << jnt("j1", "base", "l1", 0.0, "") << jnt("j2", "l1", "l2", 0.5, "")
+      << jnt("j3", "l2", "l3", 0.4, "<mimic joint=\"j2\" multiplier=\"0.5\" offset=\"0.1\"/>") << "</robot>\n";
+    // The same arm without <mimic>, the coupling written as a ready-made constraint kind.
+    std::ofstream uf(dir / "arm3_free.urdf");
+    uf << "<?xml version=\"1.0\"?>\n<robot name=\"arm3\">\n<link name=\"base\"/>\n"
+       << "<link name=\"l1\">" << inertial(2.0, 0.5) << "</link>\n<link name=\"l2\">" << inertial(1.5, 0.4)
+       << "</link>\n<link name=\"l3\">" << inertial(1.0, 0.3) << "</link>\n"
+       << jnt("j1", "base", "l1", 0.0, "") << jnt("j2", "l1", "l2", 0.5, "") << jnt("j3", "l2", "l3", 0.4, "")
+       << "</robot>\n";
+    std::ofstream yk(dir / "kind.yaml");
+    yk << "name: mimic\nmodel:\n  urdf: {file: arm3_free.urdf}\n  gravity: [0, 0, -9.81]\n"
+          "constraints:\n  - {name: gear, kind: joint_coupling, joint: j3, leader: j2, ratio: 0.5, offset: 0.1}\n"
+          "partition:\n  independent: auto\n"
+          "initial:\n  q: {j1: 0.3, j2: -0.4, j3: 0.5*(-0.4) + 0.1}\n  qd: {j1: 0.5, j2: 1.0, j3: 0.5}\n"
+          "integrator: {method: rk4, step: 1e-3, t0: 0, t1: 2}\n";
+    for (const char* h : {"1e-3", "5e-4"}) {
+      std::ofstream y(dir / ("mimic_" + std::string(h) + ".yaml"));
+      y << "name: mimic\nmodel:\n  urdf: {file: arm3.urdf}\n  gravity: [0, 0, -9.81]\n"
+           "partition:\n  independent: auto\n"
+           "initial:\n  q: {j1: 0.3, j2: -0.4, j3: 0.5*(-0.4) + 0.1}\n  qd: {j1: 0.5, j2: 1.0, j3: 0.5}\n"
+           "integrator: {method: rk4, step: " << h << ", t0: 0, t1: 2}\n";
+    }
+  }
+  Planned p = plan_scenario(io::load_scenario((dir / "mimic_1e-3.yaml").string()));
+  Planned fine = plan_scenario(io::load_scenario((dir / "mimic_5e-4.yaml").string()));
+  Planned kind = plan_scenario(io::load_scenario((dir / "kind.yaml").string()));
+  fs::remove_all(dir);
+  ASSERT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
+  ASSERT_TRUE(fine.plan.summary.ok()) << fine.plan.summary.message;
+  const Model& m = p.sc->model;
+  ASSERT_EQ(m.nq, 3);
+  ASSERT_EQ(p.sc->constraints.rows(), 1);
+  EXPECT_EQ(p.sc->constraints.row_name(0), "mimic_j3");
+  Data data(m);
+  double E0 = 0;
+  auto check = [&](const Planned& run, double& worst_coupling, double& worst_energy, double& swing) {
+    worst_coupling = worst_energy = swing = 0;
+    for (size_t k = 0; k < run.plan.t.size(); ++k) {
+      const Eigen::VectorXd q = run.q(k), qd = run.qd(k);
+      worst_coupling = std::max(worst_coupling, std::abs(q[2] - 0.5 * q[1] - 0.1));
+      const double E = kinetic_energy(m, data, q, qd) + potential_energy(m, data, q);
+      if (k == 0) E0 = E;
+      worst_energy = std::max(worst_energy, std::abs(E - E0));
+      swing = std::max(swing, std::abs(q[0] - run.q(0)[0]));
+    }
+  };
+  double coupling, energy, swing, coupling_fine, energy_fine, swing_fine;
+  check(p, coupling, energy, swing);
+  check(fine, coupling_fine, energy_fine, swing_fine);
+  report("urdf_mimic", "max |q3 - 0.5 q2 - 0.1| [rad]", std::max(coupling, coupling_fine));
+  report("urdf_mimic", "max |E - E0| [J], h = 1e-3", energy);
+  report("urdf_mimic", "max |E - E0| [J], h = 5e-4", energy_fine);
+  EXPECT_GT(swing, 0.5);  // it really moves
+  EXPECT_LT(std::max(coupling, coupling_fine), 1e-12);
+  EXPECT_LT(energy, 1e-7 * std::abs(E0));
+  EXPECT_GT(energy / energy_fine, 10.0) << "energy drift does not converge at RK4's order";
+  // The scenario kind joint_coupling gives the same motion as the URDF <mimic>.
+  ASSERT_TRUE(kind.plan.summary.ok()) << kind.plan.summary.message;
+  ASSERT_EQ(kind.plan.x.size(), p.plan.x.size());
+  EXPECT_EQ(kind.sc->constraints.constraints()[0]->origin, ConstraintOrigin::Material);
+  for (size_t k = 0; k < p.plan.x.size(); ++k) ASSERT_TRUE(test::near(kind.plan.x[k], p.plan.x[k], 1e-12, 1e-12)) << k;
 }
 
 // ---------------------------------------------------------------------------------------------

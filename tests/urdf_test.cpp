@@ -488,9 +488,37 @@ TEST(UrdfErrors, UnsupportedJoints) {
   EXPECT_TRUE(parse_fails_with(robot(link("a") + link("b") + link("c") + joint("j1", "revolute", "a", "b") +
                                      joint("j2", "revolute", "b", "c", "0 0 0", "0 0 0", "0 0 1",
                                            "<mimic joint=\"j1\" multiplier=\"2\"/>")),
-                               {"joint 'j2' mimics joint 'j1'", "mimic joints are not supported", "hint"}));
+                               {"joint 'j2' mimics joint 'j1'", "not asked for mimic couplings", "hint"}));
   EXPECT_TRUE(parse_fails_with(robot(link("a") + link("b") + joint("j", "continuous", "a", "b", "0 0 0", "0 0 0", "0 0 0")),
                                {"joint 'j'", "axis is zero", "hint"}));
+}
+
+// <mimic>: the joint stays a coordinate and the coupling is returned for a joint_coupling
+// constraint; the leader must be a movable joint of the loaded model.
+TEST(UrdfMapping, MimicJointsAreReturnedAsCouplings) {
+  const std::string body = link("a") + link("b", 1.0, "0.1 0 0", "0 0 0", 0.01, 0.01, 0.01) +
+                           link("c", 1.0, "0.1 0 0", "0 0 0", 0.01, 0.01, 0.01) + joint("j1", "revolute", "a", "b") +
+                           joint("j2", "revolute", "b", "c", "0.2 0 0", "0 0 0", "0 0 1",
+                                 "<mimic joint=\"j1\" multiplier=\"-2.5\" offset=\"0.3\"/>");
+  std::vector<io::UrdfMimic> mimics{{"stale", "entry", 9, 9}};
+  const ModelDescription d = parse_urdf(robot(body), "inline.urdf", {}, &mimics);
+  ASSERT_EQ(mimics.size(), 1u);
+  EXPECT_EQ(mimics[0].joint, "j2");
+  EXPECT_EQ(mimics[0].leader, "j1");
+  EXPECT_EQ(mimics[0].multiplier, -2.5);
+  EXPECT_EQ(mimics[0].offset, 0.3);
+  EXPECT_EQ(build_model(d).nq, 2);  // the mimicking joint keeps its coordinate
+  // Leader fixed, or not in the loaded model.
+  const std::string fixed_leader = link("a") + link("b", 1.0, "0 0 0", "0 0 0", 0.01, 0.01, 0.01) +
+                                   link("c", 1.0, "0 0 0", "0 0 0", 0.01, 0.01, 0.01) + joint("j1", "fixed", "a", "b") +
+                                   joint("j2", "revolute", "b", "c", "0 0 0", "0 0 0", "0 0 1",
+                                         "<mimic joint=\"j1\" multiplier=\"2\"/>");
+  EXPECT_TRUE(fails_with([&] { parse_urdf(robot(fixed_leader), "inline.urdf", {}, &mimics); },
+                         {"joint 'j2' mimics 'j1'", "a fixed joint", "hint"}));
+  UrdfOptions below;
+  below.root_link = "b";
+  EXPECT_TRUE(fails_with([&] { parse_urdf(robot(body), "inline.urdf", below, &mimics); },
+                         {"joint 'j2' mimics 'j1'", "not a joint of the loaded model"}));
 }
 
 TEST(UrdfErrors, PhysicalValidationNamesTheFile) {

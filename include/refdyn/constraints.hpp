@@ -94,6 +94,9 @@ ConstraintPtr point_coordinate(const Model& model, const std::string& point, int
 /// Prescribed joint motion: q_j − f(t) = 0.
 ConstraintPtr joint_trajectory(const Model& model, const std::string& joint, TimeFunctionPtr f,
                                ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// Two joints coupled linearly (a gear pair, a URDF <mimic>): q_joint − ratio·q_leader − offset = 0.
+ConstraintPtr joint_coupling(const Model& model, const std::string& joint, const std::string& leader, double ratio,
+                             double offset = 0.0, ConstraintOrigin origin = ConstraintOrigin::Material);
 /// Two points coinciding (loop closure): r_P1 − r_P2 = 0 on the selected world axes
 /// (default all three; a planar loop uses {0, 1}).
 ConstraintPtr points_coincide(const Model& model, const std::string& p1, const std::string& p2,

@@ -225,7 +225,8 @@ JointType read_joint_type(const Ctx& c, const YAML::Node& n, const std::string& 
   return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
 }
 
-ModelDescription read_model(const Ctx& c, const YAML::Node& m, std::map<std::string, int>& link_lines) {
+ModelDescription read_model(const Ctx& c, const YAML::Node& m, std::map<std::string, int>& link_lines,
+                            std::vector<UrdfMimic>& mimics) {
   const std::string key = "model";
   c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
   const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
@@ -305,7 +306,7 @@ ModelDescription read_model(const Ctx& c, const YAML::Node& m, std::map<std::str
     UrdfOptions uo;
     if (u["root"]) uo.root_link = c.string(u["root"], "model.urdf.root");
     try {
-      d = load_urdf(p.string(), uo);
+      d = load_urdf(p.string(), uo, &mimics);
     } catch (const Error& e) {
       c.fail(u["file"], "model.urdf.file", e.what());
     }
@@ -423,7 +424,8 @@ void read_constraints(const Ctx& c, const YAML::Node& n, const Model& m, Constra
     const std::string kk = "constraints." + name;
     // Default origin: material for the physical kinds (loop closure, knife edge), else programmed.
     const bool physical = e["kind"] && e["kind"].IsScalar() &&
-                          (e["kind"].Scalar() == "points_coincide" || e["kind"].Scalar() == "knife_edge");
+                          (e["kind"].Scalar() == "points_coincide" || e["kind"].Scalar() == "knife_edge" ||
+                           e["kind"].Scalar() == "joint_coupling");
     const ConstraintOrigin origin =
         e["origin"] ? (c.choice(e["origin"], kk + ".origin", {"material", "programmed"}) == "material"
                            ? ConstraintOrigin::Material : ConstraintOrigin::Programmed)
@@ -443,7 +445,7 @@ void read_constraints(const Ctx& c, const YAML::Node& n, const Model& m, Constra
         con = expression_constraint(m, name, c.string(e["expression"], kk + ".expression"), first, c.params, origin);
       } else {
         const std::vector<std::string> kinds{"point_on_ellipse", "point_on_sphere", "point_coordinate", "joint_trajectory",
-                                             "points_coincide", "knife_edge", "point_speed"};
+                                             "joint_coupling", "points_coincide", "knife_edge", "point_speed"};
         const std::string kind = c.choice(c.need(e, "kind", k), kk + ".kind", kinds);
         if (kind == "point_on_ellipse") {
           c.keys(e, k, {"name", "origin", "kind", "point", "a", "b", "center"});
@@ -469,6 +471,17 @@ void read_constraints(const Ctx& c, const YAML::Node& n, const Model& m, Constra
           if (std::find(m.joint_name.begin(), m.joint_name.end(), j) == m.joint_name.end())
             c.fail(e["joint"], kk + ".joint", "unknown joint '" + j + "'" + did_you_mean(j, m.joint_name));
           con = joint_trajectory(m, j, read_time_function(c, c.need(e, "function", kk), kk + ".function"), origin);
+        } else if (kind == "joint_coupling") {
+          c.keys(e, k, {"name", "origin", "kind", "joint", "leader", "ratio", "offset"});
+          auto joint = [&](const char* field) {
+            const std::string j = c.string(c.need(e, field, kk), kk + "." + field);
+            if (std::find(m.joint_name.begin(), m.joint_name.end(), j) == m.joint_name.end())
+              c.fail(e[field], kk + "." + field, "unknown joint '" + j + "'" + did_you_mean(j, m.joint_name));
+            return j;
+          };
+          const std::string j = joint("joint"), l = joint("leader");
+          con = joint_coupling(m, j, l, c.number(c.need(e, "ratio", kk), kk + ".ratio"),
+                               e["offset"] ? c.number(e["offset"], kk + ".offset") : 0.0, origin);
         } else if (kind == "points_coincide") {
           c.keys(e, k, {"name", "origin", "kind", "points", "axes"});
           const YAML::Node ps = c.need(e, "points", kk);
@@ -551,7 +564,8 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   s->parameters = c.params;
 
   std::map<std::string, int> link_lines;
-  s->description = read_model(c, c.need(root, "model", ""), link_lines);
+  std::vector<UrdfMimic> mimics;
+  s->description = read_model(c, c.need(root, "model", ""), link_lines, mimics);
   if (!root["model"]["name"]) s->description.name = s->name;
   try {
     s->model = build_model(s->description);
@@ -565,6 +579,16 @@ std::unique_ptr<Scenario> parse_scenario(const std::string& text, const std::str
   }
   const Model& m = s->model;
 
+  // URDF <mimic> joints: material couplings, before the file's own constraints.
+  for (const UrdfMimic& mm : mimics) {
+    try {
+      ConstraintPtr con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
+      std::const_pointer_cast<Constraint>(con)->name = "mimic_" + mm.joint;
+      s->constraints.add(con);
+    } catch (const Error& e) {
+      c.fail(root["model"]["urdf"], "model.urdf", e.what());
+    }
+  }
   read_constraints(c, root["constraints"], m, s->constraints);
   read_forces(c, root["forces"], "forces", m, s->forces);
 

@@ -230,12 +230,19 @@ const char* urdf_type_name(int type) {
   }
 }
 
-LinkSpec convert_joint(const urdf::Joint& j, const std::string& source) {
+LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, std::vector<UrdfMimic>* mimics) {
   const std::string jw = where(source) + "joint '" + j.name + "'";
-  if (j.mimic)
-    throw Error(jw + " mimics joint '" + j.mimic->joint_name +
-                "': mimic joints are not supported (hint: remove the <mimic> element to make '" + j.name +
-                "' an independent joint, or make it fixed)");
+  if (j.mimic) {
+    if (!mimics)
+      throw Error(jw + " mimics joint '" + j.mimic->joint_name +
+                  "': this loader was not asked for mimic couplings (hint: pass a std::vector<UrdfMimic>* to "
+                  "load_urdf and add joint_coupling constraints, as scenario files do; or remove the <mimic> element)");
+    if (j.type == urdf::Joint::FIXED)
+      throw Error(jw + " is fixed and mimics joint '" + j.mimic->joint_name + "' (hint: remove the <mimic> element)");
+    if (!std::isfinite(j.mimic->multiplier) || !std::isfinite(j.mimic->offset))
+      throw Error(jw + ": <mimic> multiplier and offset must be finite numbers");
+    mimics->push_back({j.name, j.mimic->joint_name, j.mimic->multiplier, j.mimic->offset});
+  }
   LinkSpec l;
   l.name = j.child_link_name;
   l.joint_name = j.name;
@@ -276,7 +283,7 @@ LinkSpec convert_joint(const urdf::Joint& j, const std::string& source) {
 }
 
 void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, const std::string& source,
-          ModelDescription& d) {
+          ModelDescription& d, std::vector<UrdfMimic>* mimics) {
   std::vector<const urdf::Joint*> children;
   for (const auto& j : link.child_joints) children.push_back(j.get());
   std::sort(children.begin(), children.end(),
@@ -285,17 +292,19 @@ void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, cons
     urdf::LinkConstSharedPtr child = u.getLink(j->child_link_name);
     if (!child)  // urdfdom checks this; keep the walk safe anyway
       throw Error(where(source) + "joint '" + j->name + "': unknown child link '" + j->child_link_name + "'");
-    LinkSpec l = convert_joint(*j, source);
+    LinkSpec l = convert_joint(*j, source, mimics);
     l.parent = index;
     l.inertia = inertia(*child);
     const int ci = d.add_link(l);
-    walk(u, *child, ci, source, d);
+    walk(u, *child, ci, source, d, mimics);
   }
 }
 
 }  // namespace
 
-ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt) {
+ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
+                            std::vector<UrdfMimic>* mimics) {
+  if (mimics) mimics->clear();
   ParseResult parsed = parse_capturing(xml);
   // urdfdom sometimes logs an error and still returns a model (e.g. an <inertial> without
   // <inertia> yields a point mass); for dynamics every reported error is fatal.
@@ -322,7 +331,16 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
   r.type = JointType::Fixed;
   r.inertia = inertia(*root);  // welded to the world: kept for completeness, no dynamic effect
   d.add_link(r);
-  walk(u, *root, 0, source_name, d);
+  walk(u, *root, 0, source_name, d, mimics);
+  if (mimics)  // the leader must be a movable joint of the loaded subtree
+    for (const UrdfMimic& mm : *mimics) {
+      const auto it = std::find_if(d.links.begin(), d.links.end(),
+                                   [&](const LinkSpec& l) { return l.joint_name == mm.leader; });
+      if (it == d.links.end() || it->type == JointType::Fixed)
+        throw Error(where(source_name) + "joint '" + mm.joint + "' mimics '" + mm.leader + "', which is " +
+                    (it == d.links.end() ? "not a joint of the loaded model" : "a fixed joint") +
+                    " (hint: mimic a revolute, continuous or prismatic joint below the root link)");
+    }
 
   if (opt.points_for_links) {
     for (const LinkSpec& l : d.links) {
@@ -341,7 +359,7 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
   return d;
 }
 
-ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt) {
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, std::vector<UrdfMimic>* mimics) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw Error(where(path) + "cannot be read: it is a directory (hint: give the path of a .urdf file)");
@@ -358,7 +376,7 @@ ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt) {
   const int err = errno;
   std::fclose(f);
   if (failed) throw Error(where(path) + "cannot be read: " + std::strerror(err));
-  return parse_urdf(xml, path, opt);
+  return parse_urdf(xml, path, opt, mimics);
 }
 
 }  // namespace refdyn::io

@@ -23,7 +23,11 @@
 /// are ignored. Visual/collision geometry, materials, <dynamics> (damping, friction),
 /// <calibration> and <safety_controller> are ignored; Gazebo/transmission tags too.
 ///
-/// Not supported (refdyn::Error naming the joint): floating and planar joints, <mimic>.
+/// <mimic joint="L" multiplier="r" offset="c">: the mimicking joint stays a coordinate of its
+/// own and the coupling q = r·q_L + c is returned in `mimics` (scenario files turn each into a
+/// material joint_coupling constraint named mimic_<joint>). Without `mimics` a <mimic> is an
+/// error. The leader must be a movable joint of the loaded subtree.
+/// Not supported (refdyn::Error naming the joint): floating and planar joints.
 /// Every error is one line: "urdf file '<name>': what is wrong (hint: ...)". urdfdom's own
 /// diagnostics are captured (not printed) and quoted in that line; malformed XML is reported
 /// with its line number. Any error urdfdom logs is fatal, even when it still returns a model.
@@ -32,8 +36,15 @@
 #include "refdyn/model.hpp"
 
 #include <string>
+#include <vector>
 
 namespace refdyn::io {
+
+/// A URDF <mimic>: q(joint) = multiplier·q(leader) + offset.
+struct UrdfMimic {
+  std::string joint, leader;
+  double multiplier = 1.0, offset = 0.0;
+};
 
 struct UrdfOptions {
   /// Link to use as the root (fixed to the base); empty: the URDF's own root link.
@@ -44,11 +55,13 @@ struct UrdfOptions {
   bool points_for_links = true;
 };
 
-/// Reads and parses the URDF file at `path` (error messages name it as given).
-ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt = {});
+/// Reads and parses the URDF file at `path` (error messages name it as given). `mimics`, when
+/// given, receives the <mimic> couplings (cleared first).
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt = {},
+                           std::vector<UrdfMimic>* mimics = nullptr);
 
 /// Parses URDF text; `source_name` names it in error messages (e.g. a file name).
 ModelDescription parse_urdf(const std::string& xml, const std::string& source_name,
-                            const UrdfOptions& opt = {});
+                            const UrdfOptions& opt = {}, std::vector<UrdfMimic>* mimics = nullptr);
 
 }  // namespace refdyn::io
