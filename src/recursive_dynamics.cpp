@@ -594,14 +594,19 @@ REFDYN_INLINE bool all_joint_transforms(const Model& model, Data& data, const do
   return chain;
 }
 
+/// Trees (body-frame CRBA): the composites of non-adjacent children accumulate in data.Ic, which
+/// starts as the bodies' own inertias, and M_ij of bodies on different branches is 0 (never
+/// written by the backward sweep).
+REFDYN_INLINE void start_tree_composites(const Model& model, Data& data) {
+  for (int i = 0; i < model.nq; ++i) data.Ic[i] = model.inertia[i];
+  data.M.setZero();
+}
+
 /// Body-frame CRBA (Featherstone's): best for small models.
 void crba_local(const Model& model, Data& data, const double* q) {
   const int n = model.nq;
   const bool chain = all_joint_transforms(model, data, q);
-  if (!chain) {  // trees accumulate the composites of non-adjacent children in data.Ic, and
-    for (int i = 0; i < n; ++i) data.Ic[i] = model.inertia[i];
-    data.M.setZero();  // M_ij of bodies on different branches is 0 (never written below)
-  }
+  if (!chain) start_tree_composites(model, data);
   InertiaCarry c;
   for (int i = n - 1; i >= 0; --i) {
     M3 R;
@@ -628,10 +633,7 @@ void crba_bias_local(const Model& model, Data& data, const double* q, const doub
     chain &= model.parent[i] == i - 1;
     rnea_forward_body<true, false>(model, data, i, k, R, p, qd, nullptr, a0, motion);
   }
-  if (!chain) {  // as in crba_local
-    for (int i = 0; i < n; ++i) data.Ic[i] = model.inertia[i];
-    data.M.setZero();
-  }
+  if (!chain) start_tree_composites(model, data);
   ForceCarry force;
   InertiaCarry inertia;
   for (int i = n - 1; i >= 0; --i) {
