@@ -3,9 +3,30 @@
 #include "commands.hpp"
 #include "paper_study_output.hpp"
 #include "refdyn/error.hpp"
+#include "refdyn/text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <string>
+#include <vector>
+
+namespace {
+
+/// The one-line form of a command-line error, with "did you mean" for a mistyped command.
+std::string usage_message(const CLI::ParseError& e, int argc, char** argv, const std::vector<std::string>& commands) {
+  std::string msg = e.what();
+  for (char& ch : msg)
+    if (ch == '\n') ch = ' ';
+  if (argc > 1) {
+    const std::string first = argv[1];
+    bool known = first.empty() || first[0] == '-';
+    for (const auto& c : commands) known = known || c == first;
+    if (!known) msg = "unknown command '" + first + "'" + refdyn::did_you_mean(first, commands);
+  }
+  return msg + " (run 'refdyn --help')";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace refdyn::app;
@@ -13,23 +34,34 @@ int main(int argc, char** argv) {
   app.footer(
       "Exit codes: 0 success; 1 bad command line; 2 invalid input (scenario, model, option): nothing written;\n"
       "            3 internal error; 4 a run stopped early (diverged, singular partition): partial results written.\n"
-      "Scenario format: docs/scenario.md. Examples: examples/*/*.yaml.");
+      "Scenario format: docs/scenario.md (`refdyn kinds` lists constraint kinds, forces, controllers).\n"
+      "Examples: examples/*/*.yaml.");
   app.require_subcommand(1);
   std::string file, out_dir = "results";
   bool quiet = false;
+  InputOptions in;
+
+  auto input_options = [&](CLI::App* c) {
+    c->add_option("--max-input-size", in.max_input_bytes, "Largest scenario or URDF file read [bytes]")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+  };
 
   auto* check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
   check->add_option("file", file, "Scenario file (YAML)")->required();
+  input_options(check);
 
   auto* plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
   plan->add_option("file", file, "Scenario file (YAML)")->required();
   plan->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   plan->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  input_options(plan);
 
   auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   track->add_option("file", file, "Scenario file (YAML)")->required();
   track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   track->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  input_options(track);
 
   auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
   plot->add_option("dir", out_dir, "Results folder written by plan, track or paper")->required();
@@ -38,20 +70,35 @@ int main(int argc, char** argv) {
   paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
 
+  auto* kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
+
+  const std::vector<std::string> commands{"check", "plan", "track", "plot", "paper", "kinds"};
   try {
     app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e) == 0 ? kOk : kUsage;
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e) == 0 ? kOk : kUsage;
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? kOk : kUsage;
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "refdyn: error: %s\n", usage_message(e, argc, argv, commands).c_str());
+    return kUsage;
   }
   try {
-    if (*check) return run_check(file);
-    if (*plan) return run_plan(file, out_dir, quiet);
-    if (*track) return run_track(file, out_dir, quiet);
+    if (*check) return run_check(file, in);
+    if (*plan) return run_plan(file, out_dir, quiet, in);
+    if (*track) return run_track(file, out_dir, quiet, in);
     if (*plot) return run_plot(out_dir);
     if (*paper) return run_paper_command(out_dir, quiet);
+    if (*kinds) return run_kinds();
   } catch (const refdyn::Error& e) {
-    std::fprintf(stderr, "refdyn: error: %s\n", e.what());
+    std::string msg = e.what();
+    for (char& ch : msg)
+      if (ch == '\n') ch = ' ';
+    std::fprintf(stderr, "refdyn: error: %s\n", msg.c_str());
+    return kBadInput;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "refdyn: error: out of memory (hint: reduce the time span, the output rate or the sweep)\n");
     return kBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "refdyn: internal error: %s (please report)\n", e.what());

@@ -379,7 +379,7 @@ void register_all(Bench* b) {
   });
   reg_states("constraints/kinematics", [b](int k) {
     // What evaluate_constraints does before the rows: FK + point kinematics of the set's points.
-    forward_kinematics_unchecked(b->ex->model, *b->data_kin, b->q[k]);
+    unchecked::forward_kinematics(b->ex->model, *b->data_kin, b->q[k]);
     compute_point_states(b->ex->model, *b->data_kin, b->ex->constraints.points(), b->qd[k], b->ev_kin->points);
     benchmark::DoNotOptimize(b->ev_kin->points.data());
   });

@@ -112,6 +112,7 @@ class PointCoordinate final : public Constraint {
   std::string describe() const override {
     return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
   }
+  const TimeFunction* target() const override { return f_.get(); }
  private:
   int p_, k_;
   std::string pn_;
@@ -134,6 +135,7 @@ class JointTrajectory final : public Constraint {
     gamma[0] = -f.ddf;
   }
   std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
+  const TimeFunction* target() const override { return f_.get(); }
  private:
   int j_;
   std::string jn_;
@@ -232,6 +234,7 @@ class PointSpeed final : public Constraint {
     gamma[0] = u_.dot(P.d) - s.df;
   }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
+  const TimeFunction* target() const override { return s_.get(); }
  private:
   int p_;
   std::string pn_;
@@ -343,6 +346,9 @@ ConstraintEval::ConstraintEval(const Model& model, const ConstraintSet& set)
     : phi(Eigen::VectorXd::Zero(set.rows())), phid(Eigen::VectorXd::Zero(set.rows())),
       gamma(Eigen::VectorXd::Zero(set.rows())), A(Eigen::MatrixXd::Zero(set.rows(), model.nv)),
       points(model.point_name.size()) {
+  int most = 0;
+  for (const auto& c : set.constraints()) most = std::max(most, c->scratch_size());
+  scratch.assign(static_cast<size_t>(most), 0.0);
   for (auto& p : points) {
     p.C = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
     p.Jw = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
@@ -397,7 +403,7 @@ void compute_point_states(const Model& model, Data& data, const std::vector<int>
 namespace {
 void evaluate_rows(const ConstraintSet& set, ConstraintEval& ev, double t, const Eigen::VectorXd& q,
                    const Eigen::VectorXd& qd) {
-  const ConstraintInput in{t, q, qd, ev.points};
+  const ConstraintInput in{t, q, qd, ev.points, ev.scratch.data()};
   for (int k = 0; k < set.size(); ++k) {
     const auto& c = set.constraints()[k];
     const int r = set.row_offset(k), m = c->rows();
@@ -414,7 +420,7 @@ void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& s
   if (ev.phi.size() != set.rows() || ev.A.cols() != model.nv || ev.points.size() != model.point_name.size())
     throw Error("evaluate_constraints: the ConstraintEval was built for another model or constraint set (hint: "
                 "ConstraintEval ev(model, set) with the same model and set)");
-  forward_kinematics_unchecked(model, data, q);
+  unchecked::forward_kinematics(model, data, q);
   compute_point_states(model, data, set.points(), qd, ev.points);
   evaluate_rows(set, ev, t, q, qd);
 }

@@ -1,6 +1,7 @@
 #include "refdyn/control.hpp"
 
 #include "refdyn/error.hpp"
+#include "refdyn/kinematics.hpp"
 #include "refdyn/recursive_dynamics.hpp"
 #include "refdyn/text.hpp"
 
@@ -54,59 +55,175 @@ void PDGravity::compute(double, const Eigen::VectorXd& q, const Eigen::VectorXd&
   tau = data_.g - kp_.cwiseProduct(q - r.q) - kd_.cwiseProduct(qd - r.qd);
 }
 
+PIDGravity::PIDGravity(const Model& model, Eigen::VectorXd kp, Eigen::VectorXd ki, Eigen::VectorXd kd)
+    : model_(model), data_(model), kp_(std::move(kp)), ki_(std::move(ki)), kd_(std::move(kd)) {
+  check_vector("PID gains kp", kp_, model.nv);
+  check_vector("PID gains ki", ki_, model.nv);
+  check_vector("PID gains kd", kd_, model.nv);
+}
+
+std::vector<std::string> PIDGravity::state_names() const {
+  std::vector<std::string> n;
+  for (const auto& j : model_.joint_name) n.push_back("xi_" + j);
+  return n;
+}
+
+void PIDGravity::compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r,
+                         Eigen::VectorXd& tau) {
+  unchecked::rnea(model_, data_, q, nullptr, nullptr, true, data_.g);
+  tau = data_.g - kp_.cwiseProduct(q - r.q) - kd_.cwiseProduct(qd - r.qd);
+}
+
+void PIDGravity::compute_with_state(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                    const ReferenceSample& r, const double* xc, double* xc_dot, const Model&,
+                                    const Data*, Eigen::VectorXd& tau) {
+  compute(t, q, qd, r, tau);
+  for (int i = 0; i < model_.nv; ++i) {
+    tau[i] -= ki_[i] * xc[i];
+    if (xc_dot) xc_dot[i] = q[i] - r.q[i];
+  }
+}
+
+namespace {
+
+/// Records the reference dynamics' quantities at output samples into a Plan.
+class PlanRecorder {
+ public:
+  PlanRecorder(ReferenceDynamics& rd, Plan& plan, const RecordOptions& o)
+      : rd_(rd), plan_(plan), model_(rd.model()), n_(rd.nq()), m_(rd.num_constraints()), dx_(rd.state_size()),
+        q_(n_), qd_(n_) {
+    const ConstraintSet& cs = rd.constraint_set();
+    const ForceSet& fs = rd.forces();
+    plan.joints = model_.joint_name;
+    plan.state_names = fs.state_names();
+    for (int p : o.points) {
+      if (p < 0 || p >= static_cast<int>(model_.point_name.size()))
+        throw Error(expected_got("recorded point index", "0.." + std::to_string(model_.point_name.size()) + " (exclusive)",
+                                 std::to_string(p)));
+      plan.points.push_back(model_.point_name[p]);
+    }
+    points_ = o.points;
+    for (int r = 0; r < m_; ++r) {
+      plan.constraint_rows.push_back(cs.row_name(r));
+      const bool mat = cs.constraints()[cs.row_owner(r)]->origin == ConstraintOrigin::Material;
+      plan.material_row.push_back(mat ? 1 : 0);
+      any_material_ = any_material_ || mat;
+    }
+    for (const auto& c : cs.constraints())
+      if (!c->record_as.empty() && c->target()) {
+        plan.target_signals.push_back(c->record_as);
+        targets_.push_back(c->target());
+      }
+    for (size_t k = 0; k < fs.elements().size(); ++k) {
+      const auto& e = fs.elements()[k];
+      const auto names = e->signal_names();
+      if (!names.empty()) signal_elements_.push_back(static_cast<int>(k));
+      plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
+      if (e->actuator()) actuators_.push_back(static_cast<int>(k));
+    }
+  }
+
+  void record(double t, const Eigen::VectorXd& x) {
+    const ForceSet& fs = rd_.forces();
+    bool ok = true;
+    try {
+      rd_.derivative(t, x, dx_);
+    } catch (const NumericalFailure&) {
+      ok = false;
+    }
+    const double nan = std::nan("");
+    q_ = x.head(n_);
+    qd_ = x.segment(n_, n_);
+    const double* z = fs.num_states() ? x.data() + 2 * n_ : nullptr;
+    plan_.qdd.push_back(ok ? Eigen::VectorXd(dx_.segment(n_, n_)) : Eigen::VectorXd::Constant(n_, nan));
+    Eigen::VectorXd pts(3 * points_.size());
+    if (!ok) forward_kinematics(model_, rd_.data(), q_);  // the failed evaluation may not have reached the kinematics
+    for (size_t k = 0; k < points_.size(); ++k) pts.segment<3>(3 * k) = point_position(model_, rd_.data(), points_[k]);
+    plan_.point_positions.push_back(std::move(pts));
+    Eigen::VectorXd tg(targets_.size());
+    for (size_t k = 0; k < targets_.size(); ++k) tg[k] = targets_[k]->eval(t).f;
+    plan_.targets.push_back(std::move(tg));
+    Eigen::VectorXd sig(plan_.force_signals.size());
+    for (size_t k = 0, o = 0; k < signal_elements_.size(); ++k) {
+      const int e = signal_elements_[k];
+      fs.elements()[e]->signals(t, q_, qd_, z ? z + fs.state_offset(e) : nullptr, sig.data() + o);
+      o += fs.elements()[e]->signal_names().size();
+    }
+    plan_.forces.push_back(std::move(sig));
+    const ConstraintEval& ev = rd_.constraints();
+    plan_.phi.push_back(ok ? ev.phi : Eigen::VectorXd::Constant(m_, nan));
+    plan_.phid.push_back(ok ? ev.phid : Eigen::VectorXd::Constant(m_, nan));
+    plan_.lambda.push_back(ok ? rd_.lambda() : Eigen::VectorXd::Constant(m_, nan));
+    plan_.Qc.push_back(ok ? rd_.constraint_force() : Eigen::VectorXd::Constant(n_, nan));
+    // Actuator effort: actuator elements + programmed-constraint forces; reaction: material rows.
+    Eigen::VectorXd act = plan_.Qc.back();
+    if (any_material_) {
+      Eigen::VectorXd reaction = Eigen::VectorXd::Zero(n_);
+      if (ok)
+        for (int r = 0; r < m_; ++r)
+          if (plan_.material_row[r]) reaction -= ev.A.row(r).transpose() * rd_.lambda()[r];
+      if (!ok) reaction.setConstant(nan);
+      act -= reaction;
+      plan_.reaction_effort.push_back(std::move(reaction));
+    }
+    for (int k : actuators_) act += fs.element_force(k, t, q_, qd_, z);
+    plan_.actuator_effort.push_back(std::move(act));
+  }
+
+ private:
+  ReferenceDynamics& rd_;
+  Plan& plan_;
+  const Model& model_;
+  int n_, m_;
+  Eigen::VectorXd dx_, q_, qd_;
+  std::vector<int> points_, signal_elements_, actuators_;
+  std::vector<const TimeFunction*> targets_;
+  bool any_material_ = false;
+};
+
+}  // namespace
+
 Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                 double residual_from, const std::function<void(double)>& progress) {
+                 double residual_from, const std::function<void(double)>& progress, const RecordOptions& record) {
   options.validate();
   check_vector("x0", x0, rd.state_size(), "x0 = [q; qd; z], see ReferenceDynamics::make_state");
   const int n = rd.nq();
   Plan plan;
+  PlanRecorder recorder(rd, plan, record);
   const bool rk4 = options.method == IntegratorMethod::RK4;
+  ReferenceStages& st = plan.stages;
   if (rk4) {
     const long nsteps = std::lround(std::ceil((options.t1 - options.t0) / options.step - 1e-9));
-    plan.stages.t0 = options.t0;
-    plan.stages.h = (options.t1 - options.t0) / nsteps;
-    plan.stages.n = n;
-    plan.stages.data.reserve(static_cast<size_t>(nsteps) * 4 * 3 * n);
+    st.t0 = options.t0;
+    st.h = (options.t1 - options.t0) / nsteps;
+    st.n = n;
   }
-  auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
+  const size_t per_stage = 3 * static_cast<size_t>(n);
+  // The stage hook: RK4 stage s of step k is stored at (4k + s) · 3n, whatever the call order.
+  auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
     rd.derivative(t, x, dx);
     if (rk4) {
-      auto& d = plan.stages.data;
-      d.insert(d.end(), x.data(), x.data() + 2 * n);
-      d.insert(d.end(), dx.data() + n, dx.data() + 2 * n);
+      const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage;
+      if (st.data.size() < at + per_stage) st.data.resize(std::max(at + per_stage, 2 * st.data.size()));
+      std::copy(x.data(), x.data() + 2 * n, st.data.data() + at);
+      std::copy(dx.data() + n, dx.data() + 2 * n, st.data.data() + at + 2 * n);
     }
   };
-  Eigen::VectorXd dx(rd.state_size());
   double worst = 0;
   auto obs = [&](double t, const Eigen::VectorXd& x) {
     plan.t.push_back(t);
     plan.x.push_back(x);
     if (t >= residual_from - 1e-12) worst = std::max(worst, rd.residual(t, x));
+    recorder.record(t, x);
     if (progress) progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
-  plan.summary = integrate(rhs, x, options, obs);
+  plan.summary = integrate_staged(rhs, x, options, obs);
   if (rk4) {
-    plan.stages.steps = plan.summary.steps;
-    plan.stages.data.resize(static_cast<size_t>(plan.stages.steps) * 4 * 3 * n);
-  }
-  // q̂̈ at the samples: stage 1 of each recorded step is the derivative at that sample.
-  const long every = rk4 && options.output_interval > 0
-                         ? std::max(1L, std::lround(options.output_interval / plan.stages.h))
-                         : 1L;
-  for (size_t k = 0; k < plan.t.size(); ++k) {
-    const long step = static_cast<long>(k) * every;
-    if (rk4 && step < plan.stages.steps) {
-      plan.qdd.push_back(Eigen::Map<const Eigen::VectorXd>(plan.stages.stage(step, 0) + 2 * n, n));
-    } else {
-      try {
-        rd.derivative(plan.t[k], plan.x[k], dx);
-        plan.qdd.push_back(dx.segment(n, n));
-      } catch (const NumericalFailure&) {
-        plan.qdd.push_back(Eigen::VectorXd::Constant(n, std::nan("")));
-      }
-    }
+    st.steps = plan.summary.steps;
+    st.data.resize(static_cast<size_t>(st.steps) * 4 * per_stage);
+    st.data.shrink_to_fit();
   }
   plan.summary.max_constraint_residual = worst;
   return plan;
@@ -122,15 +239,13 @@ struct PlantWorkspace {
   Eigen::VectorXd q, qd, tau, Q, zdot, qr, qdr, qddr;
 };
 
-// τ from the controller, saturated; returns true when a joint was saturated. With `plant`, the
-// plant's M and c + g at this state are already in w.data and the controller may reuse them.
-bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit,
-             const Model* plant = nullptr) {
+// τ from the controller, saturated; returns true when a joint was saturated. With `dynamics`,
+// the plant's M and c + g at this state are in it and the controller may reuse them. xc: the
+// controller's states, xc_dot: their derivatives (null: not needed).
+bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit, const Model& plant,
+             const Data* dynamics, const double* xc, double* xc_dot) {
   const ReferenceSample ref{w.qr, w.qdr, w.qddr};
-  if (plant)
-    c.compute_with_dynamics(t, w.q, w.qd, ref, *plant, w.data, w.tau);
-  else
-    c.compute(t, w.q, w.qd, ref, w.tau);
+  c.compute_with_state(t, w.q, w.qd, ref, xc, xc_dot, plant, dynamics, w.tau);
   bool sat = false;
   for (int i = 0; i < limit.size(); ++i) {
     if (w.tau[i] > limit[i]) w.tau[i] = limit[i], sat = true;
@@ -139,14 +254,14 @@ bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& 
   return sat;
 }
 
-// Plant ẋ from (t, x) with the reference already in w.qr/qdr/qddr.
+// Plant ẋ from (t, x), x = [q; q̇; z_plant; xc], with the reference already in w.qr/qdr/qddr.
 void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, PlantWorkspace& w,
                       const Eigen::VectorXd& limit, double t, const double* x, double* dx) {
-  const int n = m.nv, nz = forces.num_states();
+  const int n = m.nv, nz = forces.num_states(), nc = c.num_states();
   w.q = Eigen::Map<const Eigen::VectorXd>(x, n);
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
   unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
-  control(c, w, t, limit, &m);
+  control(c, w, t, limit, m, &w.data, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
   forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
   w.data.ddq = w.tau + w.Q - w.data.nle;
   if (!unchecked::solve_mass_matrix(w.data, w.data.ddq))
@@ -163,8 +278,10 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
                                       const ClosedLoopOptions& options) {
   const IntegratorOptions& io = options.integrator;
   io.validate();
-  const int n = plant.nv, nz = plant_forces.num_states();
-  check_vector("plant initial state", x0_plant, 2 * n + nz, "x0 = [q; qd; z_plant]");
+  const int n = plant.nv, nz = plant_forces.num_states(), nc = controller.num_states();
+  const int nx = 2 * n + nz + nc;
+  if (x0_plant.size() != nx) check_vector("plant initial state", x0_plant, 2 * n + nz, "x0 = [q; qd; z_plant]");
+  check_finite("plant initial state", x0_plant);
   if (options.effort_limit.size() != 0) {
     check_vector("effort_limit", options.effort_limit, n, "one |tau| limit per joint, or none");
     for (int i = 0; i < n; ++i)
@@ -173,8 +290,17 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
   }
   if (plan.x.empty()) throw Error("simulate_closed_loop: the plan is empty (hint: check plan.summary)");
   if (plan.x.front().size() < 2 * n) throw Error("simulate_closed_loop: the plan's model has fewer coordinates than the plant");
+  for (int p : options.points)
+    if (p < 0 || p >= static_cast<int>(plant.point_name.size()))
+      throw Error(expected_got("recorded point index", "0.." + std::to_string(plant.point_name.size()) + " (exclusive)",
+                               std::to_string(p)));
   ClosedLoopResult out;
+  out.joints = plant.joint_name;
+  out.state_names = plant_forces.state_names();
+  for (const auto& s : controller.state_names()) out.state_names.push_back(s);
+  for (int p : options.points) out.points.push_back(plant.point_name[p]);
   PlantWorkspace w(plant, plant_forces);
+  Data kin(plant);
   const auto start = std::chrono::steady_clock::now();
 
   auto set_ref = [&](const double* q, const double* qd, const double* qdd) {
@@ -184,15 +310,25 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
   };
   auto record = [&](double t, const double* xp) {
     out.t.push_back(t);
-    out.x.push_back(Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz));
+    out.x.push_back(Eigen::Map<const Eigen::VectorXd>(xp, nx));
     w.q = Eigen::Map<const Eigen::VectorXd>(xp, n);
     w.qd = Eigen::Map<const Eigen::VectorXd>(xp + n, n);
-    if (control(controller, w, t, options.effort_limit)) ++out.saturated_samples;
+    if (control(controller, w, t, options.effort_limit, plant, nullptr, nc ? xp + 2 * n + nz : nullptr, nullptr))
+      ++out.saturated_samples;
     out.tau.push_back(w.tau);
     out.q_ref.push_back(w.qr);
     out.qd_ref.push_back(w.qdr);
+    Eigen::VectorXd pts(3 * options.points.size());
+    if (!options.points.empty()) {
+      forward_kinematics(plant, kin, w.q);
+      for (size_t k = 0; k < options.points.size(); ++k)
+        pts.segment<3>(3 * k) = point_position(plant, kin, options.points[k]);
+    }
+    out.point_positions.push_back(std::move(pts));
     if (options.progress) options.progress(t);
   };
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nx);
+  x0.head(x0_plant.size()) = x0_plant;
 
   if (io.method == IntegratorMethod::RK4) {
     const ReferenceStages& st = plan.stages;
@@ -207,10 +343,9 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     const long usable = std::min<long>(nsteps, st.steps);
     IntegratorOptions o = io;
     o.t1 = io.t0 + usable * h;
-    long calls = 0;
-    auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
-      const double* s = st.stage(calls / 4, static_cast<int>(calls % 4));
-      ++calls;
+    // The stage hook says which recorded reference stage belongs to this evaluation.
+    auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
+      const double* s = st.stage(stage.step, stage.stage);
       set_ref(s, s + n, s + 2 * n);
       plant_derivative(plant, plant_forces, controller, w, options.effort_limit, t, x.data(), dx.data());
     };
@@ -229,8 +364,8 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       record(t, x.data());
       return true;
     };
-    Eigen::VectorXd x = x0_plant;
-    out.summary = integrate(rhs, x, o, obs);
+    Eigen::VectorXd x = x0;
+    out.summary = integrate_staged(rhs, x, o, obs);
     if (out.summary.ok() && usable < nsteps) {
       out.summary.status = IntegrationStatus::Stopped;
       out.summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
@@ -253,9 +388,9 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       record(t, x.data() + nr);
       return true;
     };
-    Eigen::VectorXd x(nr + 2 * n + nz);
+    Eigen::VectorXd x(nr + nx);
     x.head(nr) = plan.x.front();
-    x.tail(2 * n + nz) = x0_plant;
+    x.tail(nx) = x0;
     out.summary = integrate(rhs, x, io, obs);
   }
   out.summary.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

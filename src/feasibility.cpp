@@ -16,7 +16,6 @@ std::string num(double x) {
   std::snprintf(b, sizeof b, "%.6g", x);
   return b;
 }
-std::string jnum(double x) { return std::isfinite(x) ? fmt(x) : "null"; }
 }  // namespace
 
 FeasibilityReport assess_feasibility(const Model& model, const std::vector<double>& t,
@@ -88,8 +87,11 @@ std::string FeasibilityReport::text() const {
                   num(j.limits.effort).c_str());
     os << line;
   }
+  if (!complete) {
+    os << "  NOT feasible: the plan did not reach its end (" << incomplete_reason << ")\n";
+  }
   if (violations.empty()) {
-    os << "  feasible: no limit is violated\n";
+    if (complete) os << "  feasible: no limit is violated\n";
   } else {
     os << "  NOT feasible: " << violations.size() << " violation(s)\n";
     for (const auto& v : violations) {
@@ -102,30 +104,43 @@ std::string FeasibilityReport::text() const {
   return os.str();
 }
 
-std::string FeasibilityReport::json() const {
-  std::ostringstream os;
-  os << "{\"feasible\": " << (feasible() ? "true" : "false") << ", \"joints\": [";
-  for (size_t i = 0; i < joints.size(); ++i) {
-    const auto& j = joints[i];
-    os << (i ? ", " : "") << "{\"joint\": \"" << j.joint << "\", \"q_min\": " << jnum(j.q_min)
-       << ", \"q_max\": " << jnum(j.q_max) << ", \"peak_speed\": " << jnum(j.peak_speed)
-       << ", \"t_peak_speed\": " << jnum(j.t_peak_speed) << ", \"peak_acceleration\": " << jnum(j.peak_acceleration)
-       << ", \"t_peak_acceleration\": " << jnum(j.t_peak_acceleration) << ", \"peak_effort\": " << jnum(j.peak_effort)
-       << ", \"t_peak_effort\": " << jnum(j.t_peak_effort) << ", \"limits\": {\"lower\": " << jnum(j.limits.lower)
-       << ", \"upper\": " << jnum(j.limits.upper) << ", \"velocity\": " << jnum(j.limits.velocity)
-       << ", \"effort\": " << jnum(j.limits.effort) << "}}";
+JsonValue FeasibilityReport::to_json() const {
+  JsonValue o = JsonValue::object();
+  o["feasible"] = feasible();
+  if (!complete) o["incomplete_reason"] = incomplete_reason;
+  JsonValue& js = o["joints"] = JsonValue::array();
+  for (const auto& j : joints) {
+    JsonValue& e = js.push_back(JsonValue::object());
+    e["joint"] = j.joint;
+    e["q_min"] = j.q_min;
+    e["q_max"] = j.q_max;
+    e["peak_speed"] = j.peak_speed;
+    e["t_peak_speed"] = j.t_peak_speed;
+    e["peak_acceleration"] = j.peak_acceleration;
+    e["t_peak_acceleration"] = j.t_peak_acceleration;
+    e["peak_effort"] = j.peak_effort;
+    e["t_peak_effort"] = j.t_peak_effort;
+    JsonValue& l = e["limits"] = JsonValue::object();
+    l["lower"] = j.limits.lower;
+    l["upper"] = j.limits.upper;
+    l["velocity"] = j.limits.velocity;
+    l["effort"] = j.limits.effort;
   }
-  os << "], \"violations\": [";
-  for (size_t i = 0; i < violations.size(); ++i) {
-    const auto& v = violations[i];
-    os << (i ? ", " : "") << "{\"joint\": \"" << v.joint << "\", \"quantity\": \"" << v.quantity
-       << "\", \"limit\": " << jnum(v.limit) << ", \"worst\": " << jnum(v.worst) << ", \"intervals\": [";
-    for (size_t k = 0; k < v.intervals.size(); ++k)
-      os << (k ? ", " : "") << "[" << jnum(v.intervals[k].first) << ", " << jnum(v.intervals[k].second) << "]";
-    os << "]}";
+  JsonValue& vs = o["violations"] = JsonValue::array();
+  for (const auto& v : violations) {
+    JsonValue& e = vs.push_back(JsonValue::object());
+    e["joint"] = v.joint;
+    e["quantity"] = v.quantity;
+    e["limit"] = v.limit;
+    e["worst"] = v.worst;
+    JsonValue& iv = e["intervals"] = JsonValue::array();
+    for (const auto& [a, b] : v.intervals) {
+      JsonValue& pair = iv.push_back(JsonValue::array());
+      pair.push_back(a);
+      pair.push_back(b);
+    }
   }
-  os << "]}";
-  return os.str();
+  return o;
 }
 
 }  // namespace refdyn

@@ -81,6 +81,17 @@ FlexibleDrive::FlexibleDrive(const Model& model, const std::string& joint, Flexi
   if (!profile_) throw Error("flexible drive: expected a displacement profile, got none");
 }
 
+std::vector<std::string> FlexibleDrive::signal_names() const {
+  const std::string suffix = label.empty() ? "" : "_" + label;
+  return {"psi_dr" + suffix, "tau_drive" + suffix};
+}
+
+void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,
+                            double* out) const {
+  out[0] = profile_->eval(t).f;
+  out[1] = torque(t, q, qd);
+}
+
 double FlexibleDrive::torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
   const TimeValue psi = profile_->eval(t);
   return p_.stiffness * (psi.f - q[j_]) + p_.damping * (psi.df - qd[j_]);

@@ -44,20 +44,28 @@ void IntegratorOptions::validate() const {
 
 Rk4Workspace::Rk4Workspace(Eigen::Index n) : k1(n), k2(n), k3(n), k4(n), tmp(n) {}
 
-void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
-  f(t, x, w.k1);
+namespace {
+// One RK4 step; f(stage, t, x, dx) with stage 0..3.
+template <class F>
+void rk4_stages(const F& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
+  f(0, t, x, w.k1);
   w.tmp = x + (0.5 * h) * w.k1;
-  f(t + 0.5 * h, w.tmp, w.k2);
+  f(1, t + 0.5 * h, w.tmp, w.k2);
   w.tmp = x + (0.5 * h) * w.k2;
-  f(t + 0.5 * h, w.tmp, w.k3);
+  f(2, t + 0.5 * h, w.tmp, w.k3);
   w.tmp = x + h * w.k3;
-  f(t + h, w.tmp, w.k4);
+  f(3, t + h, w.tmp, w.k4);
   x += (h / 6.0) * (w.k1 + 2.0 * w.k2 + 2.0 * w.k3 + w.k4);
+}
+}  // namespace
+
+void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
+  rk4_stages([&f](int, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(tt, xx, dx); }, t, h, x, w);
 }
 
 namespace {
 
-IntegrationSummary integrate_rk4(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
                                  const OdeObserver& obs) {
   IntegrationSummary s;
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
@@ -80,7 +88,9 @@ IntegrationSummary integrate_rk4(const OdeRhs& f, Eigen::VectorXd& x, const Inte
     const double t = o.t0 + k * h;
     x_prev = x;
     try {
-      rk4_step(f, t, h, x, w);
+      rk4_stages([&f, k](int stage, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) {
+        f(Stage{k, stage}, tt, xx, dx);
+      }, t, h, x, w);
     } catch (const NumericalFailure& e) {
       x = x_prev;
       s.status = IntegrationStatus::NumericalFailure;
@@ -106,7 +116,7 @@ IntegrationSummary integrate_rk4(const OdeRhs& f, Eigen::VectorXd& x, const Inte
   return s;
 }
 
-IntegrationSummary integrate_dopri(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
                                    const OdeObserver& obs) {
   namespace ode = boost::numeric::odeint;
   using Stepper = ode::runge_kutta_dopri5<Eigen::VectorXd, double, Eigen::VectorXd, double, ode::vector_space_algebra>;
@@ -114,7 +124,7 @@ IntegrationSummary integrate_dopri(const OdeRhs& f, Eigen::VectorXd& x, const In
   long evals = 0;
   auto sys = [&](const Eigen::VectorXd& xx, Eigen::VectorXd& dx, double t) {
     ++evals;
-    f(t, xx, dx);
+    f(Stage{}, t, xx, dx);
   };
   auto stepper = ode::make_dense_output(o.atol, o.rtol, Stepper());
   const double dt_out = o.output_interval > 0 ? o.output_interval : o.step;
@@ -191,6 +201,13 @@ IntegrationSummary integrate_dopri(const OdeRhs& f, Eigen::VectorXd& x, const In
 
 IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
                              const OdeObserver& observer) {
+  if (!f) throw Error("integrate: expected a right-hand side function, got none");
+  return integrate_staged([&f](const Stage&, double t, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(t, xx, dx); },
+                          x, o, observer);
+}
+
+IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+                                    const OdeObserver& observer) {
   o.validate();
   if (!f) throw Error("integrate: expected a right-hand side function, got none");
   check_finite("initial state x0", x);

@@ -33,7 +33,7 @@ SE3 joint_placement(const Model& model, int i, double qi) {
   return X;
 }
 
-void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::VectorXd& q) {
+void unchecked::forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q) {
   for (int i = 0; i < model.nq; ++i) {
     const SE3 X = joint_placement(model, i, q[i]);
     data.liMi[i] = X;
@@ -53,7 +53,7 @@ void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::V
 void forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q) {
   check_data(model, data);
   model.check_q(q);
-  forward_kinematics_unchecked(model, data, q);
+  unchecked::forward_kinematics(model, data, q);
 }
 
 namespace {

@@ -205,14 +205,6 @@ Model build_model(const ModelDescription& d) {
   return m;
 }
 
-namespace {
-int find_name(const std::vector<std::string>& names, const std::string& n, const char* what) {
-  for (size_t i = 0; i < names.size(); ++i)
-    if (names[i] == n) return static_cast<int>(i);
-  throw Error(std::string("unknown ") + what + " '" + n + "'" + did_you_mean(n, names));
-}
-}  // namespace
-
 int Model::body_index(const std::string& n) const { return find_name(body_name, n, "link"); }
 int Model::point_index(const std::string& n) const { return find_name(point_name, n, "point"); }
 int Model::joint_index(const std::string& n) const { return find_name(joint_name, n, "joint"); }

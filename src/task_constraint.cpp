@@ -67,12 +67,16 @@ class ExpressionConstraint final : public Constraint {
         if (std::find(points_.begin(), points_.end(), all[k].index) == points_.end()) points_.push_back(all[k].index);
       if (all[k].kind == VarKind::Time) rheonomic_ = true;
     }
+    bool depends_on_state = false;
+    for (const Var& v : vars_) depends_on_state = depends_on_state || v.kind != VarKind::Time;
+    if (!depends_on_state)
+      throw Error("constraint '" + name + "': the expression does not depend on the state (after substituting the "
+                  "parameters it is " + probe->text() + "); a constraint must involve q, qd or a point");
     expr_ = std::make_unique<Expression>(text, used_names, params, first_order ? 1 : 2);
-    const size_t n = vars_.size();
-    w_.resize(n);
-    wd_.resize(n);
-    grad_.resize(n);
-    hess_.resize(n * n);
+  }
+  int scratch_size() const override {
+    const int n = static_cast<int>(vars_.size());
+    return 3 * n + n * n;  // w, ẇ, gradient, Hessian
   }
   int rows() const override { return 1; }
   bool first_order() const override { return first_order_; }
@@ -83,40 +87,44 @@ class ExpressionConstraint final : public Constraint {
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
     const size_t n = vars_.size();
+    double* w = in.scratch;
+    double* wd = w + n;
+    double* grad = wd + n;
+    double* hess = grad + n;
     // Values w and, for holonomic constraints, their rates ẇ.
     for (size_t k = 0; k < n; ++k) {
       const Var& v = vars_[k];
       switch (v.kind) {
         case VarKind::PointCoord:
-          w_[k] = in.points[v.index].r[v.axis];
-          wd_[k] = in.points[v.index].v[v.axis];
+          w[k] = in.points[v.index].r[v.axis];
+          wd[k] = in.points[v.index].v[v.axis];
           break;
         case VarKind::PointVel:
-          w_[k] = in.points[v.index].v[v.axis];
-          wd_[k] = 0;
+          w[k] = in.points[v.index].v[v.axis];
+          wd[k] = 0;
           break;
         case VarKind::Joint:
-          w_[k] = in.q[v.index];
-          wd_[k] = in.qd[v.index];
+          w[k] = in.q[v.index];
+          wd[k] = in.qd[v.index];
           break;
         case VarKind::JointVel:
-          w_[k] = in.qd[v.index];
-          wd_[k] = 0;
+          w[k] = in.qd[v.index];
+          wd[k] = 0;
           break;
         case VarKind::Time:
-          w_[k] = in.t;
-          wd_[k] = 1.0;
+          w[k] = in.t;
+          wd[k] = 1.0;
           break;
       }
     }
     double f = 0;
-    expr_->evaluate(w_.data(), f, grad_.data(), first_order_ ? nullptr : hess_.data());
+    expr_->evaluate(w, f, grad, first_order_ ? nullptr : hess);
     phi[0] = f;
     A.row(0).setZero();
     double g = 0;
     for (size_t k = 0; k < n; ++k) {
       const Var& v = vars_[k];
-      const double fk = grad_[k];
+      const double fk = grad[k];
       if (fk == 0) continue;
       const PointState* P = (v.kind == VarKind::PointCoord || v.kind == VarKind::PointVel) ? &in.points[v.index] : nullptr;
       if (!first_order_) {
@@ -146,9 +154,9 @@ class ExpressionConstraint final : public Constraint {
     } else {
       double fd = 0, quad = 0;
       for (size_t k = 0; k < n; ++k) {
-        fd += grad_[k] * wd_[k];
-        if (wd_[k] == 0) continue;
-        for (size_t l = 0; l < n; ++l) quad += wd_[k] * hess_[k * n + l] * wd_[l];
+        fd += grad[k] * wd[k];
+        if (wd[k] == 0) continue;
+        for (size_t l = 0; l < n; ++l) quad += wd[k] * hess[k * n + l] * wd[l];
       }
       phid[0] = fd;
       g += quad;
@@ -163,8 +171,6 @@ class ExpressionConstraint final : public Constraint {
   std::vector<Var> vars_;
   std::vector<int> points_;
   std::unique_ptr<Expression> expr_;
-  // Scratch (evaluate is const; constraints are evaluated by one thread at a time per set).
-  mutable std::vector<double> w_, wd_, grad_, hess_;
 };
 
 class ExpressionTimeFunction final : public TimeFunction {

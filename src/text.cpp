@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cstdio>
 
+#include "refdyn/error.hpp"
+
 namespace refdyn {
 
 int edit_distance(const std::string& a, const std::string& b) {
@@ -45,6 +47,13 @@ std::string fmt(double x) {
   char buf[64];
   auto r = std::to_chars(buf, buf + sizeof buf, x);
   return std::string(buf, r.ptr);
+}
+
+int find_name(const std::vector<std::string>& names, const std::string& name, const std::string& what,
+              const std::string& hint) {
+  for (size_t i = 0; i < names.size(); ++i)
+    if (names[i] == name) return static_cast<int>(i);
+  throw Error("unknown " + what + " '" + name + "'" + did_you_mean(name, names) + hint);
 }
 
 }  // namespace refdyn

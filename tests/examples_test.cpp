@@ -38,7 +38,7 @@ std::string source_path(const std::string& rel) { return std::string(REFDYN_SOUR
 
 /// A scenario planned the way `refdyn plan` does it.
 struct Planned {
-  std::unique_ptr<io::Scenario> sc;
+  std::unique_ptr<Problem> sc;
   std::unique_ptr<ReferenceDynamics> rd;
   Plan plan;
   int n = 0;
@@ -56,17 +56,17 @@ struct Planned {
   }
 };
 
-Planned plan_scenario(std::unique_ptr<io::Scenario> sc) {
+Planned plan_scenario(std::unique_ptr<Problem> sc) {
   Planned p;
   p.sc = std::move(sc);
-  io::Scenario& s = *p.sc;
+  Problem& s = *p.sc;
   p.n = s.model.nq;
   p.rd = std::make_unique<ReferenceDynamics>(s.model, s.forces, s.constraints, s.options);
   p.plan = plan_motion(*p.rd, p.rd->make_state(s.q0, s.qd0), s.integrator, s.residual_from);
   return p;
 }
 
-Planned plan_file(const std::string& rel) { return plan_scenario(io::load_scenario(source_path(rel))); }
+Planned plan_file(const std::string& rel) { return plan_scenario(io::load_problem(source_path(rel))); }
 
 std::string read_text(const std::string& path) {
   std::ifstream f(path);
@@ -160,7 +160,7 @@ TEST(Examples, Planar2RCircleAutomaticPartitionGivesTheSamePlan) {
   const size_t pos = text.find(from);
   ASSERT_NE(pos, std::string::npos);
   text.replace(pos, from.size(), "independent: auto");
-  Planned a = plan_scenario(io::parse_scenario(text, path));
+  Planned a = plan_scenario(io::parse_problem(text, path));
   Planned b = plan_file("examples/planar_2r_circle/planar_2r_circle.yaml");
   ASSERT_TRUE(a.plan.summary.ok()) << a.plan.summary.message;
   ASSERT_EQ(a.plan.x.size(), b.plan.x.size());
@@ -416,9 +416,9 @@ TEST(Examples, UrdfMimicJointIsAnIdealCoupling) {
            "integrator: {method: rk4, step: " << h << ", t0: 0, t1: 2}\n";
     }
   }
-  Planned p = plan_scenario(io::load_scenario((dir / "mimic_1e-3.yaml").string()));
-  Planned fine = plan_scenario(io::load_scenario((dir / "mimic_5e-4.yaml").string()));
-  Planned kind = plan_scenario(io::load_scenario((dir / "kind.yaml").string()));
+  Planned p = plan_scenario(io::load_problem((dir / "mimic_1e-3.yaml").string()));
+  Planned fine = plan_scenario(io::load_problem((dir / "mimic_5e-4.yaml").string()));
+  Planned kind = plan_scenario(io::load_problem((dir / "kind.yaml").string()));
   fs::remove_all(dir);
   ASSERT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
   ASSERT_TRUE(fine.plan.summary.ok()) << fine.plan.summary.message;
@@ -459,7 +459,7 @@ TEST(Examples, UrdfMimicJointIsAnIdealCoupling) {
 // ---------------------------------------------------------------------------------------------
 // 5. The paper scenario file reproduces the built-in paper example.
 TEST(Examples, PaperScenarioFileMatchesTheBuiltInExample) {
-  auto sc = io::load_scenario(source_path("examples/paper/paper.yaml"));
+  auto sc = io::load_problem(source_path("examples/paper/paper.yaml"));
   IntegratorOptions io_file = sc->integrator;
   io_file.t1 = 1.0;
   ReferenceDynamics rd_file(sc->model, sc->forces, sc->constraints, sc->options);

@@ -33,12 +33,16 @@ struct PointState {
   Eigen::Matrix<double, 3, Eigen::Dynamic> Jw;  ///< angular Jacobian of the body (3×n)
 };
 
-/// What a constraint reads: time, state, and the states of the points it declared.
+/// What a constraint reads: time, state, the states of the points it declared, and scratch
+/// memory of at least scratch_size() doubles owned by the caller's ConstraintEval (so that a
+/// constraint object holds no mutable state and one set can be evaluated from several threads,
+/// each with its own ConstraintEval).
 struct ConstraintInput {
   double t;
   const Eigen::VectorXd& q;
   const Eigen::VectorXd& qd;
   const std::vector<PointState>& points;  ///< indexed by model point index
+  double* scratch = nullptr;
 };
 
 class Constraint {
@@ -53,9 +57,15 @@ class Constraint {
                         Eigen::Ref<Eigen::VectorXd> phid, Eigen::Ref<Eigen::MatrixXd> A,
                         Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
   virtual std::string describe() const = 0;
+  /// Doubles of scratch memory evaluate() needs (ConstraintInput::scratch).
+  virtual int scratch_size() const { return 0; }
+  /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
+  /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
+  virtual const TimeFunction* target() const { return nullptr; }
 
   std::string name;
   ConstraintOrigin origin = ConstraintOrigin::Programmed;
+  std::string record_as;  ///< column name for target() in recorded trajectories; empty: none
 };
 using ConstraintPtr = std::shared_ptr<const Constraint>;
 
@@ -150,6 +160,7 @@ struct ConstraintEval {
   Eigen::VectorXd phi, phid, gamma;  ///< size m
   Eigen::MatrixXd A;                 ///< m×n
   std::vector<PointState> points;    ///< indexed by model point index
+  std::vector<double> scratch;       ///< for the constraints' evaluate() (largest scratch_size)
 };
 
 /// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and

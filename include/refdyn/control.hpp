@@ -34,6 +34,10 @@ class Controller {
  public:
   virtual ~Controller() = default;
   virtual std::string name() const = 0;
+  /// Number of the controller's own states xc (e.g. a PID's error integrals); they are part of
+  /// the closed-loop state vector [q; q̇; z_plant; xc] and start at zero.
+  virtual int num_states() const { return 0; }
+  virtual std::vector<std::string> state_names() const { return {}; }
   /// τ (size nq) from time, plant state and reference. May use internal workspace.
   virtual void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                        Eigen::VectorXd& tau) = 0;
@@ -45,6 +49,17 @@ class Controller {
                                      const ReferenceSample& ref, const Model& model, const Data& dynamics,
                                      Eigen::VectorXd& tau) {
     compute(t, q, qd, ref, tau);
+  }
+  /// The entry point of the closed loop: as compute_with_dynamics (`dynamics` may be null:
+  /// not evaluated), plus the controller's states xc and their derivatives xc_dot (written;
+  /// null when the caller needs τ only). The default has no states.
+  virtual void compute_with_state(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                  const ReferenceSample& ref, const double* xc, double* xc_dot, const Model& model,
+                                  const Data* dynamics, Eigen::VectorXd& tau) {
+    if (dynamics)
+      compute_with_dynamics(t, q, qd, ref, model, *dynamics, tau);
+    else
+      compute(t, q, qd, ref, tau);
   }
 };
 
@@ -82,6 +97,27 @@ class PDGravity final : public Controller {
   Eigen::VectorXd kp_, kd_;
 };
 
+/// PID + gravity compensation: τ = g(q) − K_p e − K_i ξ − K_d ė with ξ̇ = e (one integral
+/// state per joint, in the closed-loop state vector). The integral removes the steady error
+/// that a constant disturbance leaves under PD (−F/K_p).
+class PIDGravity final : public Controller {
+ public:
+  PIDGravity(const Model& model, Eigen::VectorXd kp, Eigen::VectorXd ki, Eigen::VectorXd kd);
+  std::string name() const override { return "pid_gravity"; }
+  int num_states() const override { return model_.nv; }
+  std::vector<std::string> state_names() const override;
+  /// τ with zero integral states.
+  void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
+               Eigen::VectorXd& tau) override;
+  void compute_with_state(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
+                          const double* xc, double* xc_dot, const Model& model, const Data* dynamics,
+                          Eigen::VectorXd& tau) override;
+ private:
+  const Model& model_;
+  Data data_;
+  Eigen::VectorXd kp_, ki_, kd_;
+};
+
 /// The reference's RK4 stage values, recorded once (see the header comment).
 struct ReferenceStages {
   double t0 = 0, h = 0;
@@ -91,41 +127,79 @@ struct ReferenceStages {
   const double* stage(long step, int s) const { return data.data() + ((step * 4 + s) * 3 * n); }
 };
 
-/// A planned motion: the reference dynamics integrated, sampled at every step.
-struct Plan {
-  IntegrationSummary summary;
+/// A recorded motion, one entry per output sample. What is recorded depends on the recorder:
+/// a plan fills the reference-dynamics series (q̈, Φ, Φ̇, λ, Q_c, efforts), a closed loop the
+/// tracking series (τ, q̂, q̂̇); series a recorder does not fill stay empty. Names say what the
+/// columns of each vector series are; io/trajectory_io.hpp writes any Trajectory as CSV.
+struct Trajectory {
+  // ---- layout ----
+  std::vector<std::string> joints;          ///< q, q̇, q̈, Q_c, efforts, τ, q̂: one per joint
+  std::vector<std::string> state_names;     ///< the states after [q; q̇] in x (force elements, controller)
+  std::vector<std::string> points;          ///< recorded points (3 columns each: x, y, z in the world)
+  std::vector<std::string> constraint_rows; ///< Φ, Φ̇, λ: one per constraint row
+  std::vector<char> material_row;           ///< per constraint row: material (1) or programmed (0)
+  std::vector<std::string> target_signals;  ///< functions of t prescribed by constraints (record_as)
+  std::vector<std::string> force_signals;   ///< quantities of force elements (a drive's ψ_dr, torque)
+
+  // ---- samples ----
   std::vector<double> t;
-  std::vector<Eigen::VectorXd> x;    ///< [q; q̇; z] per sample
-  std::vector<Eigen::VectorXd> qdd;  ///< q̂̈ per sample
+  std::vector<Eigen::VectorXd> x;           ///< [q; q̇; states]
+  std::vector<Eigen::VectorXd> qdd;         ///< q̈ (plans)
+  std::vector<Eigen::VectorXd> point_positions;  ///< 3 × points
+  std::vector<Eigen::VectorXd> targets, forces;  ///< target_signals, force_signals values
+  std::vector<Eigen::VectorXd> phi, phid, lambda;  ///< constraint rows (plans)
+  std::vector<Eigen::VectorXd> Qc;          ///< Q_c = M q̈ − F = −Aᵀλ, all rows (plans)
+  /// What the actuators must deliver: actuator force elements (drives, efforts) plus the forces
+  /// of the programmed constraints (plans). Feasibility checks this against effort limits.
+  std::vector<Eigen::VectorXd> actuator_effort;
+  /// Reaction forces of the material constraints (pins, rolling without slip): carried by the
+  /// structure, not by the actuators (plans; empty when there are no material constraints).
+  std::vector<Eigen::VectorXd> reaction_effort;
+  std::vector<Eigen::VectorXd> tau, q_ref, qd_ref;  ///< applied τ and the reference (closed loops)
+
+  size_t size() const { return t.size(); }
+  int nq() const { return static_cast<int>(joints.size()); }
+};
+
+/// A planned motion: the reference dynamics integrated and recorded at every output sample.
+struct Plan : Trajectory {
+  IntegrationSummary summary;
   ReferenceStages stages;            ///< filled for RK4
 };
 
-/// Solves the reference dynamics from x0 with the given integrator; records samples (and, for
-/// RK4, the stage values used by simulate_closed_loop). summary.max_constraint_residual is the
-/// largest |Φ| / |c| over the samples with t >= residual_from.
-/// `progress`, when given, is called with the time of every sample (e.g. for a progress bar).
+/// What plan_motion records besides the state (model point indices, e.g. a scenario's outputs).
+struct RecordOptions {
+  std::vector<int> points;
+};
+
+/// Solves the reference dynamics from x0 with the given integrator and records it: at every
+/// output sample one evaluation of the reference dynamics gives q̈, Φ, Φ̇, λ, Q_c, the efforts,
+/// the recorded points and signals; for RK4 the integrator's stage hook also records the stage
+/// values used by simulate_closed_loop. summary.max_constraint_residual is the largest |Φ| / |c|
+/// over the samples with t >= residual_from. `progress`, when given, is called with the time
+/// of every sample (e.g. for a progress bar).
 Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                 double residual_from = 0.0, const std::function<void(double)>& progress = {});
+                 double residual_from = 0.0, const std::function<void(double)>& progress = {},
+                 const RecordOptions& record = {});
 
 struct ClosedLoopOptions {
   IntegratorOptions integrator;      ///< must match the plan's RK4 grid when method is RK4
   Eigen::VectorXd effort_limit;      ///< optional per-joint |τ| limit (saturation); empty: none
   std::function<void(double)> progress;  ///< optional: called with the time of every sample
+  std::vector<int> points;           ///< model points whose positions are recorded
 };
 
-struct ClosedLoopResult {
+/// A closed-loop run: x = [q; q̇; z_plant; xc] (xc: the controller's states), τ, q̂, q̂̇.
+struct ClosedLoopResult : Trajectory {
   IntegrationSummary summary;
-  std::vector<double> t;
-  std::vector<Eigen::VectorXd> x;    ///< plant state [q; q̇; z_plant] per sample
-  std::vector<Eigen::VectorXd> tau;  ///< applied (saturated) τ per sample
-  std::vector<Eigen::VectorXd> q_ref;
-  std::vector<Eigen::VectorXd> qd_ref;
   long saturated_samples = 0;        ///< samples where at least one joint was saturated
 };
 
 /// Simulates the plant (model + plant_forces) under `controller` tracking `plan` from x0_plant
-/// = [q; q̇; z_plant]. RK4: replays plan.stages (options.integrator must have the same t0, step,
-/// and t1 ≤ the plan's end). Dormand–Prince: integrates the reference jointly (needs `rd`).
+/// = [q; q̇; z_plant] (the controller's states, if any, start at zero; x0_plant may also carry
+/// them). RK4: replays plan.stages through the integrator's stage hook (options.integrator must
+/// have the same t0, step, and t1 ≤ the plan's end). Dormand–Prince: integrates the reference
+/// jointly (needs `rd`).
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
                                       const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,
                                       const ClosedLoopOptions& options);

@@ -2,6 +2,7 @@
 /// Feasibility of a planned motion (paper section 1.4, first purpose): the speeds,
 /// accelerations and generalized forces the joints must deliver, against the model's limits.
 
+#include "refdyn/json.hpp"
 #include "refdyn/model.hpp"
 
 #include <string>
@@ -29,13 +30,20 @@ struct JointFeasibility {
 struct FeasibilityReport {
   std::vector<JointFeasibility> joints;
   std::vector<FeasibilityViolation> violations;
-  bool feasible() const { return violations.empty(); }
-  std::string text() const;   ///< printable table and list of violations
-  std::string json() const;   ///< the same as a JSON object
+  /// False when the planned motion did not reach its end time: a plan that stopped is never
+  /// feasible, whatever its samples show (incomplete_reason says why).
+  bool complete = true;
+  std::string incomplete_reason;
+  bool feasible() const { return complete && violations.empty(); }
+  std::string text() const;      ///< printable table and list of violations
+  JsonValue to_json() const;     ///< the same as a JSON object
+  std::string json() const { return to_json().dump(0); }
 };
 
 /// Samples t (size K); q, qd, qdd, effort: K vectors of size nq each. `effort` is what the
-/// joints must deliver (for a plan: drive/actuator forces + constraint forces Q_c).
+/// actuators must deliver (for a plan: Trajectory::actuator_effort, i.e. drives and prescribed
+/// efforts plus the forces of the programmed constraints; reaction forces of material
+/// constraints are carried by the structure and are not checked against effort limits).
 FeasibilityReport assess_feasibility(const Model& model, const std::vector<double>& t,
                                      const std::vector<Eigen::VectorXd>& q, const std::vector<Eigen::VectorXd>& qd,
                                      const std::vector<Eigen::VectorXd>& qdd,

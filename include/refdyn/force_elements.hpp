@@ -27,6 +27,14 @@ class ForceElement {
   /// True for actuators (drives, prescribed efforts): their force is delivered by the joint's
   /// motor and counts in the feasibility report's required effort.
   virtual bool actuator() const { return false; }
+  /// Named quantities recorded in trajectories besides the force (e.g. a drive's ψ_dr and
+  /// torque), and their values at (t, q, q̇, z) written to out[0 .. signal_names().size()).
+  virtual std::vector<std::string> signal_names() const { return {}; }
+  virtual void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                       double* out) const {}
+
+  /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
+  std::string label;
 };
 using ForceElementPtr = std::shared_ptr<const ForceElement>;
 
@@ -52,6 +60,10 @@ class FlexibleDrive final : public ForceElement {
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
   /// The drive torque alone.
   double torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
+  /// psi_dr (the drive displacement ψ_dr(t)) and tau_drive (its torque), suffixed "_<label>".
+  std::vector<std::string> signal_names() const override;
+  void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+               double* out) const override;
   const TimeFunction& profile() const { return *profile_; }
   int joint() const { return j_; }
  private:

@@ -56,6 +56,19 @@ using OdeObserver = std::function<bool(double t, const Eigen::VectorXd& x)>;
 IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
                              const OdeObserver& observer = {});
 
+/// Which evaluation of the right-hand side a call is: RK4 stage `stage` (0..3, at t, t + h/2,
+/// t + h/2, t + h) of step `step` (0-based). Dormand–Prince: step = stage = −1 (odeint does not
+/// say; its evaluations include rejected trial steps).
+struct Stage {
+  long step = -1;
+  int stage = -1;
+};
+/// ẋ = f(stage, t, x): the stage hook, for callers that record or replay stage values.
+using OdeStageRhs = std::function<void(const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx)>;
+/// integrate() with the stage identity passed to the right-hand side.
+IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
+                                    const OdeObserver& observer = {});
+
 /// One classical RK4 step of size h in place, with caller-provided scratch (k1..k4, tmp: size
 /// of x). No heap allocation.
 struct Rk4Workspace {

@@ -13,8 +13,10 @@ namespace refdyn {
 /// Fills data.liMi and data.oMi. q: size nq.
 void forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q);
 
-/// Inner kernel without argument checks (for hot loops that already validated q).
-void forward_kinematics_unchecked(const Model& model, Data& data, const Eigen::VectorXd& q);
+namespace unchecked {
+/// forward_kinematics without the size, finiteness and Data checks (callers guarantee them).
+void forward_kinematics(const Model& model, Data& data, const Eigen::VectorXd& q);
+}  // namespace unchecked
 
 /// Joint transform of body i in its parent: placement_i · J_i(q_i).
 SE3 joint_placement(const Model& model, int i, double qi);

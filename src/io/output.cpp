@@ -69,27 +69,4 @@ std::string CsvTable::to_string() const {
 
 void write_csv_atomic(const fs::path& path, const CsvTable& t) { write_text_atomic(path, t.to_string()); }
 
-std::string json_string(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"': o += "\\\""; break;
-      case '\\': o += "\\\\"; break;
-      case '\n': o += "\\n"; break;
-      case '\t': o += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char b[8];
-          std::snprintf(b, sizeof b, "\\u%04x", c);
-          o += b;
-        } else {
-          o += c;
-        }
-    }
-  }
-  return o + "\"";
-}
-
-std::string json_number(double x) { return std::isfinite(x) ? fmt(x) : "null"; }
-
 }  // namespace refdyn::io

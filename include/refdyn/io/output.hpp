@@ -25,9 +25,5 @@ struct CsvTable {
 };
 void write_csv_atomic(const std::filesystem::path& path, const CsvTable& table);
 
-/// JSON string literal with escapes.
-std::string json_string(const std::string& s);
-/// JSON number (null for NaN/inf).
-std::string json_number(double x);
 
 }  // namespace refdyn::io

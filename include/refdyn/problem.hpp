@@ -1,0 +1,78 @@
+#pragma once
+/// A Problem is a scenario built: the model, its constraints and forces, the reference-dynamics
+/// options, a consistent initial state, the integrator and the closed-loop experiments, every
+/// number evaluated and every name bound. build_problem(spec) makes one from a ScenarioSpec
+/// (spec.hpp) and checks everything a run needs at t0 (constraint residuals, the partition),
+/// so that a Problem that exists can be planned.
+///
+///   ScenarioSpec ──build_problem──▶ Problem ──plan_problem──▶ Plan (a Trajectory)
+///                                          └──track_experiment──▶ ClosedLoopResult (a Trajectory)
+
+#include "refdyn/constraints.hpp"
+#include "refdyn/control.hpp"
+#include "refdyn/force_elements.hpp"
+#include "refdyn/integrators.hpp"
+#include "refdyn/model.hpp"
+#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/registry.hpp"
+#include "refdyn/spec.hpp"
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+/// One closed-loop run of a scenario (one value of a sweep).
+struct Experiment {
+  std::string name;
+  std::vector<std::pair<std::string, double>> sweep;  ///< the sweep parameter and its value (empty: none)
+  Eigen::VectorXd q0, qd0;                  ///< plant initial state
+  ForceSet plant_forces;                    ///< the plant's own force elements
+  std::string controller_type;
+  ControllerFactory make_controller;        ///< builds the controller for a model
+};
+
+/// A built scenario. Not movable: ReferenceDynamics objects made from it refer to its members.
+struct Problem {
+  explicit Problem(Model m) : model(std::move(m)) {}
+  Problem(const Problem&) = delete;
+  Problem& operator=(const Problem&) = delete;
+
+  std::string file;
+  std::string name;
+  std::map<std::string, double> parameters;
+  const Model model;
+  ForceSet forces;
+  ConstraintSet constraints;
+  ReferenceDynamicsOptions options;         ///< with the partition fixed (chosen at t0 when automatic)
+  bool automatic_independent = false;       ///< the partition was chosen automatically
+  Eigen::VectorXd q0, qd0;                  ///< consistent reference initial state
+  bool project_initial = false;             ///< (q0, qd0) were projected onto the constraints
+  double initial_tolerance = 1e-8;
+  Eigen::VectorXd initial_dq, initial_dqd;  ///< the projection's correction (zeros if none)
+  IntegratorOptions integrator;
+  double residual_from = 0.0;               ///< report max residual over t >= this
+  Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
+  std::vector<std::unique_ptr<Experiment>> experiments;
+  std::vector<std::string> report_points;   ///< points recorded in trajectories
+
+  std::vector<int> report_point_indices() const;
+  /// A reference dynamics of this problem (refers to its members).
+  std::unique_ptr<ReferenceDynamics> make_reference_dynamics() const;
+};
+
+/// Builds and checks a Problem. Throws Error "FILE:LINE: KEY: message" naming the offending key.
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec);
+
+/// Plans the problem's reference motion (plan_motion with the problem's integrator, residual
+/// window and recorded points). `rd` must be made by problem.make_reference_dynamics().
+Plan plan_problem(const Problem& problem, ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
+
+/// Runs one experiment on the unconstrained plant tracking `plan`.
+ClosedLoopResult track_experiment(const Problem& problem, const Experiment& experiment, const Plan& plan,
+                                  ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
+
+}  // namespace refdyn

@@ -1,0 +1,492 @@
+// build_problem: a ScenarioSpec (as written) becomes a checked Problem.
+#include "refdyn/problem.hpp"
+
+#include "refdyn/error.hpp"
+#include "refdyn/text.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <set>
+
+namespace refdyn {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+LinkInertia read_inertia(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  LinkInertia in;
+  if (n["mass"]) in.mass = c.number(n["mass"], key + ".mass");
+  if (in.mass < 0) c.fail(n["mass"], key + ".mass", "expected a number >= 0 [kg], got " + fmt(in.mass));
+  if (n["com"]) in.com = c.vec3(n["com"], key + ".com");
+  if (const SpecValue& I = n["inertia"]) {
+    const std::string k = key + ".inertia";
+    if (!I.is_list()) c.fail(I, k, "expected [Ixx, Iyy, Izz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] or a 3x3 list, got " + I.describe());
+    if (I.size() == 3 && I[0].is_list()) {
+      for (int r = 0; r < 3; ++r) {
+        const Vec3 row = c.vec3(I[r], k + "[" + std::to_string(r) + "]");
+        in.I_com.row(r) = row.transpose();
+      }
+    } else if (I.size() == 3) {
+      in.I_com = c.vec3(I, k).asDiagonal();
+    } else if (I.size() == 6) {
+      double v[6];
+      for (int i = 0; i < 6; ++i) v[i] = c.number(I[i], k + "[" + std::to_string(i) + "]");
+      in.I_com << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
+    } else {
+      c.fail(I, k, "expected 3 (diagonal), 6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or 3x3 values, got " + std::to_string(I.size()));
+    }
+  }
+  return in;
+}
+
+JointLimits read_limits(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  JointLimits l;
+  if (!n) return l;
+  c.keys(n, key, {"lower", "upper", "velocity", "effort"});
+  l.lower = c.number_or(n, "lower", key, l.lower);
+  l.upper = c.number_or(n, "upper", key, l.upper);
+  l.velocity = c.number_or(n, "velocity", key, l.velocity);
+  l.effort = c.number_or(n, "effort", key, l.effort);
+  return l;
+}
+
+JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  const std::string t = c.choice(n, key, {"revolute", "prismatic", "fixed"});
+  return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
+}
+
+ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
+                            std::map<std::string, int>& link_lines) {
+  const std::string key = "model";
+  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
+  const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
+  if (sources != 1) c.fail(m, key, "expected exactly one of 'dh', 'links' or 'urdf', got " + std::to_string(sources));
+  ModelDescription d;
+  if (const SpecValue& dh = m["dh"]) {
+    c.keys(dh, "model.dh", {"convention", "joints"});
+    DHConvention conv = DHConvention::Standard;
+    if (dh["convention"]) conv = c.choice(dh["convention"], "model.dh.convention", {"standard", "modified"}) == "standard"
+                                     ? DHConvention::Standard : DHConvention::Modified;
+    const SpecValue& js = c.need(dh, "joints", "model.dh");
+    if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
+    std::vector<DHRow> rows;
+    std::vector<std::string> link_names;
+    for (size_t i = 0; i < js.size(); ++i) {
+      const SpecValue& j = js[i];
+      const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
+      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits"});
+      DHRow r;
+      r.name = c.string(c.need(j, "name", k), k + ".name");
+      r.type = read_joint_type(c, c.need(j, "type", k), k + ".type");
+      r.theta = c.number_or(j, "theta", k, 0.0);
+      r.d = c.number_or(j, "d", k, 0.0);
+      r.a = c.number_or(j, "a", k, 0.0);
+      r.alpha = c.number_or(j, "alpha", k, 0.0);
+      r.inertia = read_inertia(c, j, k);
+      r.limits = read_limits(c, j["limits"], k + ".limits");
+      rows.push_back(r);
+      link_names.push_back(j["link"] ? c.string(j["link"], k + ".link") : r.name);
+      link_lines[link_names.back()] = j.where.line;
+    }
+    d = from_dh(rows, conv);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      d.links[i].name = link_names[i];
+      d.links[i].joint_name = rows[i].name;
+    }
+  } else if (const SpecValue& ls = m["links"]) {
+    if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
+    std::map<std::string, int> index;
+    for (size_t i = 0; i < ls.size(); ++i) {
+      const SpecValue& l = ls[i];
+      const std::string k = "model.links[" + std::to_string(i) + "]";
+      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits"});
+      LinkSpec s;
+      s.name = c.string(c.need(l, "name", k), k + ".name");
+      s.joint_name = l["joint"] ? c.string(l["joint"], k + ".joint") : s.name;
+      if (l["parent"]) {
+        const std::string p = c.string(l["parent"], k + ".parent");
+        if (p != "base" && p != "world") {
+          auto it = index.find(p);
+          if (it == index.end()) {
+            std::vector<std::string> names;
+            for (auto& [nm, ix] : index) names.push_back(nm);
+            c.fail(l["parent"], k + ".parent", "unknown parent link '" + p + "' (links must be listed after their parent)" + did_you_mean(p, names));
+          }
+          s.parent = it->second;
+        }
+      }
+      s.type = read_joint_type(c, c.need(l, "type", k), k + ".type");
+      if (l["axis"]) s.axis = c.vec3(l["axis"], k + ".axis");
+      if (s.axis.norm() < 1e-12) c.fail(l["axis"], k + ".axis", "expected a non-zero vector");
+      if (l["origin"]) s.placement = c.pose(l["origin"], k + ".origin");
+      if (l["link_offset"]) s.link_offset = c.pose(l["link_offset"], k + ".link_offset");
+      s.offset = c.number_or(l, "offset", k, 0.0);
+      s.inertia = read_inertia(c, l, k);
+      s.limits = read_limits(c, l["limits"], k + ".limits");
+      index[s.name] = static_cast<int>(d.links.size());
+      link_lines[s.name] = l.where.line;
+      d.add_link(s);
+    }
+  } else {
+    if (!urdf) c.fail(m["urdf"], "model.urdf", "the URDF file was not loaded (hint: load the scenario with io::load_scenario)");
+    d = *urdf;
+  }
+  if (m["name"]) d.name = c.string(m["name"], "model.name");
+  if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
+  if (m["base"]) d.base = c.pose(m["base"], "model.base");
+  if (const SpecValue& ps = m["points"]) {
+    if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
+    for (const auto& kv : ps.entries) {
+      const std::string& name = kv.key;
+      const std::string k = "model.points." + name;
+      c.keys(kv.value, k, {"link", "position"});
+      const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
+      Vec3 pos = Vec3::Zero();
+      if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
+      bool known = link == "world" || link == "base";
+      std::vector<std::string> names;
+      for (const auto& l : d.links) {
+        names.push_back(l.name);
+        known = known || l.name == link;
+      }
+      if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
+      // A point named like an existing one (e.g. URDF link points) replaces it.
+      std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
+      d.add_point(name, link, pos);
+    }
+  }
+  return d;
+}
+
+
+std::string substitute(std::string s, const std::string& var, double v) {
+  const std::string pat = "{" + var + "}";
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  for (size_t pos; (pos = s.find(pat)) != std::string::npos;) s.replace(pos, pat.size(), b);
+  return s;
+}
+
+/// Builds one registry entry; errors from the factory that carry no location get the entry's.
+template <class Kind, class Build>
+auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec& e, const std::string& kind_key,
+                 const Build& build) {
+  const Kind* k = reg.find(e.kind);
+  if (!k)
+    c.fail(e.fields[kind_key].is_null() ? e.fields : e.fields[kind_key], e.key + "." + kind_key,
+           "got '" + e.kind + "', expected one of the " + reg.what() + "s" + did_you_mean(e.kind, reg.names()));
+  try {
+    return build(*k);
+  } catch (const Error& err) {
+    const std::string w = err.what();
+    if (w.rfind(c.file(), 0) == 0) throw;  // already located
+    c.fail(e.fields, e.key, w);
+  }
+}
+
+void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
+  std::set<std::string> signal_names;
+  for (const EntrySpec& e : entries) {
+    ForceElementPtr f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) {
+      return k.build(EntryArgs{c, e, m});
+    });
+    std::const_pointer_cast<ForceElement>(f)->label = e.name;
+    for (const auto& s : f->signal_names())
+      if (!signal_names.insert(s).second)
+        c.fail(e.fields, e.key, "two force elements record '" + s + "' (give each a different 'name:')");
+    out.add(f);
+  }
+}
+
+ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {
+  return build_entry(c, controller_kinds(), e, "type", [&](const ControllerKind& k) {
+    return k.build(EntryArgs{c, e, m});
+  });
+}
+
+}  // namespace
+
+std::vector<int> Problem::report_point_indices() const {
+  std::vector<int> idx;
+  for (const auto& p : report_points) idx.push_back(model.point_index(p));
+  return idx;
+}
+
+std::unique_ptr<ReferenceDynamics> Problem::make_reference_dynamics() const {
+  return std::make_unique<ReferenceDynamics>(model, forces, constraints, options);
+}
+
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
+  const std::string& source = spec.file;
+  SpecReader c(source, {});
+  c.params["deg"] = std::numbers::pi / 180.0;
+  for (const auto& [name, value] : spec.parameters) {
+    if (name == "pi" || name == "e" || name == "deg" || name == "t")
+      c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
+    c.params[name] = c.number(value, "parameters." + name);
+  }
+
+  std::map<std::string, int> link_lines;
+  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines);
+  if (!spec.model.value["name"]) description.name = spec.name;
+  std::unique_ptr<Problem> s;
+  try {
+    s = std::make_unique<Problem>(build_model(description));
+  } catch (const Error& e) {
+    // Locate the link the message names, if any.
+    const std::string w = e.what();
+    for (const auto& [name, line] : link_lines)
+      if (w.find("'" + name + "'") != std::string::npos) c.fail(SourceLocation{source, line}, "model", w);
+    c.fail(spec.model.value, "model", w);
+  }
+  s->file = source;
+  s->name = spec.name;
+  s->parameters = c.params;
+  const Model& m = s->model;
+
+  // URDF <mimic> joints: material couplings, before the file's own constraints.
+  for (const MimicSpec& mm : spec.model.mimics) {
+    try {
+      ConstraintPtr con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
+      std::const_pointer_cast<Constraint>(con)->name = "mimic_" + mm.joint;
+      s->constraints.add(con);
+    } catch (const Error& e) {
+      c.fail(spec.model.value["urdf"], "model.urdf", e.what());
+    }
+  }
+  for (const EntrySpec& e : spec.constraints) {
+    const ConstraintKind* kind = constraint_kinds().find(e.kind);
+    ConstraintOrigin origin = kind ? kind->default_origin : ConstraintOrigin::Programmed;
+    if (e.fields["origin"])
+      origin = c.choice(e.fields["origin"], e.key + ".origin", {"material", "programmed"}) == "material"
+                   ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
+    ConstraintPtr con = build_entry(c, constraint_kinds(), e, "kind", [&](const ConstraintKind& k) {
+      return k.build(EntryArgs{c, e, m}, origin);
+    });
+    auto mut = std::const_pointer_cast<Constraint>(con);
+    mut->name = e.name;
+    if (e.fields["record"]) {
+      mut->record_as = c.string(e.fields["record"], e.key + ".record");
+      if (!con->target()) c.fail(e.fields["record"], e.key + ".record", "this constraint prescribes no function of time to record");
+    }
+    try {
+      s->constraints.add(con);
+    } catch (const Error& err) {
+      c.fail(e.fields, e.key, err.what());
+    }
+  }
+  read_forces(c, spec.forces, m, s->forces);
+
+  {
+    const BaumgarteSpec& b = spec.baumgarte;
+    if (b.alpha) s->options.alpha = c.number(b.alpha, "baumgarte.alpha");
+    if (b.beta) s->options.beta = c.number(b.beta, "baumgarte.beta");
+    if (b.beta_first_order) s->options.beta_first_order = c.number(b.beta_first_order, "baumgarte.beta_first_order");
+    try {
+      s->options.validate();
+    } catch (const Error& e) {
+      c.fail(b.value, "baumgarte", e.what());
+    }
+  }
+  s->options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
+  s->options.paper_literal_forces = spec.paper_literal_forces;
+
+  const int nrows = s->constraints.rows();
+  if (nrows > m.nq)
+    c.fail(spec.constraints_value, "constraints",
+           "expected at most " + std::to_string(m.nq) + " constraint rows (one per coordinate), got " + std::to_string(nrows));
+  const PartitionSpec& part = spec.partition;
+  s->automatic_independent = part.automatic;
+  if (!part.automatic) {
+    const SpecValue& ind = part.independent_value;
+    if (static_cast<int>(part.independent.size()) != m.nq - nrows)
+      c.fail(ind, "partition.independent",
+             "expected " + std::to_string(m.nq - nrows) + " independent coordinates (" + std::to_string(m.nq) +
+                 " coordinates minus " + std::to_string(nrows) + " constraint rows), got " +
+                 std::to_string(part.independent.size()) + " (joints: " + SpecReader::joint_list(m) + ")");
+    for (size_t i = 0; i < part.independent.size(); ++i) {
+      const std::string& j = part.independent[i];
+      c.joint(ind[i], "partition.independent", m);
+      if (std::find(s->options.independent.begin(), s->options.independent.end(), j) != s->options.independent.end())
+        c.fail(ind[i], "partition.independent", "joint '" + j + "' is listed twice");
+      s->options.independent.push_back(j);
+    }
+  }
+  if (part.automatic_switch) s->options.automatic_partition = c.boolean(part.automatic_switch, "partition.automatic_switch");
+  if (part.max_condition) {
+    s->options.max_condition = c.number(part.max_condition, "partition.max_condition");
+    if (!(s->options.max_condition > 1)) c.fail(part.max_condition, "partition.max_condition", "expected a value > 1");
+  }
+
+  const InitialSpec& ini = spec.initial;
+  s->q0 = c.joint_vector(c.need(ini.value, "q", "initial"), "initial.q", m, true, 0.0);
+  s->qd0 = ini.qd ? c.joint_vector(ini.qd, "initial.qd", m, false, 0.0) : Eigen::VectorXd::Zero(m.nq);
+  s->project_initial = ini.project;
+  if (ini.tolerance) {
+    s->initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
+    if (!(s->initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
+  }
+
+  {
+    const IntegratorSpec& in = spec.integrator;
+    IntegratorOptions& o = s->integrator;
+    o.method = in.method == "dopri5" ? IntegratorMethod::DormandPrince45 : IntegratorMethod::RK4;
+    if (in.step) o.step = c.number(in.step, "integrator.step");
+    if (in.t0) o.t0 = c.number(in.t0, "integrator.t0");
+    if (in.t1) o.t1 = c.number(in.t1, "integrator.t1");
+    if (in.rtol) o.rtol = c.number(in.rtol, "integrator.rtol");
+    if (in.atol) o.atol = c.number(in.atol, "integrator.atol");
+    if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
+    o.min_step = in.min_step ? c.number(in.min_step, "integrator.min_step") : std::min(o.min_step, 0.5 * o.step);
+    if (in.residual_from) s->residual_from = c.number(in.residual_from, "integrator.residual_from");
+    try {
+      o.validate();
+    } catch (const Error& e) {
+      c.fail(in.value, "integrator", e.what());
+    }
+  }
+
+  // Initial consistency and partition at t0.
+  s->initial_dq = Eigen::VectorXd::Zero(m.nq);
+  s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
+  {
+    ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
+    const double t0 = s->integrator.t0;
+    const SpecValue& where_part = part.value ? part.value : spec.root;
+    try {
+      if (s->automatic_independent) {
+        rd.choose_partition(t0, s->q0, s->qd0);
+        s->options.independent.clear();
+        for (int i : rd.independent()) s->options.independent.push_back(m.joint_name[i]);
+      }
+    } catch (const NumericalFailure& e) {
+      c.fail(where_part, "partition", e.what());
+    }
+    if (s->project_initial) {
+      const auto cons = rd.make_consistent(t0, s->q0, s->qd0, 1e-12);
+      if (!cons.converged)
+        c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
+                                         fmt(cons.residual_after) + "); start closer to a consistent configuration");
+      s->q0 = cons.q;
+      s->qd0 = cons.qd;
+      s->initial_dq = cons.dq;
+      s->initial_dqd = cons.dqd;
+    }
+    Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
+    rd.residual(t0, x);
+    const ConstraintEval& ev = rd.constraints();
+    for (int row = 0; row < nrows; ++row) {
+      const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
+      if (!(v <= s->initial_tolerance))
+        c.fail(ini.value, "initial",
+               "the initial state violates constraint '" + s->constraints.row_name(row) + "' by " + fmt(v) +
+                   " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s->initial_tolerance) +
+                   " (hint: set initial.consistency: project, or correct q/qd)");
+    }
+    if (s->options.solver == ReferenceSolver::Projection && nrows > 0) {
+      try {
+        rd.derivative(t0, x, dx);
+      } catch (const NumericalFailure& e) {
+        c.fail(where_part, "partition", e.what());
+      }
+    }
+  }
+
+  // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
+  // its sweep parameter).
+  ControllerFactory top_controller;
+  std::string top_type;
+  if (spec.controller) {
+    top_controller = read_controller(c, *spec.controller, m);
+    top_type = spec.controller->kind;
+  }
+  if (spec.effort_limit) {
+    s->effort_limit = c.joint_vector(spec.effort_limit, "effort_limit", m, false, std::numeric_limits<double>::infinity());
+    for (int i = 0; i < m.nq; ++i)
+      if (!(s->effort_limit[i] >= 0))
+        c.fail(spec.effort_limit, "effort_limit." + m.joint_name[i],
+               "expected a limit >= 0 [N m or N], got " + fmt(s->effort_limit[i]));
+  }
+  for (const ExperimentSpec& e : spec.experiments) {
+    const std::string& k = e.key;
+    if (!spec.controller && !e.controller)
+      c.fail(e.value, "controller",
+             "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
+    if (!e.sweep_parameter.empty() && c.params.count(e.sweep_parameter))
+      c.fail(e.sweep, k + ".sweep." + e.sweep_parameter,
+             "the sweep parameter '" + e.sweep_parameter + "' has the name of a parameter (or a constant); choose another name");
+    std::vector<double> values{0.0};
+    if (!e.sweep_parameter.empty()) {
+      values.clear();
+      for (const SpecValue& v : e.sweep_values) values.push_back(c.number(v, k + ".sweep." + e.sweep_parameter));
+    }
+    const std::string name_t = e.named ? e.name : "run" + k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
+    for (double v : values) {
+      SpecReader ce = c;  // the sweep parameter is visible in the run's values
+      auto exp = std::make_unique<Experiment>();
+      if (!e.sweep_parameter.empty()) {
+        ce.params[e.sweep_parameter] = v;
+        exp->sweep.emplace_back(e.sweep_parameter, v);
+      }
+      exp->name = e.sweep_parameter.empty() ? name_t : substitute(name_t, e.sweep_parameter, v);
+      for (const auto& other : s->experiments)
+        if (other->name == exp->name)
+          c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
+                 "duplicate experiment name '" + exp->name + "' (use {" +
+                     (e.sweep_parameter.empty() ? "param" : e.sweep_parameter) + "} in the name)");
+      exp->q0 = s->q0;
+      exp->qd0 = Eigen::VectorXd::Zero(m.nq);
+      if (e.initial_q) {
+        const Eigen::VectorXd given = ce.joint_vector(e.initial_q, k + ".initial.q", m, false, std::nan(""));
+        for (int j = 0; j < m.nq; ++j)
+          if (!std::isnan(given[j])) exp->q0[j] = given[j];
+      }
+      if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
+      if (e.plant_forces)
+        read_forces(ce, *e.plant_forces, m, exp->plant_forces);
+      else if (spec.plant_forces)
+        read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
+      if (e.controller) {
+        exp->make_controller = read_controller(ce, *e.controller, m);
+        exp->controller_type = e.controller->kind;
+      } else {
+        exp->make_controller = top_controller;
+        exp->controller_type = top_type;
+      }
+      s->experiments.push_back(std::move(exp));
+    }
+  }
+  if (spec.output_points) {
+    for (const SpecValue& p : *spec.output_points) s->report_points.push_back(c.point(p, "outputs.points", m));
+  } else {
+    s->report_points = m.point_name;
+  }
+  return s;
+}
+
+Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
+  const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
+  return plan_motion(rd, x0, p.integrator, p.residual_from, progress, RecordOptions{p.report_point_indices()});
+}
+
+ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const Plan& plan, ReferenceDynamics& rd,
+                                  const std::function<void(double)>& progress) {
+  const Model& m = p.model;
+  const int n = m.nv;
+  std::unique_ptr<Controller> ctrl = ex.make_controller(m);
+  ClosedLoopOptions o;
+  o.integrator = p.integrator;
+  o.integrator.t1 = std::min(p.integrator.t1, plan.summary.t_end);
+  o.effort_limit = p.effort_limit;
+  o.progress = progress;
+  o.points = p.report_point_indices();
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
+  x0.head(n) = ex.q0;
+  x0.segment(n, n) = ex.qd0;
+  return simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &rd, x0, o);
+}
+
+}  // namespace refdyn
