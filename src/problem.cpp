@@ -2,7 +2,10 @@
 #include "refdyn/problem.hpp"
 
 #include "refdyn/error.hpp"
+#include "refdyn/kinematics.hpp"
 #include "refdyn/text.hpp"
+
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
@@ -207,6 +210,66 @@ ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const
   });
 }
 
+/// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
+/// error naming the constraint (or section) responsible.
+void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p) {
+  const Model& m = p.model;
+  const ConstraintSet& cs = p.constraints;
+  const double t0 = p.integrator.t0;
+  const int nmimic = cs.size() - static_cast<int>(spec.constraints.size());
+  auto entry_of = [&](int row) -> std::pair<const SpecValue*, std::string> {
+    const int k = cs.row_owner(row);
+    if (k < nmimic) return {&spec.model.value, "model.urdf"};
+    const EntrySpec& e = spec.constraints[k - nmimic];
+    return {&e.fields, e.key};
+  };
+  Data data(m);
+  ConstraintEval ev(m, cs);
+  try {
+    evaluate_constraints(m, data, cs, ev, t0, p.q0, p.qd0);
+  } catch (const Error& e) {
+    c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
+  }
+  for (int row = 0; row < cs.rows(); ++row)
+    if (!std::isfinite(ev.phi[row]) || !std::isfinite(ev.phid[row]) || !std::isfinite(ev.gamma[row]) ||
+        !ev.A.row(row).allFinite()) {
+      const auto [at, key] = entry_of(row);
+      c.fail(*at, key,
+             "constraint row '" + cs.row_name(row) + "' is not finite at t0 = " + fmt(t0) + " s (Phi = " +
+                 fmt(ev.phi[row]) + ", gamma = " + fmt(ev.gamma[row]) +
+                 "): check its domain at the initial state (a square root or logarithm of a negative number, a "
+                 "division by zero)");
+    }
+  // Independent rows: add them one by one; a row that does not raise the rank is redundant.
+  if (cs.rows() > 0) {
+    Eigen::MatrixXd A = ev.A;  // rows normalised: the test is on directions, not on units
+    for (int row = 0; row < cs.rows(); ++row)
+      if (A.row(row).norm() > 0) A.row(row).normalize();
+    for (int row = 0; row < cs.rows(); ++row) {
+      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(row + 1, m.nv);
+      qr.setThreshold(1e-9);
+      qr.compute(A.topRows(row + 1));
+      if (A.row(row).norm() == 0 || qr.rank() < row + 1) {
+        const auto [at, key] = entry_of(row);
+        c.fail(*at, key,
+               "constraint row '" + cs.row_name(row) + "' depends linearly on the rows before it at t0 = " + fmt(t0) +
+                   " s (the constraint Jacobian has rank " + std::to_string(A.row(row).norm() == 0 ? row : qr.rank()) +
+                   " < " + std::to_string(row + 1) + "): the constraints are redundant or singular there; remove one "
+                   "or start elsewhere");
+      }
+    }
+  }
+  Eigen::VectorXd Q(m.nv), zdot(std::max(1, p.forces.num_states()));
+  const Eigen::VectorXd z = Eigen::VectorXd::Zero(std::max(1, p.forces.num_states()));
+  p.forces.evaluate(t0, p.q0, p.qd0, z.data(), Q, zdot.data());
+  for (size_t k = 0; k < p.forces.elements().size(); ++k) {
+    const Eigen::VectorXd f = p.forces.element_force(static_cast<int>(k), t0, p.q0, p.qd0, z.data());
+    if (!f.allFinite() && k < spec.forces.size())
+      c.fail(spec.forces[k].fields, spec.forces[k].key,
+             "the force of '" + p.forces.elements()[k]->name() + "' is not finite at t0 = " + fmt(t0) + " s");
+  }
+}
+
 }  // namespace
 
 std::vector<int> Problem::report_point_indices() const {
@@ -356,6 +419,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
     const double t0 = s->integrator.t0;
     const SpecValue& where_part = part.value ? part.value : spec.root;
+    check_at_t0(c, spec, *s);
     try {
       if (s->automatic_independent) {
         rd.choose_partition(t0, s->q0, s->qd0);

@@ -1,0 +1,159 @@
+// Registries of constraint kinds, force elements and controllers: every entry documented (and the
+// docs/scenario.md reference generated from them is current), unknown names answered with "did
+// you mean", and the kind added as one file (distance) checked against finite differences and a
+// closed-form motion.
+#include "refdyn/constraints.hpp"
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/kinematics.hpp"
+#include "refdyn/registry.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+using namespace refdyn;
+
+namespace {
+
+std::string read_text(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// A planar 2R arm in the horizontal plane with equal links L = 0.5 and points B (base) and E
+// (tip): |E − B| = 2 L cos(q2/2).
+std::string two_link(const std::string& constraint, const std::string& q0) {
+  return R"(name: two_link
+parameters: {L: 0.5, d0: 0.8, dd: 0.15, T: 2}
+model:
+  gravity: [0, 0, -9.81]
+  links:
+    - {name: l1, joint: q1, parent: base, type: revolute, axis: [0, 0, 1], mass: 1, com: [0.25, 0, 0], inertia: [0.001, 0.02, 0.02]}
+    - {name: l2, joint: q2, parent: l1, type: revolute, axis: [0, 0, 1], origin: {xyz: [0.5, 0, 0]}, mass: 1, com: [0.25, 0, 0], inertia: [0.001, 0.02, 0.02]}
+  points:
+    B: {link: world, position: [0, 0, 0]}
+    E: {link: l2, position: [0.5, 0, 0]}
+constraints:
+)" + constraint + R"(
+partition: {independent: [q1]}
+initial: {q: )" + q0 + R"(}
+integrator: {method: rk4, step: 1e-3, t1: 2}
+)";
+}
+
+}  // namespace
+
+TEST(Registry, EveryEntryIsDocumentedAndTheScenarioReferenceIsCurrent) {
+  for (const auto& k : constraint_kinds().entries()) {
+    EXPECT_FALSE(k.doc.empty()) << k.name;
+    EXPECT_TRUE(k.build) << k.name;
+    for (const auto& key : k.keys) EXPECT_FALSE(key.doc.empty()) << k.name << "." << key.name;
+  }
+  for (const auto& k : force_kinds().entries()) EXPECT_FALSE(k.doc.empty()) << k.name;
+  for (const auto& k : controller_kinds().entries()) EXPECT_FALSE(k.doc.empty()) << k.name;
+  EXPECT_NE(constraint_kinds().find("distance"), nullptr);
+  EXPECT_NE(controller_kinds().find("pid_gravity"), nullptr);
+  const std::string doc = read_text(std::string(REFDYN_SOURCE_DIR) + "/docs/scenario.md");
+  EXPECT_NE(doc.find(registry_markdown()), std::string::npos)
+      << "docs/scenario.md does not contain the current registry reference; regenerate it with `refdyn kinds`";
+}
+
+TEST(Registry, UnknownNamesAreAnsweredWithDidYouMean) {
+  test::expect_error_mentioning([] { constraint_kinds().get("distanse"); }, {"unknown constraint kind 'distanse'", "'distance'"});
+  test::expect_error_mentioning([] { force_kinds().get("lugr"); }, {"'lugre'"});
+  test::expect_error_mentioning([] { controller_kinds().get("pid_gravty"); }, {"'pid_gravity'"});
+  test::expect_error_mentioning(
+      [] { io::parse_scenario(two_link("  - {name: c, kind: distanse, points: [B, E], length: d0}", "[0, 1]"), "k.yaml"); },
+      {"k.yaml:", "constraints.c.kind", "did you mean 'distance'"});
+  test::expect_error_mentioning(
+      [] { io::parse_scenario(two_link("  - {name: c, kind: distance, points: [B, E], lenght: d0}", "[0, 1]"), "k.yaml"); },
+      {"k.yaml:", "constraints[0].lenght", "did you mean 'length'"});
+}
+
+// Φ, Φ̇, A and γ of the distance kind against central finite differences (in the test only),
+// on a random spatial chain with the two points on different links.
+TEST(DistanceKind, DerivativesMatchFiniteDifferences) {
+  std::mt19937 rng(7);
+  test::RandomChainOptions opt;
+  opt.dof = 5;
+  ModelDescription d = test::random_chain(rng, opt);
+  d.add_point("P", d.links[1].name, Vec3(0.1, -0.05, 0.2));
+  const Model m = build_model(d);
+  SpecReader reader("test", {});
+  EntrySpec e;
+  e.kind = "distance";
+  e.name = "rod";
+  e.key = "constraints.rod";
+  e.fields.kind = SpecValue::Kind::Map;
+  SpecValue pts;
+  pts.kind = SpecValue::Kind::List;
+  pts.items = {SpecValue::scalar("P"), SpecValue::scalar("tip")};
+  e.fields.entries = {{"points", 1, pts}, {"length", 1, SpecValue::scalar("0.7 + 0.1*sin(3*t)")}};
+  ConstraintSet set;
+  set.add(constraint_kinds().get("distance").build(EntryArgs{reader, e, m}, ConstraintOrigin::Programmed));
+  Data data(m);
+  ConstraintEval ev(m, set);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Eigen::VectorXd q = test::random_vector(rng, m.nq), qd = test::random_vector(rng, m.nq);
+    const double t = 0.3 + 0.1 * trial, h = 1e-6;
+    auto phi = [&](const Eigen::VectorXd& qq, double tt) {
+      evaluate_constraints(m, data, set, ev, tt, qq, qd);
+      return ev.phi[0];
+    };
+    auto phid = [&](const Eigen::VectorXd& qq, double tt) {
+      evaluate_constraints(m, data, set, ev, tt, qq, qd);
+      return ev.phid[0];
+    };
+    evaluate_constraints(m, data, set, ev, t, q, qd);
+    const Eigen::MatrixXd A = ev.A;
+    const double phid0 = ev.phid[0], gamma0 = ev.gamma[0];
+    Eigen::RowVectorXd A_fd(m.nq);
+    for (int j = 0; j < m.nq; ++j) {
+      Eigen::VectorXd dq = Eigen::VectorXd::Zero(m.nq);
+      dq[j] = h;
+      A_fd[j] = (phi(q + dq, t) - phi(q - dq, t)) / (2 * h);
+    }
+    EXPECT_TRUE(test::near(A, A_fd, 1e-7, 1e-8)) << "A, trial " << trial;
+    EXPECT_NEAR(phid0, (phi(q + h * qd, t + h) - phi(q - h * qd, t - h)) / (2 * h), 1e-7) << "phid, trial " << trial;
+    // γ = Φ̈ at q̈ = 0: the rate of Φ̇ along (q̇, t).
+    EXPECT_NEAR(gamma0, (phid(q + h * qd, t + h) - phid(q - h * qd, t - h)) / (2 * h), 1e-6) << "gamma, trial " << trial;
+  }
+}
+
+// The distance between base and tip of an equal-link 2R arm prescribes the elbow angle:
+// d(t) = 2 L cos(q2/2), so q2(t) = 2 acos(d(t)/(2L)) whatever the shoulder does.
+TEST(DistanceKind, ElbowFollowsTheClosedFormOfAPrescribedReach) {
+  const double L = 0.5, d0 = 0.8, dd = 0.15, T = 2;
+  const double q20 = 2 * std::acos(d0 / (2 * L));
+  const std::string c = "  - {name: reach, kind: distance, points: [B, E], length: d0 + dd*(1 - cos(2*pi*t/T))/2, record: d}";
+  char q0[64];
+  std::snprintf(q0, sizeof q0, "[0.3, %.17g]", q20);
+  const auto p = io::parse_problem(two_link(c, q0), "reach.yaml");
+  auto rd = p->make_reference_dynamics();
+  const Plan plan = plan_problem(*p, *rd);
+  ASSERT_TRUE(plan.summary.ok()) << plan.summary.message;
+  ASSERT_EQ(plan.target_signals, std::vector<std::string>{"d"});
+  double worst = 0;
+  for (size_t k = 0; k < plan.size(); ++k) {
+    const double t = plan.t[k];
+    const double d = d0 + dd * (1 - std::cos(2 * std::numbers::pi * t / T)) / 2;
+    EXPECT_NEAR(plan.targets[k][0], d, 1e-15);
+    worst = std::max(worst, std::abs(plan.x[k][1] - 2 * std::acos(d / (2 * L))));
+  }
+  EXPECT_LT(worst, 1e-8) << "q2(t) differs from 2 acos(d(t)/2L)";
+}
+
+TEST(DistanceKind, CoincidingPointsAreReportedNotDividedBy) {
+  // Folded arm: E on the base when q2 = π; the distance has no direction there.
+  test::expect_error_mentioning(
+      [] {
+        io::parse_problem(two_link("  - {name: reach, kind: distance, points: [B, E], length: 0}", "[0, pi]"), "fold.yaml");
+      },
+      {"fold.yaml", "coincide"});
+}
