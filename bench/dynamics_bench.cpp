@@ -54,6 +54,7 @@ refdyn::Model model_from_table(const DHTable& t) {
 }
 
 struct Case {
+  explicit Case(refdyn::Model m) : model(std::move(m)) {}
   std::string name;
   refdyn::Model model;
   std::unique_ptr<refdyn::Data> data;
@@ -62,9 +63,8 @@ struct Case {
 };
 
 std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::uint32_t seed) {
-  auto c = std::make_unique<Case>();
+  auto c = std::make_unique<Case>(std::move(model));
   c->name = table.name;
-  c->model = std::move(model);
   c->data = std::make_unique<refdyn::Data>(c->model);
   c->kdl = std::make_unique<KdlPeer>(table);
   const int n = c->model.nq;

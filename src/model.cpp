@@ -140,7 +140,7 @@ Model build_model(const ModelDescription& d) {
   std::vector<int> body_of(nl, -1);
   std::vector<SE3> link_in_body(nl);  // pose of link frame in its body frame (or world)
   static std::atomic<std::uint64_t> next_id{1};
-  Model m;
+  ModelData m;
   m.id = next_id++;
   m.name = d.name;
   m.gravity = d.gravity;
@@ -202,8 +202,16 @@ Model build_model(const ModelDescription& d) {
     m.point_body.push_back(body);
     m.point_position.push_back(pose.act_point(p.position));
   }
-  return m;
+  return Model(std::move(m));
 }
+
+Model::Model(ModelData d)
+    : nq(d.nq), nv(d.nv), name(std::move(d.name)), id(d.id), gravity(d.gravity), parent(std::move(d.parent)),
+      joint_type(std::move(d.joint_type)), placement(std::move(d.placement)), axis(std::move(d.axis)),
+      offset(std::move(d.offset)), inertia(std::move(d.inertia)), link_offset(std::move(d.link_offset)),
+      body_name(std::move(d.body_name)), joint_name(std::move(d.joint_name)), limits(std::move(d.limits)),
+      support(std::move(d.support)), point_name(std::move(d.point_name)), point_body(std::move(d.point_body)),
+      point_position(std::move(d.point_position)) {}
 
 int Model::body_index(const std::string& n) const { return find_name(body_name, n, "link"); }
 int Model::point_index(const std::string& n) const { return find_name(point_name, n, "point"); }

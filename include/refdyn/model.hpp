@@ -98,9 +98,8 @@ class Model;
 /// Throws refdyn::Error naming the offending link/point and what to change.
 Model build_model(const ModelDescription& d);
 
-/// Immutable compiled model: one body per degree of freedom, parents before children.
-class Model {
- public:
+/// The contents of a compiled model, as build_model fills them (then frozen into a Model).
+struct ModelData {
   int nq = 0;                       ///< number of generalized coordinates (= nv)
   int nv = 0;
   std::string name;
@@ -123,6 +122,37 @@ class Model {
   std::vector<std::string> point_name;
   std::vector<int> point_body;      ///< body index, -1: fixed in the world
   std::vector<Vec3> point_position; ///< in the body frame (world frame when body is -1)
+};
+
+/// Immutable compiled model: one body per degree of freedom, parents before children. Made only
+/// by build_model (which validates the description); every member is const, so a Model (and any
+/// Data or algorithm that refers to it) cannot be changed after build_model returns. Copies share
+/// its id.
+class Model {
+ public:
+  Model() = default;
+  const int nq = 0;                 ///< number of generalized coordinates (= nv)
+  const int nv = 0;
+  const std::string name;
+  const std::uint64_t id = 0;             ///< distinct for every build_model call (copies share it)
+  const Vec3 gravity = Vec3(0, 0, -9.81);
+
+  // --- per body (index = coordinate index) ---
+  const std::vector<int> parent;          ///< parent body, -1 for the world
+  const std::vector<JointType> joint_type;///< Revolute or Prismatic
+  const std::vector<SE3> placement;       ///< joint frame in parent body frame (base folded in for roots)
+  const std::vector<Vec3> axis;           ///< unit joint axis in the body frame
+  const std::vector<double> offset;       ///< joint offset
+  const std::vector<Inertia> inertia;     ///< spatial inertia in the body frame
+  const std::vector<SE3> link_offset;     ///< user link frame in body frame (for link_transform)
+  const std::vector<std::string> body_name, joint_name;
+  const std::vector<JointLimits> limits;
+  const std::vector<std::vector<int>> support; ///< ancestors of body i including i, root first
+
+  // --- points ---
+  const std::vector<std::string> point_name;
+  const std::vector<int> point_body;      ///< body index, -1: fixed in the world
+  const std::vector<Vec3> point_position; ///< in the body frame (world frame when body is -1)
 
   int body_index(const std::string& link_name) const;  ///< throws with "did you mean"
   int point_index(const std::string& point) const;     ///< throws with "did you mean"
@@ -141,6 +171,10 @@ class Model {
   std::string summary() const;
   /// Checks size and finiteness of q (throws with the joint names in the hint).
   void check_q(const Eigen::VectorXd& q, const char* what = "q") const;
+
+ private:
+  friend Model build_model(const ModelDescription& d);
+  explicit Model(ModelData d);
 };
 
 /// Workspace for the algorithms; allocated once by the constructor, never resized afterwards.
