@@ -40,6 +40,12 @@ void IntegratorOptions::validate() const {
   need(atol > 0 && std::isfinite(atol), "atol", "a finite value > 0", atol);
   need(min_step > 0 && min_step < step, "min_step", "a value in (0, step)", min_step);
   need(max_steps > 0, "max_steps", "a positive count", static_cast<double>(max_steps));
+  const double span = t1 - t0;
+  need(std::isfinite(span), "t1", "a time span t1 - t0 that is a finite number", span);
+  // The step count must be a number the integrator can count to (1e-300 over 1e300 is not).
+  const double steps = span / step;
+  need(std::isfinite(steps) && steps < 9e15, "step", "a step giving a countable number of steps over [t0, t1]",
+       step);
 }
 
 Rk4Workspace::Rk4Workspace(Eigen::Index n) : k1(n), k2(n), k3(n), k4(n), tmp(n) {}

@@ -3,11 +3,15 @@
 
 #include "refdyn/error.hpp"
 #include "refdyn/kinematics.hpp"
+#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/json.hpp"
 #include "refdyn/text.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/QR>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -210,6 +214,27 @@ ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const
   });
 }
 
+/// Names become CSV headers, JSON strings and (experiments) file names: printable UTF-8.
+void check_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
+  if (name.empty()) c.fail(at, key, "expected a name, got an empty one");
+  if (name.size() > 200) c.fail(at, key, "a name of " + std::to_string(name.size()) + " bytes; at most 200");
+  if (!valid_utf8(name)) c.fail(at, key, "the name is not valid UTF-8 text (hint: save the file as UTF-8)");
+  for (unsigned char ch : name)
+    if (ch < 0x20 || ch == 0x7f) c.fail(at, key, "the name contains a control character");
+}
+
+/// An experiment's name is part of a file name (track_<name>.csv): letters, digits and . _ - + =
+/// only, not starting with a dot.
+void check_file_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
+  check_name(c, at, key, name);
+  for (unsigned char ch : name)
+    if (!(std::isalnum(ch) || ch == '.' || ch == '_' || ch == '-' || ch == '+' || ch == '='))
+      c.fail(at, key,
+             "the experiment name '" + name + "' is used in a file name and may contain only letters, digits and . _ - + "
+             "= (got '" + std::string(1, static_cast<char>(ch)) + "')");
+  if (name[0] == '.' || name[0] == '-') c.fail(at, key, "the experiment name '" + name + "' may not start with '.' or '-'");
+}
+
 /// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
 /// error naming the constraint (or section) responsible.
 void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p) {
@@ -257,6 +282,22 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
                    " < " + std::to_string(row + 1) + "): the constraints are redundant or singular there; remove one "
                    "or start elsewhere");
       }
+    }
+  }
+  {  // A joint that moves no mass makes M singular: name it.
+    const Eigen::MatrixXd M = mass_matrix(m, data, p.q0);
+    const Eigen::LLT<Eigen::MatrixXd> llt(M);
+    const double tiny = 1e-12 * std::max(1.0, M.diagonal().cwiseAbs().maxCoeff());
+    if (llt.info() != Eigen::Success || !M.allFinite() || (M.diagonal().array() <= tiny).any()) {
+      int j = 0;
+      for (int i = 0; i < m.nv; ++i)
+        if (!(M(i, i) > tiny)) {
+          j = i;
+          break;
+        }
+      c.fail(spec.model.value, "model",
+             "the mass matrix is singular at the initial state: joint '" + m.joint_name[j] +
+                 "' moves no mass or inertia (hint: give the links it carries a mass and an inertia)");
     }
   }
   Eigen::VectorXd Q(m.nv), zdot(std::max(1, p.forces.num_states()));
@@ -307,6 +348,22 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   }
   s->file = source;
   s->name = spec.name;
+  check_name(c, spec.root["name"] ? spec.root["name"] : spec.root, "name", spec.name);
+  {
+    const Model& mm = s->model;
+    for (const auto* names : {&mm.joint_name, &mm.body_name, &mm.point_name})
+      for (const auto& nm : *names) {
+        const auto it = link_lines.find(nm);
+        check_name(c, it != link_lines.end() ? SpecValue::scalar(nm, {source, it->second}) : spec.model.value, "model", nm);
+      }
+    std::set<std::string> joints;
+    for (const auto& j : mm.joint_name)
+      if (!joints.insert(j).second) {
+        const auto it = link_lines.find(j);
+        c.fail(it != link_lines.end() ? SpecValue::scalar(j, {source, it->second}) : spec.model.value, "model",
+               "two joints are named '" + j + "' (joint names must be unique: they name columns, gains and constraints)");
+      }
+  }
   s->parameters = c.params;
   const Model& m = s->model;
 
@@ -329,6 +386,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     ConstraintPtr con = build_entry(c, constraint_kinds(), e, "kind", [&](const ConstraintKind& k) {
       return k.build(EntryArgs{c, e, m}, origin);
     });
+    check_name(c, e.fields["name"], e.key + ".name", e.name);
     auto mut = std::const_pointer_cast<Constraint>(con);
     mut->name = e.name;
     if (e.fields["record"]) {
@@ -412,6 +470,47 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     }
   }
 
+  // Limits, before any work: steps and samples of a run, number of runs.
+  {
+    Limits& lim = s->limits;
+    auto count = [&](const char* k, long& v) {
+      if (const SpecValue& n = spec.limits[k]) {
+        const double x = c.number(n, std::string("limits.") + k);
+        if (!(x >= 1 && x <= 9e15 && x == std::floor(x))) c.fail(n, std::string("limits.") + k, "expected a whole number >= 1, got " + fmt(x));
+        v = static_cast<long>(x);
+      }
+    };
+    count("max_steps", lim.max_steps);
+    count("max_samples", lim.max_samples);
+    count("max_runs", lim.max_runs);
+    IntegratorOptions& o = s->integrator;
+    const double span = o.t1 - o.t0;
+    const SpecValue& at = spec.integrator.value ? spec.integrator.value : spec.root;
+    double samples;
+    if (o.method == IntegratorMethod::RK4) {
+      const double steps = std::ceil(span / o.step - 1e-9);
+      if (steps > static_cast<double>(lim.max_steps))
+        c.fail(at, "integrator",
+               "(t1 - t0)/step = " + fmt(steps) + " steps, more than limits.max_steps = " + std::to_string(lim.max_steps) +
+                   " (hint: a larger step or a shorter span; or raise limits.max_steps)");
+      const double every = o.output_interval > 0 ? std::max(1.0, std::round(o.output_interval / (span / steps))) : 1.0;
+      samples = std::floor(steps / every) + 2;
+    } else {
+      samples = std::floor(span / (o.output_interval > 0 ? o.output_interval : o.step)) + 2;
+    }
+    o.max_steps = lim.max_steps;
+    if (samples > static_cast<double>(lim.max_samples))
+      c.fail(at, "integrator",
+             fmt(samples) + " output samples, more than limits.max_samples = " + std::to_string(lim.max_samples) +
+                 " (hint: set integrator.output_interval, shorten the span, or raise limits.max_samples)");
+    double runs = 0;
+    for (const ExperimentSpec& e : spec.experiments) runs += e.sweep_parameter.empty() ? 1 : static_cast<double>(e.sweep_values.size());
+    if (runs > static_cast<double>(lim.max_runs))
+      c.fail(spec.experiments_value, "experiments",
+             fmt(runs) + " runs after expanding the sweeps, more than limits.max_runs = " + std::to_string(lim.max_runs) +
+                 " (hint: fewer sweep values, or raise limits.max_runs)");
+  }
+
   // Initial consistency and partition at t0.
   s->initial_dq = Eigen::VectorXd::Zero(m.nq);
   s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
@@ -474,6 +573,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
         c.fail(spec.effort_limit, "effort_limit." + m.joint_name[i],
                "expected a limit >= 0 [N m or N], got " + fmt(s->effort_limit[i]));
   }
+  std::set<std::string> experiment_names;
   for (const ExperimentSpec& e : spec.experiments) {
     const std::string& k = e.key;
     if (!spec.controller && !e.controller)
@@ -496,8 +596,8 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
         exp->sweep.emplace_back(e.sweep_parameter, v);
       }
       exp->name = e.sweep_parameter.empty() ? name_t : substitute(name_t, e.sweep_parameter, v);
-      for (const auto& other : s->experiments)
-        if (other->name == exp->name)
+      check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
+      if (!experiment_names.insert(exp->name).second)
           c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
                  "duplicate experiment name '" + exp->name + "' (use {" +
                      (e.sweep_parameter.empty() ? "param" : e.sweep_parameter) + "} in the name)");

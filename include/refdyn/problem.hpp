@@ -25,6 +25,14 @@
 
 namespace refdyn {
 
+/// Resource limits checked by build_problem before any work, so that a scenario that would run
+/// for hours or exhaust memory is rejected at once with the key to change (scenario `limits:`).
+struct Limits {
+  long max_steps = 2'000'000;    ///< integration steps of one run (RK4: (t1 − t0)/step; DOPRI5: a stop)
+  long max_samples = 1'000'000;  ///< recorded output samples of one run
+  long max_runs = 10'000;        ///< closed-loop runs after expanding the sweeps
+};
+
 /// One closed-loop run of a scenario (one value of a sweep).
 struct Experiment {
   std::string name;
@@ -58,6 +66,7 @@ struct Problem {
   Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
   std::vector<std::unique_ptr<Experiment>> experiments;
   std::vector<std::string> report_points;   ///< points recorded in trajectories
+  Limits limits;
 
   std::vector<int> report_point_indices() const;
   /// A reference dynamics of this problem (refers to its members).

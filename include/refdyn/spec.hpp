@@ -142,6 +142,7 @@ struct ScenarioSpec {
   std::vector<ExperimentSpec> experiments;
   SpecValue experiments_value;
   std::optional<std::vector<SpecValue>> output_points;  ///< absent: every model point
+  SpecValue limits;                        ///< {max_steps, max_samples, max_runs} as written
   SpecValue root;                          ///< the whole file as written (for messages)
 };
 

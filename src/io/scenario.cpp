@@ -196,7 +196,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
-                    "experiments", "outputs"});
+                    "experiments", "outputs", "limits"});
   const Reader rd(c, root);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
@@ -305,6 +305,10 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
       if (const SpecValue& ct = e["controller"]) x.controller = rd.controller(ct, x.key + ".controller");
       s.experiments.push_back(std::move(x));
     }
+  }
+  if (const SpecValue& lim = root["limits"]) {
+    c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});
+    s.limits = lim;
   }
   if (const SpecValue& out = root["outputs"]) {
     c.keys(out, "outputs", {"points"});
