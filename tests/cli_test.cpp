@@ -520,4 +520,117 @@ TEST(CommandLine, HelpForEachSubcommand) {
   EXPECT_TRUE(empty_dir(s.cwd())) << "--help wrote:" << listing(s.cwd());
 }
 
+// ---------------------------------------------------------------------------------------------
+// Hostile input and outcomes (the hostile-input issue).
+
+std::string without_header(std::string text, size_t drop_lines) {
+  for (size_t k = 0; k < drop_lines; ++k) text = text.substr(text.find('\n') + 1);
+  return text;
+}
+
+/// A copy of the minimal scenario with `from` replaced by `to` (and `extra` appended).
+fs::path variant(const Scratch& s, const std::string& name, const std::string& from, const std::string& to,
+                 const std::string& extra = "") {
+  std::string text = read_text(kGood);
+  if (!from.empty()) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  }
+  const fs::path p = s.root() / name;
+  std::ofstream(p) << text << extra;
+  return p;
+}
+
+TEST(Outcomes, StoppedRunReportsOneLineEvenWhenQuietAndIsNeverFeasible) {
+  Scratch s;
+  // The tip is driven out of the arm's reach: the plan diverges near t = 0.8 s.
+  const fs::path f = variant(s, "diverge.yaml", "x(E) - (L1 + 0.1*(1 - cos(2*pi*t))/2)", "x(E) - (L1 + 0.5*t)",
+                             "");
+  std::string text = read_text(f);
+  text.replace(text.find("t1: 0.5"), 7, "t1: 1");
+  text.replace(text.find("  qd: {j1: 0, j2: 0}"), 20, "  qd: {j1: 0, j2: 0}\n  consistency: project");
+  std::ofstream(f) << text;
+  const fs::path out = s.root() / "out";
+  const Result r = run(s, "plan " + quote(f) + " -q -o " + quote(out));
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_EQ(r.out, "") << describe(r);
+  EXPECT_TRUE(one_error_line(r, "the plan stopped early"));
+  const std::string feas = read_text(out / "feasibility.json");
+  EXPECT_TRUE(contains(feas, "\"feasible\": false")) << feas.substr(0, 200);
+  EXPECT_TRUE(contains(feas, "incomplete_reason")) << feas.substr(0, 200);
+}
+
+TEST(Outcomes, RejectedInputLeavesAnExistingResultsFolderByteForByteUnchanged) {
+  Scratch s;
+  const fs::path out = s.root() / "results";
+  ASSERT_EQ(run(s, "plan " + quote(kGood) + " -q -o " + quote(out)).code, 0);
+  std::map<std::string, std::string> before;
+  for (const auto& e : fs::directory_iterator(out)) before[e.path().filename().string()] = read_text(e.path());
+  // track without experiments, and a scenario with an error found only when building it
+  const fs::path nan = variant(s, "nan.yaml", "expression: x(E)", "expression: sqrt(x(E) - 2) + x(E)");
+  for (const std::string& args : {"track " + quote(kGood), "track " + quote(nan), "plan " + quote(nan)}) {
+    const Result r = run(s, args + " -o " + quote(out));
+    EXPECT_EQ(r.code, 2) << describe(r);
+    std::map<std::string, std::string> after;
+    for (const auto& e : fs::directory_iterator(out)) after[e.path().filename().string()] = read_text(e.path());
+    EXPECT_TRUE(after == before) << args << ": the results folder changed:" << listing(out);
+  }
+}
+
+TEST(Outcomes, ResultsAreBitIdenticalAcrossProcesses) {
+  Scratch s;
+  const std::vector<std::string> files{"examples/unicycle/unicycle.yaml", "examples/four_bar/four_bar.yaml",
+                                       "examples/paper/paper.yaml"};
+  for (const auto& rel : files) {
+    const std::string cmd = rel.find("paper") != std::string::npos ? "track " : "plan ";
+    const fs::path a = s.root() / "a", b = s.root() / "b";
+    fs::remove_all(a);
+    fs::remove_all(b);
+    ASSERT_EQ(run(s, cmd + quote(kSource / rel) + " -q -o " + quote(a)).code, 0) << rel;
+    ASSERT_EQ(run(s, cmd + quote(kSource / rel) + " -q -o " + quote(b)).code, 0) << rel;
+    int compared = 0;
+    for (const auto& e : fs::directory_iterator(a)) {
+      const std::string name = e.path().filename().string();
+      if (name == "summary.json") continue;  // holds wall times
+      EXPECT_EQ(read_text(e.path()), read_text(b / name)) << rel << ": " << name << " differs between two runs";
+      ++compared;
+    }
+    EXPECT_GE(compared, 2) << rel;
+  }
+}
+
+TEST(CommandLine, UsageErrorsAreOneLineWithDidYouMean) {
+  Scratch s;
+  Result r = run(s, "plna " + quote(kGood));
+  EXPECT_EQ(r.code, 1) << describe(r);
+  EXPECT_TRUE(one_error_line(r, "unknown command 'plna'"));
+  EXPECT_TRUE(contains(r.err, "did you mean 'plan'")) << describe(r);
+  for (const std::string& args : std::vector<std::string>{"", "check", "plan " + quote(kGood) + " --bogus"}) {
+    r = run(s, args);
+    EXPECT_EQ(r.code, 1) << describe(r);
+    EXPECT_TRUE(one_error_line(r, "")) << args;
+  }
+}
+
+TEST(CommandLine, KindsListsEveryRegisteredKind) {
+  Scratch s;
+  const Result r = run(s, "kinds");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  for (const char* k : {"point_on_ellipse", "distance", "knife_edge", "flexible_drive", "lugre", "computed_torque_pd",
+                        "pid_gravity"})
+    EXPECT_TRUE(contains(r.out, k)) << k;
+}
+
+TEST(Limits, InputFilesAreBoundedAndDevicesRefused) {
+  Scratch s;
+  Result r = run(s, "check /dev/zero");
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, "scenario file '/dev/zero'"));
+  EXPECT_TRUE(contains(r.err, "not a regular file")) << describe(r);
+  r = run(s, "check " + quote(kGood) + " --max-input-size 100");
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(contains(r.err, "limit of 100 bytes")) << describe(r);
+}
+
 }  // namespace
