@@ -1,31 +1,23 @@
-// The three registries, filled from kinds.def, and their documentation.
+// The three registries, filled once from kinds.def, and their documentation.
 #include "kinds.hpp"
 
 #include <sstream>
 
 namespace refdyn {
 
-const Registry<ConstraintKind>& constraint_kinds() {
-  static const Registry<ConstraintKind> r = [] {
-    Registry<ConstraintKind> reg("constraint kind");
-#define REFDYN_CONSTRAINT_KIND(n) reg.add(kinds::constraint_##n());
-#define REFDYN_FORCE_KIND(n)
-#define REFDYN_CONTROLLER_KIND(n)
-#include "kinds.def"
-#undef REFDYN_CONSTRAINT_KIND
-#undef REFDYN_FORCE_KIND
-#undef REFDYN_CONTROLLER_KIND
-    return reg;
-  }();
-  return r;
-}
+namespace {
+struct Registries {
+  Registry<ConstraintKind> constraints{"constraint kind"};
+  Registry<ForceKind> forces{"force element type"};
+  Registry<ControllerKind> controllers{"controller type"};
+};
 
-const Registry<ForceKind>& force_kinds() {
-  static const Registry<ForceKind> r = [] {
-    Registry<ForceKind> reg("force element type");
-#define REFDYN_CONSTRAINT_KIND(n)
-#define REFDYN_FORCE_KIND(n) reg.add(kinds::force_##n());
-#define REFDYN_CONTROLLER_KIND(n)
+const Registries& registries() {
+  static const Registries r = [] {
+    Registries reg;
+#define REFDYN_CONSTRAINT_KIND(n) reg.constraints.add(kinds::constraint_##n());
+#define REFDYN_FORCE_KIND(n) reg.forces.add(kinds::force_##n());
+#define REFDYN_CONTROLLER_KIND(n) reg.controllers.add(kinds::controller_##n());
 #include "kinds.def"
 #undef REFDYN_CONSTRAINT_KIND
 #undef REFDYN_FORCE_KIND
@@ -34,21 +26,11 @@ const Registry<ForceKind>& force_kinds() {
   }();
   return r;
 }
+}  // namespace
 
-const Registry<ControllerKind>& controller_kinds() {
-  static const Registry<ControllerKind> r = [] {
-    Registry<ControllerKind> reg("controller type");
-#define REFDYN_CONSTRAINT_KIND(n)
-#define REFDYN_FORCE_KIND(n)
-#define REFDYN_CONTROLLER_KIND(n) reg.add(kinds::controller_##n());
-#include "kinds.def"
-#undef REFDYN_CONSTRAINT_KIND
-#undef REFDYN_FORCE_KIND
-#undef REFDYN_CONTROLLER_KIND
-    return reg;
-  }();
-  return r;
-}
+const Registry<ConstraintKind>& constraint_kinds() { return registries().constraints; }
+const Registry<ForceKind>& force_kinds() { return registries().forces; }
+const Registry<ControllerKind>& controller_kinds() { return registries().controllers; }
 
 namespace {
 std::vector<std::string> with(std::vector<std::string> common, const std::vector<KeyDoc>& keys) {
