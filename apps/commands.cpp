@@ -89,6 +89,10 @@ int run_check(const std::string& file, const InputOptions& in) {
   const auto sp = io::load_problem(file, in.max_input_bytes);
   const Problem& s = *sp;
   const Model& m = s.model;
+  // Everything is evaluated before anything is printed: "valid" is never followed by an error.
+  ReferenceDynamics rd(m, s.forces, s.constraints, s.options);
+  Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
+  rd.derivative(s.integrator.t0, x, dx);
   std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
   std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
   int mat = 0, prog = 0, hol = 0, fo = 0;
@@ -102,9 +106,6 @@ int run_check(const std::string& file, const InputOptions& in) {
   std::cout << "force elements: " << s.forces.elements().size();
   for (const auto& e : s.forces.elements()) std::cout << "  " << e->name();
   std::cout << "\n";
-  ReferenceDynamics rd(m, s.forces, s.constraints, s.options);
-  Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
-  rd.derivative(s.integrator.t0, x, dx);
   std::cout << "partition: independent [";
   for (size_t i = 0; i < rd.independent().size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[rd.independent()[i]];
   std::cout << "], dependent [";
