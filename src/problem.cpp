@@ -214,6 +214,11 @@ ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const
   });
 }
 
+/// A count for messages: a whole number when it fits, else in exponent form.
+std::string count_text(double x) {
+  return x < 9e15 ? std::to_string(static_cast<long long>(x)) : fmt(x);
+}
+
 /// Names become CSV headers, JSON strings and (experiments) file names: printable UTF-8.
 void check_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
   if (name.empty()) c.fail(at, key, "expected a name, got an empty one");
@@ -491,7 +496,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       const double steps = std::ceil(span / o.step - 1e-9);
       if (steps > static_cast<double>(lim.max_steps))
         c.fail(at, "integrator",
-               "(t1 - t0)/step = " + fmt(steps) + " steps, more than limits.max_steps = " + std::to_string(lim.max_steps) +
+               "(t1 - t0)/step = " + count_text(steps) + " steps, more than limits.max_steps = " + std::to_string(lim.max_steps) +
                    " (hint: a larger step or a shorter span; or raise limits.max_steps)");
       const double every = o.output_interval > 0 ? std::max(1.0, std::round(o.output_interval / (span / steps))) : 1.0;
       samples = std::floor(steps / every) + 2;
@@ -501,13 +506,13 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     o.max_steps = lim.max_steps;
     if (samples > static_cast<double>(lim.max_samples))
       c.fail(at, "integrator",
-             fmt(samples) + " output samples, more than limits.max_samples = " + std::to_string(lim.max_samples) +
+             count_text(samples) + " output samples, more than limits.max_samples = " + std::to_string(lim.max_samples) +
                  " (hint: set integrator.output_interval, shorten the span, or raise limits.max_samples)");
     double runs = 0;
     for (const ExperimentSpec& e : spec.experiments) runs += e.sweep_parameter.empty() ? 1 : static_cast<double>(e.sweep_values.size());
     if (runs > static_cast<double>(lim.max_runs))
       c.fail(spec.experiments_value, "experiments",
-             fmt(runs) + " runs after expanding the sweeps, more than limits.max_runs = " + std::to_string(lim.max_runs) +
+             count_text(runs) + " runs after expanding the sweeps, more than limits.max_runs = " + std::to_string(lim.max_runs) +
                  " (hint: fewer sweep values, or raise limits.max_runs)");
   }
 
