@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <thread>
 
 using namespace refdyn;
 using refdyn::test::near;
@@ -134,4 +135,36 @@ TEST(ExpressionTimeFunction, DerivativesExact) {
   EXPECT_NEAR(v.f, 2 * std::sin(2.1) + t * t * t, 1e-14);
   EXPECT_NEAR(v.df, 6 * std::cos(2.1) + 3 * t * t, 1e-13);
   EXPECT_NEAR(v.ddf, -18 * std::sin(2.1) + 6 * t, 1e-12);
+}
+
+// Constraint objects hold no mutable state: one set evaluated from two threads at once (each
+// with its own Data and ConstraintEval) gives exactly the serial results.
+TEST(ExpressionConstraint, OneSetEvaluatedFromTwoThreadsAtOnce) {
+  const Model m = models::paper_manipulator();
+  ConstraintSet set;
+  set.add(expression_constraint(m, "ellipse", "(x(E)/a)^2 + (y(E)/b)^2 - 1 + 0.1*sin(t)*z(E)", false,
+                                {{"a", 0.35}, {"b", 0.25}}));
+  set.add(expression_constraint(m, "speed", "vx(E)*x(E) + vy(E)*y(E) - 0.1*cos(t)", true));
+  std::mt19937 rng(11);
+  const int K = 400;
+  std::vector<Eigen::VectorXd> q, qd;
+  for (int k = 0; k < K; ++k) q.push_back(test::random_vector(rng, 3)), qd.push_back(test::random_vector(rng, 3));
+  auto run = [&](int first, int last, std::vector<Eigen::MatrixXd>& out) {
+    Data data(m);
+    ConstraintEval ev(m, set);
+    for (int rep = 0; rep < 20; ++rep)
+      for (int k = first; k < last; ++k) {
+        evaluate_constraints(m, data, set, ev, 0.01 * k, q[k], qd[k]);
+        Eigen::MatrixXd r(2, 6);
+        r << ev.A, ev.phi, ev.phid, ev.gamma, Eigen::VectorXd::Zero(2);
+        out[k] = r;
+      }
+  };
+  std::vector<Eigen::MatrixXd> serial(K), parallel(K);
+  run(0, K, serial);
+  std::thread a([&] { run(0, K / 2, parallel); });
+  std::thread b([&] { run(K / 2, K, parallel); });
+  a.join();
+  b.join();
+  for (int k = 0; k < K; ++k) ASSERT_EQ(serial[k], parallel[k]) << k;
 }
