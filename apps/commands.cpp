@@ -65,6 +65,8 @@ void print_plan(const Problem& p, const Plan& plan) {
   if (!plan.summary.ok()) std::printf("  stopped: %s\n", plan.summary.message.c_str());
 }
 
+}  // namespace
+
 /// The one-line report of a run that stopped early (printed even with -q).
 void report_stopped(const io::Results& r) {
   if (!r.plan.summary.ok())
@@ -74,8 +76,6 @@ void report_stopped(const io::Results& r) {
       std::fprintf(stderr, "refdyn: error: experiment '%s' stopped early: %s\n", run.experiment->name.c_str(),
                    run.result.summary.message.c_str());
 }
-
-}  // namespace
 
 io::ProgressFactory terminal_progress(bool enabled) {
   if (!enabled) return {};

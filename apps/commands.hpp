@@ -24,6 +24,9 @@ struct InputOptions {
 /// A progress bar on stderr (terminal only, after one second) for runs of the pipeline.
 io::ProgressFactory terminal_progress(bool enabled);
 
+/// One line on stderr per run that stopped early (printed even with -q).
+void report_stopped(const io::Results& results);
+
 int run_check(const std::string& file, const InputOptions& in);
 int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in);
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in);

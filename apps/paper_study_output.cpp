@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
-#include <sstream>
 
 namespace refdyn::app {
 
@@ -79,12 +78,7 @@ int run_paper_command(const std::string& out, bool quiet) {
     std::printf("\nstudy wall time %.3f s; results in %s\n", r.wall_time, out.c_str());
   }
   if (!r.ok()) {
-    for (const auto& run : r.runs)
-      if (!run.result.summary.ok())
-        std::fprintf(stderr, "refdyn: error: experiment '%s' stopped early: %s\n", run.experiment->name.c_str(),
-                     run.result.summary.message.c_str());
-    if (!r.plan.summary.ok())
-      std::fprintf(stderr, "refdyn: error: the plan stopped early: %s\n", r.plan.summary.message.c_str());
+    report_stopped(r);
     return kNumerical;
   }
   return kOk;

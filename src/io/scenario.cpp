@@ -65,7 +65,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
 /// Reads the structure of the file; `c` only locates errors (it evaluates nothing here).
 class Reader {
  public:
-  Reader(const SpecReader& c, const SpecValue& root) : c_(c), root_(root) {}
+  explicit Reader(const SpecReader& c) : c_(c) {}
 
   std::vector<EntrySpec> constraints(const SpecValue& n) const {
     std::vector<EntrySpec> out;
@@ -127,7 +127,6 @@ class Reader {
 
  private:
   const SpecReader& c_;
-  const SpecValue& root_;
 };
 
 }  // namespace
@@ -197,7 +196,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
                     "experiments", "outputs", "limits"});
-  const Reader rd(c, root);
+  const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
   if (const SpecValue& p = root["parameters"]) {
