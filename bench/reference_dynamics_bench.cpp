@@ -385,7 +385,7 @@ void register_all(Bench* b) {
   });
   auto rows = [b](const ConstraintSet& set, ConstraintEval& ev, int k) {
     // What evaluate_constraints does after the kinematics, on precomputed point states.
-    const ConstraintInput in{b->t[k], b->q[k], b->qd[k], b->points[k]};
+    const ConstraintInput in{b->t[k], b->q[k], b->qd[k], b->points[k], ev.scratch.data()};
     for (int c = 0; c < set.size(); ++c) {
       const auto& con = set.constraints()[c];
       const int r = set.row_offset(c), m = con->rows();

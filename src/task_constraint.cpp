@@ -87,6 +87,9 @@ class ExpressionConstraint final : public Constraint {
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
     const size_t n = vars_.size();
+    if (!in.scratch)
+      throw Error("constraint '" + name + "': ConstraintInput::scratch is null (hint: evaluate with a ConstraintEval, "
+                  "which owns scratch_size() doubles)");
     double* w = in.scratch;
     double* wd = w + n;
     double* grad = wd + n;
