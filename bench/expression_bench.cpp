@@ -82,7 +82,7 @@ const refdyn::Expression& phi1() {
 const refdyn::Expression& phi1_generic() {
   static const refdyn::Expression e("(x(E)/a)^2 + (y(E)/b)^2 - 1", {"x(E)", "y(E)"},
                                     {{"a", kA}, {"b", kB}},
-                                    refdyn::ExpressionOptions{2, /*specialize=*/false});
+                                    refdyn::ExpressionOptions{.derivative_order = 2, .specialize = false});
   return e;
 }
 

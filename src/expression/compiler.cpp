@@ -255,7 +255,28 @@ class Compiler {
     return emit(Op::Pow, reg(base), reg(expo));
   }
 
+  /// x < y ? a : b (strict) or x <= y ? a : b: a 1/0 mask, then a select (no arithmetic on the
+  /// branch not taken, so an infinite or NaN branch does not leak into the result).
+  Operand compile_if(const ex& e, bool strict) {
+    Operand x = compile(e.op(0)), y = compile(e.op(1));
+    if (x.is_const && y.is_const)
+      return compile(strict ? (x.c < y.c ? e.op(2) : e.op(3)) : (x.c <= y.c ? e.op(2) : e.op(3)));
+    Operand mask = emit(strict ? Op::CmpLt : Op::CmpLe, reg(x), reg(y));
+    Operand a = compile(e.op(2)), b = compile(e.op(3));
+    if (a.is_const && b.is_const && a.c == 1.0 && b.c == 0.0) return mask;
+    if (a.is_const && b.is_const && a.c == 0.0 && b.c == 1.0)
+      return emit(Op::RSubC, mask.v, 0, 1.0);
+    if (!a.is_const && !b.is_const && a.v == b.v) return a;
+    const std::uint32_t ra = reg(a), rb = reg(b);
+    return emit(Op::Select, mask.v, ra, 0.0, select_else_bits(rb));
+  }
+
   Operand compile_function(const ex& e) {
+    const unsigned serial = GiNaC::ex_to<GiNaC::function>(e).get_serial();
+    if (serial == serial_if_lt()) return compile_if(e, true);
+    if (serial == serial_if_le()) return compile_if(e, false);
+    if (serial == serial_abs()) return function(Op::Abs, compile(e.op(0)));
+    if (serial == serial_sgn()) return function(Op::Sign, compile(e.op(0)));
     const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
     if (name == "atan2") {
       Operand y = compile(e.op(0)), x = compile(e.op(1));
@@ -345,6 +366,7 @@ void fuse(SsaProgram& prog) {
     int inputs = info(in.op).inputs;
     if (inputs >= 1) ++uses[in.a];
     if (inputs >= 2) ++uses[in.b];
+    if (in.op == Op::Select) ++uses[select_else(in.d)];
   }
   auto output = [&](const Operand& o) {
     if (!o.is_const) ++uses[o.v];
@@ -447,6 +469,7 @@ void lower(const SsaProgram& prog, Expression::Impl& impl) {
     int inputs = info(code[i].op).inputs;
     if (inputs >= 1) use(code[i].a, i);
     if (inputs >= 2) use(code[i].b, i);
+    if (code[i].op == Op::Select) use(select_else(code[i].d), i);
   }
   if (!prog.value.is_const) use(prog.value.v, prog.stage_end[0]);
   for (const auto& [k, o] : prog.grad)
@@ -578,6 +601,7 @@ void lower(const SsaProgram& prog, Expression::Impl& impl) {
     int inputs = info(in.op).inputs;
     if (inputs >= 1) ins.a = phys[in.a];
     if (inputs >= 2) ins.b = phys[in.b];
+    if (in.op == Op::Select) ins.d = select_else_bits(phys[select_else(in.d)]);
     phys[in.dst] = alloc();
     ins.dst = phys[in.dst];
     if (in.op == Op::SinCos) {

@@ -14,7 +14,11 @@ using namespace expr_detail;
 
 Expression::Expression(const std::string& text, const std::vector<std::string>& variables,
                        const std::map<std::string, double>& parameters, int derivative_order)
-    : Expression(text, variables, parameters, ExpressionOptions{derivative_order, true}) {}
+    : Expression(text, variables, parameters, [&] {
+        ExpressionOptions o;
+        o.derivative_order = derivative_order;
+        return o;
+      }()) {}
 
 Expression::Expression(const std::string& text, const std::vector<std::string>& variables,
                        const std::map<std::string, double>& parameters,
@@ -61,13 +65,20 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
   std::lock_guard<std::mutex> lock(ginac_mutex());
   std::vector<GiNaC::realsymbol> syms;
   for (const auto& name : impl->variables) syms.emplace_back(name);
-  ParseResult fe = parse_front_end(text, impl->variables, parameters, syms);
+  ParseResult fe = parse_front_end(text, impl->variables, parameters, options);
   Symbolic s = lower_symbolic(text, fe, syms, options);
   impl->used = s.used;
+  {
+    std::vector<bool> seen(n, false);
+    for (const AstNode& node : fe.nodes)
+      if (node.kind == AstKind::Variable) seen[node.index] = true;
+    for (int i = 0; i < n; ++i)
+      if (seen[i]) impl->referenced.push_back(i);
+  }
   try {
     compile_tape(s, syms, *impl);
   } catch (const BadConstant& bc) {
-    fail_bad_constant(text, fe, bc);
+    fail_bad_constant(text, fe, syms, bc);
   }
 
   // Texts.
@@ -86,6 +97,7 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
 int Expression::num_variables() const { return impl_->n; }
 const std::vector<std::string>& Expression::variables() const { return impl_->variables; }
 std::vector<int> Expression::used_variables() const { return impl_->used; }
+std::vector<int> Expression::referenced_variables() const { return impl_->referenced; }
 int Expression::derivative_order() const { return impl_->order; }
 const std::string& Expression::source() const { return impl_->source; }
 int Expression::tape_size() const { return impl_->instructions; }
@@ -182,6 +194,10 @@ std::string Expression::tape_listing() const {
     os << " = " << oi.name;
     if (oi.inputs >= 1) os << " r" << in.a;
     if (oi.inputs >= 2) os << " r" << in.b;
+    if (in.op == Op::Select) {
+      os << " r" << select_else(in.d) << "\n";
+      continue;
+    }
     if (is_function(in.op)) {
       if (in.c != 1.0 || in.d != 0.0) os << " (arg " << fmt(in.c) << "*a + " << fmt(in.d) << ")";
     } else {

@@ -12,6 +12,7 @@
 #include <ginac/ginac.h>
 
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -66,6 +67,11 @@ enum class Op : std::uint8_t {
   Exp,
   Log,
   Abs,
+  Sign,  // u >= 0 ? 1 : -1 (the derivative of abs, right-sided at 0)
+  // Piecewise selection.
+  CmpLt,   // a < b ? 1 : 0
+  CmpLe,   // a <= b ? 1 : 0
+  Select,  // a != 0 ? b : e, the third register e stored in the bits of d (select_else)
   // Program I/O and control (emitted by the lowering, not by the compiler).
   LoadX,      // r[slot.reg] = x[slot.index] for b slots from slots[a]
   ValueOut,   // value = r[a]; return unless a derivative is wanted
@@ -98,14 +104,22 @@ constexpr std::array<OpInfo, static_cast<int>(Op::Count)> kOpInfo{{
     {"sin", 1, 2},    {"cos", 1, 2},    {"sincos", 1, 2},   {"tan", 1, 2},     {"asin", 1, 2},
     {"acos", 1, 2},   {"atan", 1, 2},   {"sinh", 1, 2},     {"cosh", 1, 2},    {"tanh", 1, 2},
     {"asinh", 1, 2},  {"acosh", 1, 2},  {"atanh", 1, 2},    {"exp", 1, 2},     {"log", 1, 2},
-    {"abs", 1, 2},    {"loadx", 0, 0}, {"value_out", 1, 0}, {"value_out_c", 0, 1},
+    {"abs", 1, 2},    {"sign", 1, 2},   {"cmplt", 2, 0},    {"cmple", 2, 0},
+    {"select", 2, 0}, {"loadx", 0, 0}, {"value_out", 1, 0}, {"value_out_c", 0, 1},
     {"grad_out", 0, 0}, {"grad_out", 0, 0}, {"grad_out", 0, 0}, {"grad_out", 0, 0},
     {"grad_out", 0, 0}, {"hess_out", 0, 0}, {"hess_out", 0, 0}, {"hess_out", 0, 0},
     {"hess_out", 0, 0}, {"hess_out", 0, 0}, {"end", 0, 0},
 }};
 
 inline const OpInfo& info(Op op) { return kOpInfo[static_cast<int>(op)]; }
-inline bool is_function(Op op) { return op >= Op::Sqrt && op <= Op::Abs; }
+inline bool is_function(Op op) { return op >= Op::Sqrt && op <= Op::Sign; }
+/// Select's third input (a register or SSA value) travels in the bits of the immediate d.
+inline double select_else_bits(std::uint32_t e) {
+  return std::bit_cast<double>(static_cast<std::uint64_t>(e));
+}
+inline std::uint32_t select_else(double d) {
+  return static_cast<std::uint32_t>(std::bit_cast<std::uint64_t>(d));
+}
 
 struct Instr {
   Op op;
@@ -183,6 +197,7 @@ struct Expression::Impl {
   int order = 2;
   int n = 0;
   std::vector<int> used;
+  std::vector<int> referenced;  // variables written in the text (superset of used)
 
   // The program: loads, value stage, value store, exit if no derivatives wanted, gradient
   // stage, gradient stores (skipped without grad), exit if no Hessian wanted, Hessian stage,
@@ -231,26 +246,61 @@ bool is_ident_char(char ch);
 [[noreturn]] void fail_at(const std::string& text, std::size_t pos, std::size_t len,
                           const std::string& what, const std::string& hint);
 
-/// A sub-expression of the source, with its GiNaC text; used to locate evaluation errors.
-struct Node {
-  std::size_t pos, end;
-  std::string ginac_text;
+/// Functions of the expression language (see expression.hpp).
+enum class Fn : std::uint8_t {
+  Sin, Cos, Tan, Asin, Acos, Atan, Atan2, Sinh, Cosh, Tanh, Asinh, Acosh, Atanh, Exp, Log, Sqrt,
+  Abs, Pow, Min, Max, Step, Clamp, If
+};
+/// The comparison of an if(lhs CMP rhs, a, b).
+enum class Cmp : std::uint8_t { Lt, Le, Gt, Ge };
+
+enum class AstKind : std::uint8_t {
+  Number,     // literal `text`
+  Variable,   // variable `index`
+  Parameter,  // parameter `text` with value `value`
+  Pi,
+  E,
+  Sum,      // kids with flags: 0 add, 1 subtract
+  Product,  // kids with flags: 0 multiply, 1 divide
+  Neg,      // -kid
+  Power,    // kid0 ^ kid1
+  Call      // fn(kids...); If: kids lhs, rhs, a, b and `cmp`
 };
 
-/// What the front end hands to the lowering: a fully parenthesised GiNaC text, the symbol
-/// table it refers to, and the located sub-expressions (innermost first).
+/// One node of the syntax tree. Nodes are stored children first (post-order), so a single
+/// forward pass over ParseResult::nodes visits every child before its parent: nothing after the
+/// parser recurses over the tree's depth except GiNaC, which only sees trees whose depth the
+/// parser has bounded (ExpressionOptions::max_depth).
+struct AstNode {
+  explicit AstNode(AstKind k) : kind(k) {}
+  AstKind kind;
+  Fn fn = Fn::Sin;
+  Cmp cmp = Cmp::Lt;
+  bool located = false;          // compound node: a candidate for error locations
+  std::uint32_t pos = 0, end = 0;  // source span [pos, end)
+  std::uint32_t first = 0, count = 0;  // children: ParseResult::kids[first, first + count)
+  int index = -1;                // variable index
+  double value = 0.0;            // parameter value
+  std::string text;              // number literal or parameter name
+};
+
+/// What the front end hands to the lowering.
 struct ParseResult {
-  std::string ginac_text;
-  GiNaC::symtab symtab;
-  std::vector<Node> nodes;
+  std::vector<AstNode> nodes;  // children before parents; the root is the last node
+  std::vector<std::uint32_t> kids;
+  std::vector<std::uint8_t> flags;  // per kid: Sum 1 = subtract, Product 1 = divide
   std::map<std::string, double> used_parameters;
 };
 
-/// Parses `text` over the (whitespace-stripped) variables, one symbol per variable.
+/// Parses `text` over the (whitespace-stripped) variables. Checks the limits of `opt`
+/// (max_length before anything else, max_depth while parsing, so recursion is bounded).
 /// Throws Error with a location for every syntax or name error.
 ParseResult parse_front_end(const std::string& text, const std::vector<std::string>& variables,
                             const std::map<std::string, double>& parameters,
-                            const std::vector<GiNaC::realsymbol>& symbols);
+                            const ExpressionOptions& opt);
+
+/// The user-visible function list ("sin, cos, ..."), as printed in error hints.
+std::string function_list();
 
 // ------------------------------------------------------------------------------------------
 // Lowering to GiNaC, derivatives, constant checks (lowering.cpp)
@@ -278,14 +328,30 @@ struct Symbolic {
   bool hessian_constant = false;  // quadratic kernel candidate (see ExpressionOptions)
 };
 
-/// Builds the GiNaC expression from the front end's output and differentiates it.
+/// Builds the GiNaC expression from the syntax tree (one forward pass, no recursion over the
+/// tree) and differentiates it.
 Symbolic lower_symbolic(const std::string& text, const ParseResult& fe,
                         const std::vector<GiNaC::realsymbol>& syms, const ExpressionOptions& opt);
 
 /// Turns a BadConstant from the compiler into an Error that points at the innermost source
 /// sub-expression with a bad constant value.
 [[noreturn]] void fail_bad_constant(const std::string& text, const ParseResult& fe,
+                                    const std::vector<GiNaC::realsymbol>& syms,
                                     const BadConstant& bc);
+
+/// The piecewise functions the lowering introduces (GiNaC functions with exact one-sided
+/// derivatives; see expression.hpp for the conventions):
+///   rd_abs(u)             |u|, d/du = rd_sgn(u)
+///   rd_sgn(u)             u >= 0 ? 1 : -1 (derivative 0)
+///   rd_if_lt(x, y, a, b)  x <  y ? a : b  (derivatives taken inside the branches)
+///   rd_if_le(x, y, a, b)  x <= y ? a : b
+/// Their GiNaC serials, for the compiler.
+unsigned serial_abs();
+unsigned serial_sgn();
+unsigned serial_if_lt();
+unsigned serial_if_le();
+/// True if e contains one of the piecewise functions (no quadratic kernel then).
+bool has_piecewise(const GiNaC::ex& e);
 
 // ------------------------------------------------------------------------------------------
 // Tape compiler (compiler.cpp)

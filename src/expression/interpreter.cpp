@@ -48,6 +48,9 @@ double apply(Op op, double a, double b, double c, double d) {
     case Op::Exp: return std::exp(u);
     case Op::Log: return std::log(u);
     case Op::Abs: return std::fabs(u);
+    case Op::Sign: return u >= 0.0 ? 1.0 : -1.0;
+    case Op::CmpLt: return a < b ? 1.0 : 0.0;
+    case Op::CmpLe: return a <= b ? 1.0 : 0.0;
     default: break;
   }
   return 0.0;
@@ -184,6 +187,16 @@ __attribute__((always_inline)) inline void write_block(const OutBlock& bl, const
   RD_NEXT;                                                                            \
   RD_OP(Abs) { r[p->dst] = std::fabs(RD_U); }                                         \
   RD_NEXT;                                                                            \
+  RD_OP(Sign) { r[p->dst] = RD_U >= 0.0 ? 1.0 : -1.0; }                               \
+  RD_NEXT;                                                                            \
+  RD_OP(CmpLt) { r[p->dst] = r[p->a] < r[p->b] ? 1.0 : 0.0; }                         \
+  RD_NEXT;                                                                            \
+  RD_OP(CmpLe) { r[p->dst] = r[p->a] <= r[p->b] ? 1.0 : 0.0; }                        \
+  RD_NEXT;                                                                            \
+  RD_OP(Select) {                                                                     \
+    r[p->dst] = r[p->a] != 0.0 ? r[p->b] : r[select_else(p->d)];                      \
+  }                                                                                   \
+  RD_NEXT;                                                                            \
   RD_OP(LoadX) {                                                                      \
     const OutputSlot* sl = pv.slots + p->a;                                           \
     switch (p->b) {                                                                   \
@@ -252,6 +265,7 @@ void interpret(
       &&L_Const,  &&L_Sqrt,   &&L_Sin,    &&L_Cos,     &&L_SinCos,  &&L_Tan,
       &&L_Asin,   &&L_Acos,   &&L_Atan,   &&L_Sinh,    &&L_Cosh,    &&L_Tanh,
       &&L_Asinh,  &&L_Acosh,  &&L_Atanh,  &&L_Exp,     &&L_Log,     &&L_Abs,
+      &&L_Sign,   &&L_CmpLt,  &&L_CmpLe,  &&L_Select,
       &&L_LoadX,  &&L_ValueOut, &&L_ValueOutC, &&L_GradOut, &&L_GradOut1, &&L_GradOut2,
       &&L_GradOut3, &&L_GradOut4, &&L_HessOut, &&L_HessOut1, &&L_HessOut4, &&L_HessOut9,
       &&L_HessOut16, &&L_End};

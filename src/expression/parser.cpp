@@ -1,12 +1,11 @@
 // Expression engine, stage 1: front end. A lexer and a recursive-descent parser that resolve
-// names (variables, parameters, constants, functions), fix precedence and report errors with a
-// location, producing a fully parenthesised text for GiNaC's parser.
+// names (variables, parameters, constants, functions), fix precedence, enforce the size and
+// nesting limits and report errors with a location, producing a syntax tree (AstNode, children
+// first) for the lowering.
 #include "internal.hpp"
 
 #include "refdyn/error.hpp"
 #include "refdyn/text.hpp"
-
-#include <cln/float.h>
 
 #include <algorithm>
 #include <cctype>
@@ -47,12 +46,17 @@ namespace {
 struct FunctionSpec {
   const char* name;
   int arity;
+  Fn fn;
 };
 constexpr FunctionSpec kFunctions[] = {
-    {"sin", 1},   {"cos", 1},   {"tan", 1},   {"asin", 1}, {"acos", 1}, {"atan", 1},
-    {"atan2", 2}, {"sinh", 1},  {"cosh", 1},  {"tanh", 1}, {"asinh", 1}, {"acosh", 1},
-    {"atanh", 1}, {"exp", 1},   {"log", 1},   {"sqrt", 1}, {"abs", 1},  {"pow", 2},
-    {"min", 2},   {"max", 2},
+    {"sin", 1, Fn::Sin},     {"cos", 1, Fn::Cos},     {"tan", 1, Fn::Tan},
+    {"asin", 1, Fn::Asin},   {"acos", 1, Fn::Acos},   {"atan", 1, Fn::Atan},
+    {"atan2", 2, Fn::Atan2}, {"sinh", 1, Fn::Sinh},   {"cosh", 1, Fn::Cosh},
+    {"tanh", 1, Fn::Tanh},   {"asinh", 1, Fn::Asinh}, {"acosh", 1, Fn::Acosh},
+    {"atanh", 1, Fn::Atanh}, {"exp", 1, Fn::Exp},     {"log", 1, Fn::Log},
+    {"sqrt", 1, Fn::Sqrt},   {"abs", 1, Fn::Abs},     {"pow", 2, Fn::Pow},
+    {"min", 2, Fn::Min},     {"max", 2, Fn::Max},     {"step", 1, Fn::Step},
+    {"clamp", 3, Fn::Clamp}, {"if", 3, Fn::If},
 };
 
 const FunctionSpec* find_function(const std::string& name) {
@@ -61,16 +65,14 @@ const FunctionSpec* find_function(const std::string& name) {
   return nullptr;
 }
 
-std::string function_list() {
-  std::string s;
-  for (const auto& f : kFunctions) {
-    if (!s.empty()) s += ", ";
-    s += f.name;
-  }
-  return s;
-}
+enum class Tok {
+  Num, Id, LParen, RParen, Comma, Plus, Minus, Star, Slash, Caret, Less, LessEq, Greater,
+  GreaterEq, End
+};
 
-enum class Tok { Num, Id, LParen, RParen, Comma, Plus, Minus, Star, Slash, Caret, End };
+bool is_comparison(Tok k) {
+  return k == Tok::Less || k == Tok::LessEq || k == Tok::Greater || k == Tok::GreaterEq;
+}
 
 struct Token {
   Tok kind;
@@ -116,6 +118,7 @@ std::vector<Token> lex(const std::string& text) {
     }
     Tok k;
     std::size_t len = 1;
+    const bool eq_next = i + 1 < n && text[i + 1] == '=';
     switch (ch) {
       case '(': k = Tok::LParen; break;
       case ')': k = Tok::RParen; break;
@@ -124,6 +127,14 @@ std::vector<Token> lex(const std::string& text) {
       case '-': k = Tok::Minus; break;
       case '/': k = Tok::Slash; break;
       case '^': k = Tok::Caret; break;
+      case '<':
+        k = eq_next ? Tok::LessEq : Tok::Less;
+        len = eq_next ? 2 : 1;
+        break;
+      case '>':
+        k = eq_next ? Tok::GreaterEq : Tok::Greater;
+        len = eq_next ? 2 : 1;
+        break;
       case '*':
         if (i + 1 < n && text[i + 1] == '*') {
           k = Tok::Caret;
@@ -134,7 +145,8 @@ std::vector<Token> lex(const std::string& text) {
         break;
       default:
         fail_at(text, i, 1, std::string("unexpected character '") + ch + "'",
-                "expressions use numbers, names, + - * / ^, parentheses and function calls");
+                "expressions use numbers, names, + - * / ^, parentheses, function calls and "
+                "comparisons < <= > >= inside if(...)");
     }
     out.push_back({k, start, len, text.substr(start, len)});
     i += len;
@@ -148,22 +160,41 @@ std::string describe(const Token& t) {
   return "'" + t.s + "'";
 }
 
-/// A sub-expression of the source, with its GiNaC text; used to locate evaluation errors.
+/// A short excerpt of `text` around `pos`, for one-line messages about long texts.
+std::string excerpt(const std::string& text, std::size_t pos) {
+  constexpr std::size_t kWidth = 30;
+  const std::size_t from = pos > kWidth ? pos - kWidth : 0;
+  const std::size_t to = std::min(text.size(), pos + kWidth);
+  return (from > 0 ? "..." : "") + text.substr(from, to - from) + (to < text.size() ? "..." : "");
+}
+
 struct FrontEnd {
   const std::string& text;
-  const std::vector<std::string>& variables;           // stripped names
+  const std::vector<std::string>& variables;  // stripped names
   const std::map<std::string, double>& parameters;
+  const int max_depth;
   std::vector<Token> toks;
+  std::vector<std::size_t> match;  // token index of the matching ')' for each '(' (or npos)
   std::size_t k = 0;
-  GiNaC::symtab symtab;
-  const std::vector<GiNaC::realsymbol>& symbols;       // per variable
-  std::vector<Node> nodes;
-  std::map<std::string, double> used_parameters;
+  int depth = 0;
+  bool call_like_variables = false;  // some variable is written name(arg)
+  ParseResult out;
 
   FrontEnd(const std::string& t, const std::vector<std::string>& v,
-           const std::map<std::string, double>& p, const std::vector<GiNaC::realsymbol>& syms)
-      : text(t), variables(v), parameters(p), symbols(syms) {
+           const std::map<std::string, double>& p, int max_d)
+      : text(t), variables(v), parameters(p), max_depth(max_d) {
     toks = lex(text);
+    match.assign(toks.size(), std::string::npos);
+    std::vector<std::size_t> open;
+    for (std::size_t i = 0; i < toks.size(); ++i) {
+      if (toks[i].kind == Tok::LParen) open.push_back(i);
+      if (toks[i].kind == Tok::RParen && !open.empty()) {
+        match[open.back()] = i;
+        open.pop_back();
+      }
+    }
+    for (const std::string& name : variables)
+      if (name.find('(') != std::string::npos) call_like_variables = true;
   }
 
   const Token& peek(std::size_t ahead = 0) const {
@@ -175,91 +206,132 @@ struct FrontEnd {
     fail_at(text, t.pos, t.kind == Tok::End ? 1 : t.len, what, hint);
   }
 
+  /// One nesting level (see ExpressionOptions::max_depth) for the lifetime of the guard.
+  struct Level {
+    FrontEnd& fe;
+    explicit Level(FrontEnd& f) : fe(f) {
+      if (++fe.depth > fe.max_depth) {
+        const Token& t = fe.peek();
+        throw Error("expression nesting is deeper than the limit of " +
+                    std::to_string(fe.max_depth) + " levels (ExpressionOptions::max_depth) at "
+                    "column " + std::to_string(t.pos + 1) + " of " +
+                    std::to_string(fe.text.size()) + " near \"" + excerpt(fe.text, t.pos) +
+                    "\" (hint: parentheses, function calls, unary signs and exponents each add "
+                    "a level; simplify the expression or raise ExpressionOptions::max_depth)");
+      }
+    }
+    ~Level() { --fe.depth; }
+  };
+
   void expect(Tok kind, const std::string& what) {
     const Token& t = peek();
     if (t.kind != kind) {
       std::string hint = kind == Tok::RParen ? "check that parentheses are balanced"
                                              : "check the syntax near this point";
+      if (is_comparison(t.kind))
+        hint = "comparisons are allowed only as the condition of if(cond, a, b)";
       error_at(t, "expected " + what + ", got " + describe(t), hint);
     }
     next();
   }
 
-  std::string record(std::size_t start_tok, const std::string& g) {
-    std::size_t pos = toks[start_tok].pos;
+  /// Appends a node whose span starts at token `start_tok` and ends at the last consumed one.
+  std::uint32_t add(AstNode node, std::size_t start_tok, const std::vector<std::uint32_t>& kids,
+                    const std::vector<std::uint8_t>& flags = {}) {
+    node.pos = static_cast<std::uint32_t>(toks[start_tok].pos);
     const Token& last = toks[k > 0 ? k - 1 : 0];
-    nodes.push_back({pos, last.pos + last.len, g});
-    return g;
+    node.end = static_cast<std::uint32_t>(last.pos + last.len);
+    node.first = static_cast<std::uint32_t>(out.kids.size());
+    node.count = static_cast<std::uint32_t>(kids.size());
+    out.kids.insert(out.kids.end(), kids.begin(), kids.end());
+    if (flags.empty())
+      out.flags.insert(out.flags.end(), kids.size(), 0);
+    else
+      out.flags.insert(out.flags.end(), flags.begin(), flags.end());
+    out.nodes.push_back(std::move(node));
+    return static_cast<std::uint32_t>(out.nodes.size() - 1);
+  }
+  std::uint32_t leaf(AstNode node, const Token& t) {
+    node.pos = static_cast<std::uint32_t>(t.pos);
+    node.end = static_cast<std::uint32_t>(t.pos + t.len);
+    node.first = static_cast<std::uint32_t>(out.kids.size());
+    out.nodes.push_back(std::move(node));
+    return static_cast<std::uint32_t>(out.nodes.size() - 1);
+  }
+  static AstNode compound(AstKind kind) {
+    AstNode n(kind);
+    n.located = true;
+    return n;
   }
 
-  std::string parse() {
-    std::string g = parse_sum();
+  void parse() {
+    parse_sum();
     const Token& t = peek();
     if (t.kind != Tok::End) {
       std::string hint = t.kind == Tok::RParen
                              ? "unbalanced ')'"
-                             : "an operator is missing (implicit multiplication like '2x' is "
-                               "not supported; write '2*x')";
+                             : is_comparison(t.kind)
+                                   ? "comparisons are allowed only as the condition of "
+                                     "if(cond, a, b)"
+                                   : "an operator is missing (implicit multiplication like '2x' "
+                                     "is not supported; write '2*x')";
       error_at(t, "unexpected " + describe(t), hint);
     }
-    return g;
   }
 
-  std::string parse_sum() {
+  // Chains of + - (and of * /) become one n-ary node: no nesting, linear cost.
+  std::uint32_t parse_sum() {
     std::size_t start = k;
-    std::string s = parse_product();
+    std::uint32_t first = parse_product();
+    if (peek().kind != Tok::Plus && peek().kind != Tok::Minus) return first;
+    std::vector<std::uint32_t> kids{first};
+    std::vector<std::uint8_t> flags{0};
     while (peek().kind == Tok::Plus || peek().kind == Tok::Minus) {
-      char op = next().kind == Tok::Plus ? '+' : '-';
-      std::string t = parse_product();
-      s = record(start, "(" + s + op + t + ")");
+      flags.push_back(next().kind == Tok::Minus);
+      kids.push_back(parse_product());
     }
-    return s;
+    return add(compound(AstKind::Sum), start, kids, flags);
   }
 
-  std::string parse_product() {
+  std::uint32_t parse_product() {
     std::size_t start = k;
-    std::string s = parse_unary();
+    std::uint32_t first = parse_unary();
+    if (peek().kind != Tok::Star && peek().kind != Tok::Slash) return first;
+    std::vector<std::uint32_t> kids{first};
+    std::vector<std::uint8_t> flags{0};
     while (peek().kind == Tok::Star || peek().kind == Tok::Slash) {
-      char op = next().kind == Tok::Star ? '*' : '/';
-      std::string t = parse_unary();
-      s = record(start, "(" + s + op + t + ")");
+      flags.push_back(next().kind == Tok::Slash);
+      kids.push_back(parse_unary());
     }
-    return s;
+    return add(compound(AstKind::Product), start, kids, flags);
   }
 
-  std::string parse_unary() {
+  std::uint32_t parse_unary() {
     std::size_t start = k;
     if (peek().kind == Tok::Plus) {
       next();
+      Level level(*this);
       return parse_unary();
     }
     if (peek().kind == Tok::Minus) {
       next();
-      std::string s = parse_unary();
-      return record(start, "(-" + s + ")");
+      Level level(*this);
+      std::uint32_t s = parse_unary();
+      return add(compound(AstKind::Neg), start, {s});
     }
     return parse_power();
   }
 
-  std::string parse_power() {
+  std::uint32_t parse_power() {
     std::size_t start = k;
-    std::string b = parse_primary();
+    std::uint32_t b = parse_primary();
     if (peek().kind == Tok::Caret) {
       next();
-      std::string e = parse_unary();  // right-associative, allows x^-2
-      return record(start, "(" + b + "^" + e + ")");
+      Level level(*this);
+      std::uint32_t e = parse_unary();  // right-associative, allows x^-2
+      return add(compound(AstKind::Power), start, {b, e});
     }
     return b;
-  }
-
-  // Index of the ')' matching the '(' at token index `open`, or npos.
-  std::size_t matching_paren(std::size_t open) const {
-    int depth = 0;
-    for (std::size_t i = open; i < toks.size(); ++i) {
-      if (toks[i].kind == Tok::LParen) ++depth;
-      if (toks[i].kind == Tok::RParen && --depth == 0) return i;
-    }
-    return std::string::npos;
   }
 
   std::vector<std::string> candidates() const {
@@ -277,50 +349,91 @@ struct FrontEnd {
            function_list();
   }
 
-  std::string variable_placeholder(int index) {
-    std::string ph = "rdvar" + std::to_string(index);
-    symtab[ph] = symbols[index];
-    return ph;
+  std::uint32_t variable(int index, const Token& first, std::size_t start_tok) {
+    AstNode node(AstKind::Variable);
+    node.index = index;
+    if (start_tok == k - 1) return leaf(std::move(node), first);
+    return add(std::move(node), start_tok, {});
   }
 
-  std::string parse_primary() {
-    std::size_t start = k;
+  std::uint32_t parse_primary() {
     const Token& t = peek();
     switch (t.kind) {
-      case Tok::Num:
+      case Tok::Num: {
         next();
-        return "(" + t.s + ")";
+        AstNode node(AstKind::Number);
+        node.text = t.s;
+        return leaf(std::move(node), t);
+      }
       case Tok::LParen: {
         next();
-        std::string s = parse_sum();
+        std::uint32_t s;
+        {
+          Level level(*this);
+          s = parse_sum();
+        }
         expect(Tok::RParen, "')' to close the '(' at column " + std::to_string(t.pos + 1));
-        return record(start, "(" + s + ")");
+        // The parenthesised node keeps its own span (the parentheses add no node).
+        return s;
       }
       case Tok::Id:
         return parse_identifier();
       default:
         error_at(t, "expected a number, a name or '(', got " + describe(t),
                  t.kind == Tok::End ? "the expression ends too early"
-                                    : "check the syntax near this point");
+                                    : is_comparison(t.kind)
+                                          ? "comparisons are allowed only as the condition of "
+                                            "if(cond, a, b)"
+                                          : "check the syntax near this point");
     }
   }
 
-  std::string parse_identifier() {
+  /// The condition of if(): lhs CMP rhs, exactly one comparison.
+  void parse_condition(std::vector<std::uint32_t>& args, Cmp& cmp, const Token& id) {
+    args.push_back(parse_sum());
+    const Token& t = peek();
+    if (!is_comparison(t.kind))
+      error_at(t, "expected a comparison (<, <=, >, >=) in the condition of if(), got " +
+                      describe(t),
+               "write if(x < y, a, b): the first argument compares two expressions");
+    next();
+    cmp = t.kind == Tok::Less ? Cmp::Lt
+          : t.kind == Tok::LessEq ? Cmp::Le
+          : t.kind == Tok::Greater ? Cmp::Gt
+                                  : Cmp::Ge;
+    args.push_back(parse_sum());
+    if (is_comparison(peek().kind))
+      error_at(peek(), "chained comparison in the condition of if()",
+               "compare two expressions only (nest if() calls for more conditions)");
+    (void)id;
+  }
+
+  std::uint32_t parse_identifier() {
     std::size_t start = k;
     const Token id = next();
     if (peek().kind == Tok::LParen) {
       std::size_t open = k;
-      std::size_t close = matching_paren(open);
+      std::size_t close = match[open];
       if (close == std::string::npos)
         error_at(toks[open], "unclosed '('", "check that parentheses are balanced");
-      std::string call = strip_spaces(text.substr(id.pos, toks[close].pos + 1 - id.pos));
-      auto it = std::find(variables.begin(), variables.end(), call);
-      if (it != variables.end()) {
-        k = close + 1;
-        return variable_placeholder(static_cast<int>(it - variables.begin()));
-      }
       const FunctionSpec* f = find_function(id.s);
+      // A call-like variable name (x(E), q(psi1)) wins over a function of the same name. Only
+      // looked up when such variables exist and the parenthesis is short (a name, not a
+      // formula), so long function arguments are not copied.
+      std::string call;
+      auto call_text = [&] {
+        if (call.empty()) call = strip_spaces(text.substr(id.pos, toks[close].pos + 1 - id.pos));
+        return call;
+      };
+      if (call_like_variables && (!f || close - open <= 16)) {
+        auto it = std::find(variables.begin(), variables.end(), call_text());
+        if (it != variables.end()) {
+          k = close + 1;
+          return variable(static_cast<int>(it - variables.begin()), id, start);
+        }
+      }
       if (!f) {
+        call_text();
         // Unknown: a variable that is not listed or a misspelt function, whichever is closer.
         int best_var = 1 << 30, best_fn = 1 << 30;
         std::string var_name, fn_name;
@@ -337,7 +450,7 @@ struct FrontEnd {
         std::string suggestion;
         if (best_var <= allowed_var && best_var <= best_fn)
           suggestion = " (did you mean '" + var_name + "'?)";
-        else if (best_fn <= allowed_fn)
+        else if (best_fn <= allowed_fn && best_fn < static_cast<int>(fn_name.size()))
           suggestion = " (did you mean the function '" + fn_name + "'?)";
         else
           suggestion = did_you_mean(call, candidates());
@@ -345,9 +458,15 @@ struct FrontEnd {
                 "unknown identifier '" + call + "'" + suggestion, identifiers_hint());
       }
       next();  // '('
-      std::vector<std::string> args;
-      if (peek().kind != Tok::RParen) {
-        args.push_back(parse_sum());
+      std::vector<std::uint32_t> args;
+      Cmp cmp = Cmp::Lt;
+      {
+        Level level(*this);
+        if (f->fn == Fn::If) {
+          if (peek().kind != Tok::RParen) parse_condition(args, cmp, id);
+        } else if (peek().kind != Tok::RParen) {
+          args.push_back(parse_sum());
+        }
         while (peek().kind == Tok::Comma) {
           next();
           args.push_back(parse_sum());
@@ -356,53 +475,42 @@ struct FrontEnd {
       if (peek().kind != Tok::RParen)
         error_at(peek(), "expected ',' or ')' in the arguments of " + id.s + "(), got " +
                              describe(peek()),
-                 "check that parentheses are balanced");
+                 is_comparison(peek().kind)
+                     ? "comparisons are allowed only as the condition of if(cond, a, b)"
+                     : "check that parentheses are balanced");
       next();
-      if (static_cast<int>(args.size()) != f->arity)
+      // if(): the condition counts as one argument (two operands).
+      const int got = static_cast<int>(args.size()) - (f->fn == Fn::If && !args.empty() ? 1 : 0);
+      if (got != f->arity)
         fail_at(text, id.pos, toks[k - 1].pos + 1 - id.pos,
                 "function '" + id.s + "' takes " + std::to_string(f->arity) + " argument" +
-                    (f->arity == 1 ? "" : "s") + ", got " + std::to_string(args.size()),
-                f->arity == 1 ? "write " + id.s + "(u)" : "write " + id.s + "(u, v)");
-      std::string g;
-      const std::string name = id.s;
-      if (name == "min" || name == "max") {
-        const char* sign = name == "min" ? "-" : "+";
-        g = "(((" + args[0] + ")+(" + args[1] + ")" + sign + "abs((" + args[0] + ")-(" +
-            args[1] + ")))/2)";
-      } else if (name == "pow") {
-        g = "((" + args[0] + ")^(" + args[1] + "))";
-      } else {
-        g = name + "(" + args[0];
-        for (std::size_t i = 1; i < args.size(); ++i) g += "," + args[i];
-        g += ")";
-      }
-      return record(start, g);
+                    (f->arity == 1 ? "" : "s") + ", got " + std::to_string(got),
+                f->fn == Fn::If      ? "write if(x < y, a, b)"
+                : f->fn == Fn::Clamp ? "write clamp(x, lo, hi)"
+                : f->arity == 1      ? "write " + id.s + "(u)"
+                                     : "write " + id.s + "(u, v)");
+      AstNode node = compound(AstKind::Call);
+      node.fn = f->fn;
+      node.cmp = cmp;
+      return add(std::move(node), start, args);
     }
     // Plain identifier.
     auto it = std::find(variables.begin(), variables.end(), id.s);
-    if (it != variables.end()) return variable_placeholder(static_cast<int>(it - variables.begin()));
+    if (it != variables.end()) return variable(static_cast<int>(it - variables.begin()), id, start);
     auto p = parameters.find(id.s);
     if (p != parameters.end()) {
       double v = p->second;
       if (!std::isfinite(v))
         error_at(id, "parameter '" + id.s + "' is " + fmt(v),
                  "give the parameter a finite value before building the expression");
-      used_parameters[id.s] = v;
-      std::string ph = "rdpar_" + id.s;
-      if (v == std::trunc(v) && std::fabs(v) < 9007199254740992.0)
-        symtab[ph] = GiNaC::numeric(static_cast<long>(v));
-      else
-        symtab[ph] = GiNaC::numeric(cln::cl_float(v, cln::float_format_dfloat));
-      return ph;
+      out.used_parameters[id.s] = v;
+      AstNode node(AstKind::Parameter);
+      node.text = id.s;
+      node.value = v;
+      return leaf(std::move(node), id);
     }
-    if (id.s == "pi") {
-      symtab["rdpi"] = GiNaC::Pi;
-      return "rdpi";
-    }
-    if (id.s == "e") {
-      symtab["rde"] = GiNaC::exp(ex(1));
-      return "rde";
-    }
+    if (id.s == "pi") return leaf(AstNode(AstKind::Pi), id);
+    if (id.s == "e") return leaf(AstNode(AstKind::E), id);
     if (find_function(id.s))
       error_at(id, "function '" + id.s + "' used without arguments",
                "call it as " + id.s + "(...)");
@@ -413,16 +521,26 @@ struct FrontEnd {
 
 }  // namespace
 
+std::string function_list() {
+  std::string s;
+  for (const auto& f : kFunctions) {
+    if (!s.empty()) s += ", ";
+    s += f.name;
+  }
+  return s;
+}
+
 ParseResult parse_front_end(const std::string& text, const std::vector<std::string>& variables,
                             const std::map<std::string, double>& parameters,
-                            const std::vector<GiNaC::realsymbol>& symbols) {
-  FrontEnd fe(text, variables, parameters, symbols);
-  ParseResult r;
-  r.ginac_text = fe.parse();
-  r.symtab = std::move(fe.symtab);
-  r.nodes = std::move(fe.nodes);
-  r.used_parameters = std::move(fe.used_parameters);
-  return r;
+                            const ExpressionOptions& opt) {
+  if (text.size() > opt.max_length)
+    throw Error("expression \"" + excerpt(text, 0) + "\" is " + std::to_string(text.size()) +
+                " characters long, more than the limit of " + std::to_string(opt.max_length) +
+                " (ExpressionOptions::max_length) (hint: split it into smaller expressions or "
+                "raise ExpressionOptions::max_length)");
+  FrontEnd fe(text, variables, parameters, opt.max_depth);
+  fe.parse();
+  return std::move(fe.out);
 }
 
 }  // namespace expr_detail
