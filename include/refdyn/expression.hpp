@@ -177,7 +177,9 @@ class Expression {
   int tape_size() const;
   int register_count() const;
   /// Tape size the same expression would have without common-subexpression elimination (every
-  /// occurrence compiled separately); for tests and documentation of the CSE gain.
+  /// occurrence compiled separately); for tests and documentation of the CSE gain. Counting
+  /// stops at max(65536, 16 × tape_size()) (derivatives share sub-expressions, and compiling
+  /// every occurrence can be exponentially larger): a value at that cap means "at least".
   int tape_size_without_cse() const;
   /// Human-readable listing of the tape (one instruction per line).
   std::string tape_listing() const;

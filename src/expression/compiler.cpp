@@ -12,6 +12,8 @@
 #include <queue>
 #include <set>
 #include <tuple>
+#include <unordered_map>
+#include <unordered_set>
 
 namespace refdyn {
 namespace expr_detail {
@@ -36,10 +38,16 @@ struct SsaInstr {
 
 class Compiler {
  public:
-  Compiler(const std::vector<GiNaC::realsymbol>& syms, bool cse) : syms_(syms), cse_(cse) {}
+  /// Thrown by a compiler without CSE when it has visited `budget` nodes.
+  struct OverBudget {};
+
+  Compiler(const std::vector<GiNaC::realsymbol>& syms, bool cse, std::size_t budget = 0)
+      : syms_(syms), cse_(cse), budget_(budget) {}
 
   /// Registers sin/cos arguments of all targets so that sin(u), cos(u) pairs fuse to sincos.
   void scan(const ex& e) {
+    // Each shared sub-expression once (derivatives share most of their structure).
+    if (!scanned_.insert(key(e)).second) return;
     if (GiNaC::is_a<GiNaC::function>(e)) {
       const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
       if (name == "sin") sin_args_.insert(e.op(0));
@@ -49,12 +57,24 @@ class Compiler {
   }
 
   Operand compile(const ex& e) {
+    // Without CSE every occurrence is compiled again: the walk is over the tree expansion of
+    // a derivative DAG, which can be far larger than the DAG (bounded by the budget).
+    if (!cse_ && budget_ && ++visits_ > budget_) throw OverBudget{};
     if (cse_) {
+      // Fast path: this very object was compiled before (no structural comparison).
+      auto p = by_object_.find(&GiNaC::ex_to<GiNaC::basic>(e));
+      if (p != by_object_.end()) return p->second;
       auto it = memo_.find(e);
-      if (it != memo_.end()) return it->second;
+      if (it != memo_.end()) {
+        by_object_.emplace(key(e), it->second);
+        return it->second;
+      }
     }
     Operand r = compile_uncached(e);
-    if (cse_) memo_.emplace(e, r);
+    if (cse_) {
+      memo_.emplace(e, r);
+      by_object_.emplace(key(e), r);
+    }
     return r;
   }
 
@@ -65,6 +85,24 @@ class Compiler {
 
  private:
   std::uint32_t new_value() { return next_value_++; }
+
+  /// The object behind e, kept alive so that its address stays a valid key.
+  const GiNaC::basic* key(const ex& e) {
+    alive_.push_back(e);
+    return &GiNaC::ex_to<GiNaC::basic>(e);
+  }
+
+  /// has_symbol, memoised per object: derivative trees share sub-expressions, and an
+  /// unmemoised walk from every node would cost (tree size) x (depth) or worse.
+  bool has_sym(const ex& e) {
+    const GiNaC::basic* p = &GiNaC::ex_to<GiNaC::basic>(e);
+    auto it = has_sym_.find(p);
+    if (it != has_sym_.end()) return it->second;
+    bool r = GiNaC::is_a<GiNaC::symbol>(e);
+    for (std::size_t i = 0; i < e.nops() && !r; ++i) r = has_sym(e.op(i));
+    has_sym_.emplace(key(e), r);
+    return r;
+  }
 
   Operand emit(Op op, std::uint32_t a, std::uint32_t b = 0, double c = 0.0, double d = 0.0) {
     using Key = std::tuple<int, std::uint32_t, std::uint32_t, std::uint64_t, std::uint64_t>;
@@ -153,7 +191,7 @@ class Compiler {
     if (GiNaC::is_a<GiNaC::mul>(e)) {
       ex constant = 1, rest = 1;
       for (std::size_t i = 0; i < e.nops(); ++i) {
-        if (has_symbol(e.op(i)))
+        if (has_sym(e.op(i)))
           rest *= e.op(i);
         else
           constant *= e.op(i);
@@ -180,7 +218,7 @@ class Compiler {
     std::vector<std::pair<double, Operand>> terms;
     for (std::size_t i = 0; i < e.nops(); ++i) {
       const ex& term = e.op(i);
-      if (!has_symbol(term)) {
+      if (!has_sym(term)) {
         constant += term;
         continue;
       }
@@ -209,12 +247,12 @@ class Compiler {
     std::vector<Operand> num, den;
     for (std::size_t i = 0; i < e.nops(); ++i) {
       const ex& f = e.op(i);
-      if (!has_symbol(f)) {
+      if (!has_sym(f)) {
         constant *= f;
         continue;
       }
       if (GiNaC::is_a<GiNaC::power>(f) && GiNaC::is_a<GiNaC::numeric>(f.op(1)) &&
-          !has_symbol(f.op(1))) {
+          !has_sym(f.op(1))) {
         const GiNaC::numeric& p = GiNaC::ex_to<GiNaC::numeric>(f.op(1));
         if (p.is_real() && p.is_negative()) {
           den.push_back(compile(GiNaC::pow(f.op(0), -p)));
@@ -239,14 +277,14 @@ class Compiler {
   Operand compile_power(const ex& e) {
     const ex& b = e.op(0);
     const ex& p = e.op(1);
-    if (!has_symbol(p)) {
+    if (!has_sym(p)) {
       double pv = constant_value(p);
       Operand base = compile(b);
       if (base.is_const) return Operand::constant(std::pow(base.c, pv));
       return pow_numeric(base, pv);
     }
     Operand expo = compile(p);
-    if (!has_symbol(b)) {  // c^u = exp(u log c)
+    if (!has_sym(b)) {  // c^u = exp(u log c)
       double bv = constant_value(b);
       if (bv > 0) return function(Op::Exp, scale(expo, std::log(bv)));
       return emit(Op::Pow, reg(Operand::constant(bv)), expo.v);
@@ -261,18 +299,41 @@ class Compiler {
     Operand x = compile(e.op(0)), y = compile(e.op(1));
     if (x.is_const && y.is_const)
       return compile(strict ? (x.c < y.c ? e.op(2) : e.op(3)) : (x.c <= y.c ? e.op(2) : e.op(3)));
-    Operand mask = emit(strict ? Op::CmpLt : Op::CmpLe, reg(x), reg(y));
-    Operand a = compile(e.op(2)), b = compile(e.op(3));
+    Operand mask = compare(strict, x, y);
+    return select(mask, compile(e.op(2)), compile(e.op(3)));
+  }
+
+  /// mask ? a : b for compiled operands.
+  Operand select(const Operand& mask, const Operand& a, const Operand& b) {
+    if (mask.is_const) return mask.c != 0.0 ? a : b;
     if (a.is_const && b.is_const && a.c == 1.0 && b.c == 0.0) return mask;
     if (a.is_const && b.is_const && a.c == 0.0 && b.c == 1.0)
       return emit(Op::RSubC, mask.v, 0, 1.0);
-    if (!a.is_const && !b.is_const && a.v == b.v) return a;
+    if (a.is_const == b.is_const && (a.is_const ? a.c == b.c : a.v == b.v)) return a;
     const std::uint32_t ra = reg(a), rb = reg(b);
     return emit(Op::Select, mask.v, ra, 0.0, select_else_bits(rb));
+  }
+  /// x < y (strict) or x <= y as a 1/0 mask.
+  Operand compare(bool strict, const Operand& x, const Operand& y) {
+    if (x.is_const && y.is_const)
+      return Operand::constant((strict ? x.c < y.c : x.c <= y.c) ? 1.0 : 0.0);
+    return emit(strict ? Op::CmpLt : Op::CmpLe, reg(x), reg(y));
   }
 
   Operand compile_function(const ex& e) {
     const unsigned serial = GiNaC::ex_to<GiNaC::function>(e).get_serial();
+    if (serial == serial_min() || serial == serial_max()) {
+      Operand a = compile(e.op(0)), b = compile(e.op(1));
+      return serial == serial_min() ? select(compare(false, a, b), a, b)
+                                    : select(compare(false, b, a), a, b);
+    }
+    if (serial == serial_step())
+      return select(compare(false, Operand::constant(0.0), compile(e.op(0))),
+                    Operand::constant(1.0), Operand::constant(0.0));
+    if (serial == serial_clamp()) {
+      Operand x = compile(e.op(0)), lo = compile(e.op(1)), hi = compile(e.op(2));
+      return select(compare(true, x, lo), lo, select(compare(true, hi, x), hi, x));
+    }
     if (serial == serial_if_lt()) return compile_if(e, true);
     if (serial == serial_if_le()) return compile_if(e, false);
     if (serial == serial_abs()) return function(Op::Abs, compile(e.op(0)));
@@ -308,7 +369,7 @@ class Compiler {
   }
 
   Operand compile_uncached(const ex& e) {
-    if (!has_symbol(e)) return Operand::constant(constant_value(e));
+    if (!has_sym(e)) return Operand::constant(constant_value(e));
     if (GiNaC::is_a<GiNaC::symbol>(e)) {
       for (std::size_t i = 0; i < syms_.size(); ++i)
         if (e.is_equal(syms_[i])) {
@@ -331,9 +392,14 @@ class Compiler {
 
   const std::vector<GiNaC::realsymbol>& syms_;
   bool cse_;
+  std::size_t budget_ = 0, visits_ = 0;
   std::vector<SsaInstr> code_;
   std::vector<std::pair<std::uint32_t, int>> loads_;
   std::uint32_t next_value_ = 0;
+  std::vector<ex> alive_;
+  std::unordered_map<const GiNaC::basic*, bool> has_sym_;
+  std::unordered_set<const GiNaC::basic*> scanned_;
+  std::unordered_map<const GiNaC::basic*, Operand> by_object_;
   std::map<ex, Operand, GiNaC::ex_is_less> memo_;
   std::map<std::tuple<int, std::uint32_t, std::uint32_t, std::uint64_t, std::uint64_t>,
            std::uint32_t>
@@ -671,6 +737,10 @@ std::mutex& ginac_mutex() {
   return m;
 }
 
+/// Budget of the compilation without CSE: this many nodes, at least kPlainBudgetMin.
+constexpr std::size_t kPlainBudgetMin = 1 << 16;
+constexpr std::size_t kPlainBudgetFactor = 16;
+
 void compile_tape(const Symbolic& s, const std::vector<GiNaC::realsymbol>& syms,
                   Expression::Impl& impl) {
   const int n = impl.n;
@@ -702,9 +772,15 @@ void compile_tape(const Symbolic& s, const std::vector<GiNaC::realsymbol>& syms,
   };
   Compiler comp(syms, true);
   compile_all(comp, prog);
-  // The same targets without CSE, for diagnostics (tape_size_without_cse).
-  Compiler plain(syms, false);
-  compile_all(plain, plain_prog);
+  // The same targets without CSE, for diagnostics (tape_size_without_cse), within a budget.
+  const std::size_t budget = std::max<std::size_t>(kPlainBudgetMin, kPlainBudgetFactor * comp.size());
+  bool plain_complete = true;
+  try {
+    Compiler plain(syms, false, budget);
+    compile_all(plain, plain_prog);
+  } catch (const Compiler::OverBudget&) {
+    plain_complete = false;
+  }
 
   if (s.hessian_constant) {
     const int m = static_cast<int>(impl.used.size());
@@ -713,8 +789,12 @@ void compile_tape(const Symbolic& s, const std::vector<GiNaC::realsymbol>& syms,
         impl.quad.A[k * m + l] = constant_value(hess[impl.used[k] * n + impl.used[l]]);
   }
 
-  fuse(plain_prog);
-  impl.tape_without_cse = static_cast<int>(plain_prog.code.size());
+  if (plain_complete) {
+    fuse(plain_prog);
+    impl.tape_without_cse = static_cast<int>(plain_prog.code.size());
+  } else {
+    impl.tape_without_cse = static_cast<int>(std::min<std::size_t>(budget, INT32_MAX));
+  }
   fuse(prog);
   lower(prog, impl);
   if (s.hessian_constant) setup_quadratic(impl);

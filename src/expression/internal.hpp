@@ -350,6 +350,14 @@ unsigned serial_abs();
 unsigned serial_sgn();
 unsigned serial_if_lt();
 unsigned serial_if_le();
+///   rd_min(a, b)          a <= b ? a : b, derivative rd_if_le(a, b, da, db)
+///   rd_max(a, b)          b <= a ? a : b, derivative rd_if_le(b, a, da, db)
+///   rd_step(u)            u >= 0 ? 1 : 0, derivative 0
+///   rd_clamp(x, lo, hi)   x < lo ? lo : (hi < x ? hi : x)
+unsigned serial_min();
+unsigned serial_max();
+unsigned serial_step();
+unsigned serial_clamp();
 /// True if e contains one of the piecewise functions (no quadratic kernel then).
 bool has_piecewise(const GiNaC::ex& e);
 

@@ -11,17 +11,34 @@
 #include <cln/float.h>
 
 #include <sstream>
+#include <unordered_set>
 
 namespace refdyn {
 namespace expr_detail {
 
 using GiNaC::ex;
 
-bool has_symbol(const ex& e) {
-  if (GiNaC::is_a<GiNaC::symbol>(e)) return true;
-  for (std::size_t i = 0; i < e.nops(); ++i)
-    if (has_symbol(e.op(i))) return true;
+namespace {
+/// True if `pred` holds for some node of e: an iterative walk that visits each shared object
+/// once (derivatives are DAGs whose tree expansion can be far larger than their size).
+template <class Pred>
+bool any_node(const ex& root, Pred&& pred) {
+  std::vector<ex> stack{root}, seen_alive;
+  std::unordered_set<const GiNaC::basic*> seen;
+  while (!stack.empty()) {
+    ex e = std::move(stack.back());
+    stack.pop_back();
+    if (!seen.insert(&GiNaC::ex_to<GiNaC::basic>(e)).second) continue;
+    if (pred(e)) return true;
+    for (std::size_t i = 0; i < e.nops(); ++i) stack.push_back(e.op(i));
+    seen_alive.push_back(std::move(e));  // keeps the address valid while it is a key
+  }
   return false;
+}
+}  // namespace
+
+bool has_symbol(const ex& e) {
+  return any_node(e, [](const ex& x) { return GiNaC::is_a<GiNaC::symbol>(x); });
 }
 
 std::string to_text(const ex& e) {
@@ -62,12 +79,52 @@ bool real_number(const ex& e) {
 }
 const GiNaC::numeric& num(const ex& e) { return GiNaC::ex_to<GiNaC::numeric>(e); }
 
-unsigned abs_serial, sgn_serial, if_lt_serial, if_le_serial;
+unsigned abs_serial, sgn_serial, if_lt_serial, if_le_serial, min_serial, max_serial, step_serial,
+    clamp_serial;
 
 GiNaC::function make_abs(const ex& u) { return GiNaC::function(abs_serial, u); }
 GiNaC::function make_sgn(const ex& u) { return GiNaC::function(sgn_serial, u); }
 GiNaC::function make_if(bool strict, const ex& x, const ex& y, const ex& a, const ex& b) {
   return GiNaC::function(strict ? if_lt_serial : if_le_serial, x, y, a, b);
+}
+
+// min, max, step and clamp are functions of their own rather than if() forms so that each
+// argument occurs once in the tree: nested min(min(min(...))) stays linear in size (an if()
+// form repeats the arguments in the condition, which doubles the tree per level for every
+// GiNaC operation that walks trees: diff, printing, has()).
+GiNaC::function make_min(const ex& a, const ex& b) { return GiNaC::function(min_serial, a, b); }
+GiNaC::function make_max(const ex& a, const ex& b) { return GiNaC::function(max_serial, a, b); }
+GiNaC::function make_step(const ex& u) { return GiNaC::function(step_serial, u); }
+GiNaC::function make_clamp(const ex& x, const ex& lo, const ex& hi) {
+  return GiNaC::function(clamp_serial, x, lo, hi);
+}
+
+// min: a where a <= b (ties: a); max: a where a >= b (ties: a).
+template <bool Max>
+ex minmax_eval(const ex& a, const ex& b) {
+  if (a.is_equal(b)) return a;
+  if (real_number(a) && real_number(b)) return (Max ? num(b) <= num(a) : num(a) <= num(b)) ? a : b;
+  return (Max ? make_max(a, b) : make_min(a, b)).hold();
+}
+template <bool Max>
+ex minmax_deriv(const ex& a, const ex& b, const GiNaC::symbol& s) {
+  return Max ? make_if(false, b, a, a.diff(s), b.diff(s))
+             : make_if(false, a, b, a.diff(s), b.diff(s));
+}
+// step(u) = u >= 0 ? 1 : 0.
+ex step_eval(const ex& u) {
+  if (real_number(u)) return num(u).is_negative() ? ex(0) : ex(1);
+  return make_step(u).hold();
+}
+ex step_deriv(const ex&, const GiNaC::symbol&) { return 0; }
+// clamp(x, lo, hi) = x < lo ? lo : (hi < x ? hi : x).
+ex clamp_eval(const ex& x, const ex& lo, const ex& hi) {
+  if (real_number(x) && real_number(lo) && real_number(hi))
+    return num(x) < num(lo) ? lo : (num(hi) < num(x) ? hi : x);
+  return make_clamp(x, lo, hi).hold();
+}
+ex clamp_deriv(const ex& x, const ex& lo, const ex& hi, const GiNaC::symbol& s) {
+  return make_if(true, x, lo, lo.diff(s), make_if(true, hi, x, hi.diff(s), x.diff(s)));
 }
 
 ex abs_eval(const ex& u) {
@@ -127,6 +184,22 @@ struct Registration {
                                                      .eval_func(if_eval<false>)
                                                      .evalf_func(if_evalf<false>)
                                                      .expl_derivative_func(if_deriv<false>));
+    min_serial = GiNaC::function::register_new(function_options("rd_min", 2)
+                                                   .eval_func(minmax_eval<false>)
+                                                   .evalf_func(minmax_eval<false>)
+                                                   .expl_derivative_func(minmax_deriv<false>));
+    max_serial = GiNaC::function::register_new(function_options("rd_max", 2)
+                                                   .eval_func(minmax_eval<true>)
+                                                   .evalf_func(minmax_eval<true>)
+                                                   .expl_derivative_func(minmax_deriv<true>));
+    step_serial = GiNaC::function::register_new(function_options("rd_step", 1)
+                                                    .eval_func(step_eval)
+                                                    .evalf_func(step_eval)
+                                                    .expl_derivative_func(step_deriv));
+    clamp_serial = GiNaC::function::register_new(function_options("rd_clamp", 3)
+                                                     .eval_func(clamp_eval)
+                                                     .evalf_func(clamp_eval)
+                                                     .expl_derivative_func(clamp_deriv));
   }
 };
 
@@ -140,15 +213,18 @@ unsigned serial_abs() { return ensure_registered(), abs_serial; }
 unsigned serial_sgn() { return ensure_registered(), sgn_serial; }
 unsigned serial_if_lt() { return ensure_registered(), if_lt_serial; }
 unsigned serial_if_le() { return ensure_registered(), if_le_serial; }
+unsigned serial_min() { return ensure_registered(), min_serial; }
+unsigned serial_max() { return ensure_registered(), max_serial; }
+unsigned serial_step() { return ensure_registered(), step_serial; }
+unsigned serial_clamp() { return ensure_registered(), clamp_serial; }
 
 bool has_piecewise(const ex& e) {
-  if (GiNaC::is_a<GiNaC::function>(e)) {
-    const unsigned s = GiNaC::ex_to<GiNaC::function>(e).get_serial();
-    if (s == abs_serial || s == sgn_serial || s == if_lt_serial || s == if_le_serial) return true;
-  }
-  for (std::size_t i = 0; i < e.nops(); ++i)
-    if (has_piecewise(e.op(i))) return true;
-  return false;
+  return any_node(e, [](const ex& x) {
+    if (!GiNaC::is_a<GiNaC::function>(x)) return false;
+    const unsigned s = GiNaC::ex_to<GiNaC::function>(x).get_serial();
+    return s == abs_serial || s == sgn_serial || s == if_lt_serial || s == if_le_serial ||
+           s == min_serial || s == max_serial || s == step_serial || s == clamp_serial;
+  });
 }
 
 // ------------------------------------------------------------------------------------------
@@ -204,13 +280,12 @@ ex call(const AstNode& node, const std::vector<ex>& a) {
     case Fn::Pow: return power(a[0], a[1]);
     case Fn::Abs: return make_abs(a[0]);
     // min/max: the first argument wins ties (a <= b for min, a >= b for max).
-    case Fn::Min: return make_if(false, a[0], a[1], a[0], a[1]);
-    case Fn::Max: return make_if(false, a[1], a[0], a[0], a[1]);
+    case Fn::Min: return make_min(a[0], a[1]);
+    case Fn::Max: return make_max(a[0], a[1]);
     // step(x) = 1 for x >= 0, else 0.
-    case Fn::Step: return make_if(false, 0, a[0], 1, 0);
+    case Fn::Step: return make_step(a[0]);
     // clamp(x, lo, hi) = lo if x < lo, hi if x > hi, else x (x itself at either bound).
-    case Fn::Clamp:
-      return make_if(true, a[0], a[1], a[1], make_if(true, a[2], a[0], a[2], a[0]));
+    case Fn::Clamp: return make_clamp(a[0], a[1], a[2]);
     case Fn::If:
       switch (node.cmp) {
         case Cmp::Lt: return make_if(true, a[0], a[1], a[2], a[3]);
