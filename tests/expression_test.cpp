@@ -907,6 +907,20 @@ TEST(ExpressionLimits, DepthLimitIsExactAndOverridable) {
   EXPECT_DOUBLE_EQ(value_of(repeat("-", 200) + "x", {"x"}, {3}), 3.0);
   EXPECT_DOUBLE_EQ(value_of(repeat("-", 201) + "x", {"x"}, {3}), -3.0);
   EXPECT_DOUBLE_EQ(value_of("2^2^2^2", {}, {}), 65536.0);
+  // Nesting at the default limit compiles with derivatives (GiNaC recurses over these trees).
+  const Expression powers("x" + repeat("^1.001", 255), {"x"});
+  const Expression absolutes(repeat("abs(", 254) + "x - 1" + repeat(") - 1", 254), {"x"});
+  const Expression negations(repeat("-(x + ", 127) + "1" + repeat(")", 127), {"x"});  // 2 levels each
+  for (const Expression* e : {&powers, &absolutes, &negations})
+    EXPECT_TRUE(all_finite(evaluate(*e, Vec{{0.3}}))) << e->source().substr(0, 20);
+  // Messages stay on one line even for texts with line breaks.
+  expect_error([] { Expression("x +\n" + repeat("(", 300) + "x" + repeat(")", 300), {"x"}); },
+               {"limit of 256"});
+  try {
+    Expression("x +\n" + repeat("(", 300) + "x" + repeat(")", 300), {"x"});
+  } catch (const Error& err) {
+    EXPECT_EQ(std::string(err.what()).find('\n'), std::string::npos) << err.what();
+  }
   // Huge exact powers are computed in floating point and reported when infinite, rather
   // than building 2^65536-bit integers.
   expect_error([] { Expression("x*2^2^2^2^2^2", {"x"}); }, {"infinite"});

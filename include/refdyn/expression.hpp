@@ -51,8 +51,9 @@
 /// `(1 - cos(pi*min(t, 2)/2))/2` has at t = 2 the derivatives of the rising branch
 /// (d/dt = (pi/4) sin(pi) ~ 0, d²/dt² = -pi²/8), just after t = 2 those of the constant one.
 /// Such expressions never use the quadratic kernel. text() and the derivative texts print
-/// them with GiNaC names: rd_abs(u), rd_sgn(u) (u >= 0 ? 1 : -1), rd_if_lt(u, v, a, b)
-/// (u < v ? a : b), rd_if_le(u, v, a, b) (u <= v ? a : b).
+/// them with the engine's GiNaC names: rd_abs(u), rd_sgn(u) (u >= 0 ? 1 : -1), rd_min(a, b),
+/// rd_max(a, b), rd_step(u), rd_clamp(x, lo, hi), rd_if_lt(u, v, a, b) (u < v ? a : b) and
+/// rd_if_le(u, v, a, b) (u <= v ? a : b).
 ///
 /// Limits (ExpressionOptions): the text may be at most max_length = 64 KiB long and nest at most
 /// max_depth = 256 levels (parentheses, function arguments, unary signs, exponents); both are

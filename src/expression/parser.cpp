@@ -165,7 +165,10 @@ std::string excerpt(const std::string& text, std::size_t pos) {
   constexpr std::size_t kWidth = 30;
   const std::size_t from = pos > kWidth ? pos - kWidth : 0;
   const std::size_t to = std::min(text.size(), pos + kWidth);
-  return (from > 0 ? "..." : "") + text.substr(from, to - from) + (to < text.size() ? "..." : "");
+  std::string part = text.substr(from, to - from);
+  for (char& ch : part)  // one line, whatever the text contains
+    if (std::iscntrl(static_cast<unsigned char>(ch))) ch = ' ';
+  return (from > 0 ? "..." : "") + part + (to < text.size() ? "..." : "");
 }
 
 struct FrontEnd {
