@@ -6,6 +6,11 @@
 // constants (the best a hand-written constraint can do). Inputs cycle through 64 random points.
 // After the runs the medians and the ratio tape / hand-written are printed.
 //
+// Construction cost vs text length (BM_Construct_*): parse + GiNaC lowering + derivatives +
+// tape compilation of generated texts of 1 KiB .. 64 KiB (the default ExpressionOptions::
+// max_length), with a fitted complexity (expected: about linear, O(N)).
+//   ./build/bench/expression_bench --benchmark_filter=Construct
+//
 //   ./build/bench/expression_bench            (add --benchmark_filter=Phi1 etc. as usual)
 #include "refdyn/expression.hpp"
 
@@ -82,7 +87,7 @@ const refdyn::Expression& phi1() {
 const refdyn::Expression& phi1_generic() {
   static const refdyn::Expression e("(x(E)/a)^2 + (y(E)/b)^2 - 1", {"x(E)", "y(E)"},
                                     {{"a", kA}, {"b", kB}},
-                                    refdyn::ExpressionOptions{2, /*specialize=*/false});
+                                    refdyn::ExpressionOptions{.derivative_order = 2, .specialize = false});
   return e;
 }
 
@@ -122,6 +127,44 @@ void BM_Phi2_Tape(benchmark::State& state) {
   run(state, kPhi2Points,
       [&](const double* x, double& v, double* g, double* H) { e.evaluate(x, v, g, H); });
 }
+
+// ---- construction cost vs length ----
+/// "1+1+...+1" of about `bytes` characters.
+std::string ones_text(std::size_t bytes) {
+  std::string s = "1";
+  while (s.size() + 2 <= bytes) s += "+1";
+  return s;
+}
+/// "0 + sin(1*x)/1 + sin(2*x)/2 + ..." (distinct terms, each with its own derivatives).
+std::string sines_text(std::size_t bytes) {
+  std::string s = "0";
+  for (int k = 1;; ++k) {
+    std::string term = " + sin(" + std::to_string(k) + "*x)/" + std::to_string(k);
+    if (s.size() + term.size() > bytes) break;
+    s += term;
+  }
+  return s;
+}
+void construct(benchmark::State& state, const std::string& text) {
+  for (auto _ : state) {
+    refdyn::Expression e(text, {"x"});
+    benchmark::DoNotOptimize(e.tape_size());
+  }
+  state.SetComplexityN(static_cast<benchmark::IterationCount>(text.size()));
+  state.counters["bytes"] = static_cast<double>(text.size());
+}
+void BM_Construct_Ones(benchmark::State& state) { construct(state, ones_text(state.range(0))); }
+void BM_Construct_Sines(benchmark::State& state) { construct(state, sines_text(state.range(0))); }
+BENCHMARK(BM_Construct_Ones)
+    ->RangeMultiplier(4)
+    ->Range(1 << 10, 1 << 16)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity(benchmark::oN);
+BENCHMARK(BM_Construct_Sines)
+    ->RangeMultiplier(4)
+    ->Range(1 << 10, 1 << 16)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity(benchmark::oN);
 
 // Many short repetitions, randomly interleaved (see main): the median is the headline number,
 // the minimum is the least disturbed run (useful on a loaded machine).

@@ -67,7 +67,7 @@ TEST(ExpressionAlloc, EvaluateDoesNotAllocate) {
       Expression("(x(E)/a)^2 + (y(E)/b)^2 - 1", {"x(E)", "y(E)"}, {{"a", kA}, {"b", kB}}),
       // Same through the tape.
       Expression("(x(E)/a)^2 + (y(E)/b)^2 - 1", {"x(E)", "y(E)"}, {{"a", kA}, {"b", kB}},
-                 ExpressionOptions{2, false}),
+                 ExpressionOptions{.derivative_order = 2, .specialize = false}),
       // Tape with functions.
       Expression("z(E) - (z0 + dz*(1 - cos(2*pi*t/Tz))/2)", {"z(E)", "t"},
                  {{"z0", 0.95}, {"dz", 0.1}, {"Tz", 5}}),

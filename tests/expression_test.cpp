@@ -79,11 +79,11 @@ const double kDz = 0.1, kTz = 5.0;
 
 Expression phi1(bool specialize = true) {
   return Expression("(x(E)/a)^2 + (y(E)/b)^2 - 1", {"x(E)", "y(E)"}, {{"a", kA}, {"b", kB}},
-                    ExpressionOptions{2, specialize});
+                    ExpressionOptions{.derivative_order = 2, .specialize = specialize});
 }
 Expression phi2(bool specialize = true) {
   return Expression("z(E) - (z0 + dz*(1 - cos(2*pi*t/Tz))/2)", {"z(E)", "t"},
-                    {{"z0", kZ0}, {"dz", kDz}, {"Tz", kTz}}, ExpressionOptions{2, specialize});
+                    {{"z0", kZ0}, {"dz", kDz}, {"Tz", kTz}}, ExpressionOptions{.derivative_order = 2, .specialize = specialize});
 }
 
 TEST(Expression, SpecConstraintsMatchHandWrittenDerivatives) {
@@ -359,7 +359,7 @@ TEST(Expression, FiniteDifferencesAndSymmetricHessian) {
   for (const FdCase& c : fd_cases()) {
     SCOPED_TRACE(c.text);
     for (bool specialize : {true, false}) {
-      const Expression e(c.text, c.vars, c.params, ExpressionOptions{2, specialize});
+      const Expression e(c.text, c.vars, c.params, ExpressionOptions{.derivative_order = 2, .specialize = specialize});
       std::uniform_real_distribution<double> u(c.lo, c.hi);
       for (int trial = 0; trial < 10; ++trial) {
         Vec x(c.vars.size());
@@ -392,7 +392,7 @@ TEST(Expression, QuadraticKernelAgreesWithTape) {
   };
   for (const auto& [text, vars] : cases) {
     SCOPED_TRACE(text);
-    const Expression quad(text, vars), tape(text, vars, {}, ExpressionOptions{2, false});
+    const Expression quad(text, vars), tape(text, vars, {}, ExpressionOptions{.derivative_order = 2, .specialize = false});
     EXPECT_TRUE(quad.is_quadratic());
     EXPECT_FALSE(tape.is_quadratic());
     for (int trial = 0; trial < 10; ++trial) {
@@ -431,7 +431,7 @@ int count(const std::string& haystack, const std::string& needle) {
 
 TEST(Expression, CseSharesSubexpressionsAcrossValueGradientHessian) {
   const Expression e("sin(x)^2 + sin(x)*cos(x) + exp(x*y)/sqrt(x)", {"x", "y"}, {},
-                     ExpressionOptions{2, false});
+                     ExpressionOptions{.derivative_order = 2, .specialize = false});
   EXPECT_LT(e.tape_size(), e.tape_size_without_cse());
   EXPECT_LT(2 * e.tape_size(), e.tape_size_without_cse()) << e.tape_listing();
   const std::string listing = e.tape_listing();
@@ -681,6 +681,326 @@ TEST(ExpressionErrors, NaNAtRuntimeIsNotAnError) {
   const double x[2] = {-1.0, -1.0};
   EXPECT_NO_THROW(e.evaluate(x, v, g, h));
   EXPECT_TRUE(std::isnan(v));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kinks: abs, min, max, step, clamp, if. Exact one-sided derivatives, finite at the kink.
+// ---------------------------------------------------------------------------------------------
+
+bool all_finite(const Eval& r) {
+  return std::isfinite(r.value) && r.grad.allFinite() && r.hess.allFinite();
+}
+
+/// Value, gradient and Hessian at x against closed forms; every entry finite.
+void expect_eval(const Expression& e, const Vec& x, double v, const Vec& g, const Mat& h,
+                 double tol = 1e-14) {
+  const Eval r = evaluate(e, x);
+  ASSERT_TRUE(all_finite(r)) << e.source() << " at " << x.transpose();
+  EXPECT_NEAR(r.value, v, tol) << e.source() << " at " << x.transpose();
+  EXPECT_TRUE(test::near(r.grad, g, tol, tol)) << e.source() << " at " << x.transpose() << ": "
+                                               << r.grad.transpose();
+  EXPECT_TRUE(test::near(r.hess, h, tol, tol)) << e.source() << " at " << x.transpose() << ":\n"
+                                               << r.hess;
+}
+
+TEST(ExpressionKinks, AbsAtZeroTakesTheRightSidedDerivative) {
+  const Expression e("abs(x)", {"x"});
+  EXPECT_FALSE(e.is_quadratic());
+  expect_eval(e, Vec{{0.0}}, 0, Vec{{1.0}}, Mat{{0.0}});
+  expect_eval(e, Vec{{-0.0}}, 0, Vec{{1.0}}, Mat{{0.0}});
+  expect_eval(e, Vec{{0.3}}, 0.3, Vec{{1.0}}, Mat{{0.0}});
+  expect_eval(e, Vec{{-0.3}}, 0.3, Vec{{-1.0}}, Mat{{0.0}});
+  // Inside a smooth function: d/dx sin(|x|) at 0 = cos(0) * 1, d² = -sin(0) = 0.
+  const Expression s("sin(abs(x)) + abs(x)^2", {"x"});
+  expect_eval(s, Vec{{0.0}}, 0, Vec{{1.0}}, Mat{{2.0}});
+}
+
+TEST(ExpressionKinks, MinMaxTiesTakeTheFirstArgumentForGradientAndHessian) {
+  const Expression mn("min(x^2, y)", {"x", "y"}), mx("max(x^2, y)", {"x", "y"});
+  // Tie x^2 = y: the first argument x^2 (gradient (2x, 0), Hessian diag(2, 0)) for both.
+  for (const Expression* e : {&mn, &mx})
+    expect_eval(*e, Vec{{1.5, 2.25}}, 2.25, Vec{{3.0, 0.0}}, Mat{{2.0, 0.0}, {0.0, 0.0}});
+  // Either side, away from the tie.
+  expect_eval(mn, Vec{{1.5, 3.0}}, 2.25, Vec{{3.0, 0.0}}, Mat{{2.0, 0.0}, {0.0, 0.0}});
+  expect_eval(mn, Vec{{1.5, 2.0}}, 2.0, Vec{{0.0, 1.0}}, Mat::Zero(2, 2));
+  expect_eval(mx, Vec{{1.5, 2.0}}, 2.25, Vec{{3.0, 0.0}}, Mat{{2.0, 0.0}, {0.0, 0.0}});
+  expect_eval(mx, Vec{{1.5, 3.0}}, 3.0, Vec{{0.0, 1.0}}, Mat::Zero(2, 2));
+  // Swapped arguments: the tie now goes to y.
+  const Expression ym("min(y, x^2)", {"x", "y"});
+  expect_eval(ym, Vec{{1.5, 2.25}}, 2.25, Vec{{0.0, 1.0}}, Mat::Zero(2, 2));
+}
+
+TEST(ExpressionKinks, ProgrammedSpeedIsFiniteWhereMinSwitches) {
+  // The programmed speed: an RK4 stage landing on t = 2 used to give NaN.
+  const Expression e("(1 - cos(pi*min(t, 2)/2))/2", {"t"});
+  // At t = 2 (tie): the rising branch t, i.e. the left-sided derivatives.
+  expect_eval(e, Vec{{2.0}}, 1.0, Vec{{kPi / 4 * std::sin(kPi)}},
+              Mat{{kPi * kPi / 8 * std::cos(kPi)}});
+  // Just after: the constant branch.
+  expect_eval(e, Vec{{2.0 + 1e-12}}, 1.0, Vec{{0.0}}, Mat{{0.0}});
+  // Before: the closed form.
+  const double t = 1.3;
+  expect_eval(e, Vec{{t}}, (1 - std::cos(kPi * t / 2)) / 2, Vec{{kPi / 4 * std::sin(kPi * t / 2)}},
+              Mat{{kPi * kPi / 8 * std::cos(kPi * t / 2)}});
+}
+
+TEST(ExpressionKinks, IfStepClampAgainstClosedForms) {
+  // if with every comparison; at the tie < and > take b, <= and >= take a.
+  struct IfCase {
+    const char* text;
+    bool a_at_tie;
+    bool a_below;  // branch a for x < 1
+  };
+  for (const IfCase& c : {IfCase{"if(x < 1, x^3, 2*x - 1)", false, true},
+                          IfCase{"if(x <= 1, x^3, 2*x - 1)", true, true},
+                          IfCase{"if(x > 1, x^3, 2*x - 1)", false, false},
+                          IfCase{"if(x >= 1, x^3, 2*x - 1)", true, false},
+                          IfCase{"if(1 > x, x^3, 2*x - 1)", false, true},
+                          IfCase{"if(1 >= x, x^3, 2*x - 1)", true, true}}) {
+    SCOPED_TRACE(c.text);
+    const Expression e(c.text, {"x"});
+    for (double x : {0.5, 1.0, 1.5}) {
+      const bool a = x == 1.0 ? c.a_at_tie : (x < 1.0) == c.a_below;
+      if (a)
+        expect_eval(e, Vec{{x}}, x * x * x, Vec{{3 * x * x}}, Mat{{6 * x}});
+      else
+        expect_eval(e, Vec{{x}}, 2 * x - 1, Vec{{2.0}}, Mat{{0.0}});
+    }
+  }
+  // Conditions and branches in several variables.
+  const Expression two("if(x*y < t, sin(x), y^2)", {"x", "y", "t"});
+  expect_eval(two, Vec{{0.5, 1.0, 1.0}}, std::sin(0.5), Vec{{std::cos(0.5), 0, 0}},
+              Mat{{-std::sin(0.5), 0, 0}, {0, 0, 0}, {0, 0, 0}});
+  expect_eval(two, Vec{{1.0, 2.0, 2.0}}, 4.0, Vec{{0, 4, 0}}, Mat{{0, 0, 0}, {0, 2, 0}, {0, 0, 0}});
+
+  const Expression st("step(x - 1)*(x - 1)^2", {"x"});
+  expect_eval(st, Vec{{0.5}}, 0, Vec{{0.0}}, Mat{{0.0}});
+  expect_eval(st, Vec{{1.0}}, 0, Vec{{0.0}}, Mat{{2.0}});  // step(0) = 1: the right branch
+  expect_eval(st, Vec{{2.0}}, 1, Vec{{2.0}}, Mat{{2.0}});
+  const Expression s0("step(x)", {"x"});
+  EXPECT_EQ(s0.value(Vec{{0.0}}.data()), 1.0);
+  EXPECT_EQ(s0.value(Vec{{-1e-300}}.data()), 0.0);
+
+  const Expression cl("clamp(x^2, lo, hi)", {"x", "lo", "hi"});
+  expect_eval(cl, Vec{{0.5, 1.0, 4.0}}, 1.0, Vec{{0, 1, 0}}, Mat::Zero(3, 3));   // below
+  expect_eval(cl, Vec{{1.5, 1.0, 4.0}}, 2.25, Vec{{3, 0, 0}},
+              Mat{{2, 0, 0}, {0, 0, 0}, {0, 0, 0}});                          // inside
+  expect_eval(cl, Vec{{3.0, 1.0, 4.0}}, 4.0, Vec{{0, 0, 1}}, Mat::Zero(3, 3));   // above
+  expect_eval(cl, Vec{{1.0, 1.0, 4.0}}, 1.0, Vec{{2, 0, 0}},
+              Mat{{2, 0, 0}, {0, 0, 0}, {0, 0, 0}});  // at lo: x^2 itself
+  expect_eval(cl, Vec{{2.0, 1.0, 4.0}}, 4.0, Vec{{4, 0, 0}},
+              Mat{{2, 0, 0}, {0, 0, 0}, {0, 0, 0}});  // at hi: x^2 itself
+}
+
+TEST(ExpressionKinks, BranchNotTakenDoesNotLeak) {
+  // log(0) = -inf and 1/x = inf in the branch not taken.
+  const Expression e("if(x > 0, x*log(x), 0)", {"x"});
+  expect_eval(e, Vec{{0.0}}, 0, Vec{{0.0}}, Mat{{0.0}});
+  expect_eval(e, Vec{{2.0}}, 2 * std::log(2.0), Vec{{std::log(2.0) + 1}}, Mat{{0.5}});
+  const Expression c("if(x < 1, 1/(x - 1), 7)", {"x"});
+  expect_eval(c, Vec{{1.0}}, 7, Vec{{0.0}}, Mat{{0.0}});
+}
+
+TEST(ExpressionKinks, FiniteDifferencesOnEachSideAwayFromTheKink) {
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+      {"abs(x - y)^3 + abs(sin(x))", {"x", "y"}},
+      {"min(x*y, x + y) + max(exp(x), y^2)", {"x", "y"}},
+      {"clamp(x*y, -0.5, 0.5)*x + step(y)*x^2", {"x", "y"}},
+      {"if(x^2 + y^2 <= 1, sqrt(2 - x^2 - y^2), 1/(x^2 + y^2))", {"x", "y"}},
+      {"(1 - cos(pi*min(x, 2)/2))/2 + y", {"x", "y"}},
+  };
+  // Kink surfaces of the cases above, to keep FD stencils on one side.
+  auto near_kink = [](const Vec& v) {
+    const double x = v[0], y = v[1];
+    const double gaps[] = {x - y,         std::sin(x),           x * y - x - y,
+                           std::exp(x) - y * y, std::fabs(x * y) - 0.5, y,
+                           x * x + y * y - 1,   x - 2,           x};
+    for (double g : gaps)
+      if (std::fabs(g) < 0.05) return true;
+    return false;
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-2.5, 2.5);
+  for (const auto& [text, vars] : cases) {
+    SCOPED_TRACE(text);
+    const Expression e(text, vars);
+    int checked = 0;
+    for (int trial = 0; trial < 200 && checked < 40; ++trial) {
+      const Vec x{{u(rng), u(rng)}};
+      if (near_kink(x)) continue;
+      ++checked;
+      const Eval r = evaluate(e, x), fd = finite_differences(e, x);
+      ASSERT_TRUE(all_finite(r));
+      EXPECT_TRUE(test::near(r.grad, fd.grad, 1e-6, 1e-6)) << x.transpose();
+      EXPECT_TRUE(test::near(r.hess, fd.hess, 1e-5, 1e-5)) << x.transpose();
+      EXPECT_EQ(r.hess, r.hess.transpose());
+    }
+    EXPECT_GE(checked, 20);
+  }
+}
+
+TEST(ExpressionKinks, ConditionSyntaxErrors) {
+  expect_error([] { Expression("if(x, 1, 2)", {"x"}); },
+               {"expected a comparison", "if(x < y, a, b)"});
+  expect_error([] { Expression("x < 1", {"x"}); },
+               {"unexpected '<'", "only as the condition of if"});
+  expect_error([] { Expression("sin(x < 1)", {"x"}); }, {"only as the condition of if"});
+  expect_error([] { Expression("if(x < 1 < 2, 1, 2)", {"x"}); }, {"chained comparison"});
+  expect_error([] { Expression("if(x < 1, 2)", {"x"}); },
+               {"function 'if' takes 3 arguments, got 2"});
+  expect_error([] { Expression("clamp(x, 1)", {"x"}); },
+               {"'clamp' takes 3 arguments, got 2", "clamp(x, lo, hi)"});
+  expect_error([] { Expression("if(x == 1, 1, 2)", {"x"}); }, {"unexpected character '='"});
+  // The function list in hints names the new functions.
+  expect_error([] { Expression("zzzzzz + x", {"x"}); }, {"step", "clamp", "if"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Limits: nesting depth and length, checked before any recursion.
+// ---------------------------------------------------------------------------------------------
+
+std::string repeat(const std::string& s, int n) {
+  std::string out;
+  for (int i = 0; i < n; ++i) out += s;
+  return out;
+}
+
+TEST(ExpressionLimits, DeepNestingIsAnErrorNotACrash) {
+  const int n = 3000;  // all below the length limit (else that limit is hit first)
+  const std::vector<std::string> deep = {
+      repeat("(", n) + "x" + repeat(")", n),           // parentheses
+      "x" + repeat("^2", n),                           // power tower x^2^2^...
+      repeat("2^", n) + "x",                           // 2^2^...^x
+      repeat("-", n) + "x",                            // unary minus chain
+      repeat("- ", n) + "x",                           //
+      repeat("sin(", n) + "x" + repeat(")", n),       // nested calls
+      repeat("min(x, ", n) + "x" + repeat(")", n),    //
+      repeat("if(x < 1, ", n) + "x" + repeat(", 2)", n),
+  };
+  for (const std::string& text : deep) {
+    SCOPED_TRACE(text.substr(0, 20));
+    expect_error([&] { Expression(text, {"x"}); },
+                 {"nesting is deeper than the limit of 256", "ExpressionOptions::max_depth",
+                  "column"});
+    try {
+      Expression(text, {"x"});
+    } catch (const Error& err) {
+      EXPECT_EQ(std::string(err.what()).find('\n'), std::string::npos) << "one line expected";
+    }
+  }
+}
+
+TEST(ExpressionLimits, DepthLimitIsExactAndOverridable) {
+  // 256 levels of parentheses are fine, 257 are not.
+  const std::string ok = repeat("(", 256) + "x + 1" + repeat(")", 256);
+  const std::string over = repeat("(", 257) + "x + 1" + repeat(")", 257);
+  EXPECT_DOUBLE_EQ(Expression(ok, {"x"}).value(Vec{{2.0}}.data()), 3.0);
+  expect_error([&] { Expression(over, {"x"}); }, {"limit of 256"});
+  ExpressionOptions opt;
+  opt.max_depth = 1000;
+  const Expression e(over, {"x"}, {}, opt);
+  EXPECT_DOUBLE_EQ(e.value(Vec{{2.0}}.data()), 3.0);
+  opt.max_depth = 3;
+  expect_error([&] { Expression("sin(sin(sin(sin(x))))", {"x"}, {}, opt); }, {"limit of 3"});
+  EXPECT_NO_THROW(Expression("sin(sin(sin(x)))", {"x"}, {}, opt));
+  // A deep but allowed chain of unary minus and a tower of powers evaluate correctly.
+  EXPECT_DOUBLE_EQ(value_of(repeat("-", 200) + "x", {"x"}, {3}), 3.0);
+  EXPECT_DOUBLE_EQ(value_of(repeat("-", 201) + "x", {"x"}, {3}), -3.0);
+  EXPECT_DOUBLE_EQ(value_of("2^2^2^2", {}, {}), 65536.0);
+  // Nesting at the default limit compiles with derivatives (GiNaC recurses over these trees).
+  const Expression powers("x" + repeat("^1.001", 255), {"x"});
+  const Expression absolutes(repeat("abs(", 254) + "x - 1" + repeat(") - 1", 254), {"x"});
+  const Expression negations(repeat("-(x + ", 127) + "1" + repeat(")", 127), {"x"});  // 2 levels each
+  for (const Expression* e : {&powers, &absolutes, &negations})
+    EXPECT_TRUE(all_finite(evaluate(*e, Vec{{0.3}}))) << e->source().substr(0, 20);
+  // Messages stay on one line even for texts with line breaks.
+  expect_error([] { Expression("x +\n" + repeat("(", 300) + "x" + repeat(")", 300), {"x"}); },
+               {"limit of 256"});
+  try {
+    Expression("x +\n" + repeat("(", 300) + "x" + repeat(")", 300), {"x"});
+  } catch (const Error& err) {
+    EXPECT_EQ(std::string(err.what()).find('\n'), std::string::npos) << err.what();
+  }
+  // Huge exact powers are computed in floating point and reported when infinite, rather
+  // than building 2^65536-bit integers.
+  expect_error([] { Expression("x*2^2^2^2^2^2", {"x"}); }, {"infinite"});
+  EXPECT_NEAR(value_of("x*1.0000001^5000", {"x"}, {1}), std::pow(1.0000001, 5000), 1e-12);
+  EXPECT_EQ(value_of("x + 0.5^5000", {"x"}, {1}), 1.0);
+}
+
+TEST(ExpressionLimits, LengthLimitAndOverride) {
+  std::string text = "x";
+  while (text.size() < 70000) text += "+x";
+  expect_error([&] { Expression(text, {"x"}); },
+               {"characters long", "limit of 65536", "ExpressionOptions::max_length"});
+  try {
+    Expression(text, {"x"});
+  } catch (const Error& err) {
+    EXPECT_EQ(std::string(err.what()).find('\n'), std::string::npos) << "one line expected";
+    EXPECT_LT(std::string(err.what()).size(), 400u);
+  }
+  ExpressionOptions opt;
+  opt.max_length = 1 << 20;
+  const Expression e(text, {"x"}, {}, opt);
+  EXPECT_DOUBLE_EQ(e.value(Vec{{1.0}}.data()), static_cast<double>((text.size() + 1) / 2));
+}
+
+TEST(ExpressionLimits, LargeExpressionsCompileLinearly) {
+  // 1+1+...+1 and x+x+...+x at the length limit: one n-ary sum, folded to one term.
+  std::string ones = "1";
+  while (ones.size() + 2 <= 65536) ones += "+1";
+  const Expression c(ones, {"x"});
+  EXPECT_EQ(c.tape_size(), 0);
+  EXPECT_EQ(c.value(Vec{{0.0}}.data()), static_cast<double>((ones.size() + 1) / 2));
+  std::string xs = "x";
+  while (xs.size() + 2 <= 65536) xs += "-x";
+  const Expression x(xs, {"x"});
+  EXPECT_LE(x.tape_size(), 1);
+  // Distinct terms: the tape grows linearly with the number of terms (value, gradient and
+  // Hessian of each term: a sincos and a few multiply-adds), and so do the registers (sin and
+  // cos of each term, computed once in the value stage, stay live for the gradient and Hessian).
+  std::string terms = "0";
+  int k = 0;
+  while (terms.size() < 60000) {
+    ++k;
+    terms += " + sin(" + std::to_string(k) + "*x)/" + std::to_string(k);
+  }
+  const Expression e(terms, {"x"});
+  EXPECT_LE(e.tape_size(), 6 * k);
+  EXPECT_GE(e.tape_size(), k);
+  EXPECT_LE(e.register_count(), 3 * k);
+  double sum = 0, dsum = 0;
+  for (int j = 1; j <= k; ++j) {
+    sum += std::sin(j * 0.3) / j;
+    dsum += std::cos(j * 0.3);
+  }
+  const Eval r = evaluate(e, Vec{{0.3}});
+  EXPECT_NEAR(r.value, sum, 1e-10);
+  EXPECT_NEAR(r.grad[0], dsum, 1e-9);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parameters that cancel a variable.
+// ---------------------------------------------------------------------------------------------
+
+TEST(Expression, ParameterThatCancelsAVariable) {
+  // amp = 0 removes t: constant in t, derivatives 0, and t is still a valid name.
+  const Expression e("amp*sin(t) + 1", {"t"}, {{"amp", 0}});
+  EXPECT_TRUE(e.used_variables().empty());
+  EXPECT_EQ(e.referenced_variables(), std::vector<int>{0});
+  expect_eval(e, Vec{{0.7}}, 1.0, Vec{{0.0}}, Mat{{0.0}});
+  // A constraint term 0*q(j2): used variables shrink, referenced ones do not, and rebuilding
+  // over the referenced ones works (over the used ones, q(j2) would be unknown).
+  const std::vector<std::string> names = {"x(E)", "q(j1)", "q(j2)", "t"};
+  const Expression probe("x(E) - 1 + k*q(j2)", names, {{"k", 0}}, 0);
+  EXPECT_EQ(probe.used_variables(), std::vector<int>{0});
+  EXPECT_EQ(probe.referenced_variables(), (std::vector<int>{0, 2}));
+  std::vector<std::string> kept;
+  for (int i : probe.referenced_variables()) kept.push_back(names[i]);
+  const Expression rebuilt("x(E) - 1 + k*q(j2)", kept, {{"k", 0}});
+  expect_eval(rebuilt, Vec{{3.0, 5.0}}, 2.0, Vec{{1.0, 0.0}}, Mat::Zero(2, 2));
+  expect_error([] { Expression("x(E) - 1 + k*q(j2)", {"x(E)"}, {{"k", 0}}); },
+               {"unknown identifier 'q(j2)'"});
 }
 
 }  // namespace

@@ -174,3 +174,39 @@ TEST(TimeFunction, BadParametersThrowWithMessages) {
   throws_with([] { cycloidal(1.0, -1.0); }, "duration");
   throws_with([] { cycloidal(1.0, 1.0, kInf); }, "cycloidal");
 }
+
+// Expression time functions (expression_time_function, built on refdyn::Expression).
+
+TEST(ExpressionTimeFunction, ProgrammedSpeedIsFiniteAtTheKink) {
+  // The issue: an RK4 stage landing exactly on t = 2 saw NaN from min(t, 2).
+  const auto f = expression_time_function("(1 - cos(pi*min(t, 2)/2))/2");
+  const double pi = std::numbers::pi;
+  const TimeValue k = f->eval(2.0);
+  ASSERT_TRUE(std::isfinite(k.f) && std::isfinite(k.df) && std::isfinite(k.ddf));
+  // At t = 2 the rising branch (min's first argument wins ties): its one-sided derivatives.
+  EXPECT_NEAR(k.f, 1.0, 1e-15);
+  EXPECT_NEAR(k.df, pi / 4 * std::sin(pi), 1e-15);
+  EXPECT_NEAR(k.ddf, pi * pi / 8 * std::cos(pi), 1e-14);
+  // After: constant 1.
+  const TimeValue a = f->eval(2.5);
+  EXPECT_EQ(a.f, 1.0);
+  EXPECT_EQ(a.df, 0.0);
+  EXPECT_EQ(a.ddf, 0.0);
+  // Before: finite differences agree with the exact derivatives.
+  expect_derivatives_match_fd({"speed", f}, 1.3);
+  expect_derivatives_match_fd({"speed_after", f}, 2.7);
+}
+
+TEST(ExpressionTimeFunction, ZeroAmplitudeGivesAConstant) {
+  // amp = 0 removes t from amp*sin(t) after substitution: a constant function, not an error.
+  const auto f = expression_time_function("amp*sin(t)", {{"amp", 0.0}});
+  for (double t : {0.0, 0.7, 3.0}) {
+    const TimeValue v = f->eval(t);
+    EXPECT_EQ(v.f, 0.0);
+    EXPECT_EQ(v.df, 0.0);
+    EXPECT_EQ(v.ddf, 0.0);
+  }
+  const auto g = expression_time_function("z0 + amp*sin(w*t)", {{"z0", 0.5}, {"amp", 0.0}, {"w", 2.0}});
+  EXPECT_EQ(g->eval(1.0).f, 0.5);
+  EXPECT_EQ(g->eval(1.0).df, 0.0);
+}

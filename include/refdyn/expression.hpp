@@ -1,11 +1,12 @@
 #pragma once
 /// Symbolic scalar expressions for task constraints, compiled to a fast evaluation tape.
 ///
-/// A constraint such as `(x(E)/a)^2 + (y(E)/b)^2 - 1` is parsed once (GiNaC's parser, after a
-/// front end that resolves names and fixes precedence), its gradient and Hessian are derived
-/// exactly (GiNaC), and value + gradient + Hessian are compiled into one flat instruction tape
-/// over doubles with common-subexpression elimination shared across all entries. Evaluation is
-/// an interpreter loop over that tape: no GiNaC, no virtual calls, no heap allocation.
+/// A constraint such as `(x(E)/a)^2 + (y(E)/b)^2 - 1` is parsed once (a front end that resolves
+/// names, fixes precedence and builds a syntax tree), turned into a GiNaC expression, its
+/// gradient and Hessian are derived exactly (GiNaC), and value + gradient + Hessian are compiled
+/// into one flat instruction tape over doubles with common-subexpression elimination shared
+/// across all entries. Evaluation is an interpreter loop over that tape: no GiNaC, no virtual
+/// calls, no heap allocation.
 ///
 /// Syntax
 ///   numbers      2, 0.5, .5, 1e-3
@@ -13,20 +14,62 @@
 ///                tighter than unary minus (-x^2 = -(x^2)) and is right-associative
 ///                (a^b^c = a^(b^c)); * and / are left-associative (a/b*c = (a/b)*c).
 ///   functions    sin cos tan asin acos atan atan2(y,x) sinh cosh tanh asinh acosh atanh
-///                exp log sqrt abs pow(a,b) min(a,b) max(a,b)
-///                (min/max are expanded as (a+b∓|a−b|)/2; their derivatives jump at a = b)
+///                exp log sqrt pow(a,b)
+///                piecewise (see "Kinks" below):
+///                abs(x)
+///                min(a,b) max(a,b)
+///                step(x)           1 for x >= 0, else 0
+///                clamp(x,lo,hi)    lo if x < lo, hi if x > hi, else x (expects lo <= hi)
+///                if(cond, a, b)    a where cond holds, else b
+///   conditions   only as the first argument of if(): exactly one comparison `u < v`,
+///                `u <= v`, `u > v` or `u >= v` between two expressions. No chained
+///                comparisons (a < b < c), no == or !=, no and/or (nest if() instead), and no
+///                comparisons anywhere else. The comparison is made on the two evaluated sides.
 ///   constants    pi, e (= exp(1)); a variable or parameter of the same name shadows them
 ///   variables    any listed name: a plain identifier (`t`, `x`) or a call-like name
 ///                `name(arg)` such as `x(E)`, `vx(E)`, `q(psi1)`. Whitespace inside is ignored:
 ///                `x( E )` is the variable "x(E)". A call-like name that is listed as a variable
 ///                wins over a function of the same name.
 ///   parameters   identifiers given numeric values; substituted as constants before
-///                differentiation (integers exactly, other values as IEEE doubles).
+///                differentiation (integers exactly, other values as IEEE doubles). A
+///                parameter may make a variable disappear (`k*t` with k = 0): see
+///                used_variables() and referenced_variables().
+///
+/// Kinks (abs, min, max, step, clamp, if): derivatives are exact and finite on both sides and
+/// at the switching point itself; no NaN at a kink. At the switching point the value, gradient
+/// and Hessian all come from the same one branch (one-sided derivatives of that branch):
+///   abs(x)        d/dx = +1 at x = 0 (right-sided), d²/dx² = 0
+///   min(a,b)      a where a <= b: at a tie the first argument's derivatives
+///   max(a,b)      a where a >= b: at a tie the first argument's derivatives
+///   step(x)       1 at x = 0; derivative 0 everywhere (including at 0)
+///   clamp(x,l,h)  x at x = l and at x = h (derivative 1: the inside branch)
+///   if(u < v, a, b)   b at u = v;  if(u <= v, a, b)  a at u = v
+///   if(u > v, a, b)   b at u = v;  if(u >= v, a, b)  a at u = v
+/// The selection itself is not differentiated (d/dx if(c, a, b) = if(c, da/dx, db/dx)), and the
+/// branch not taken does not affect the result, even if it is infinite or NaN there:
+/// `if(x > 0, log(x), 0)` is 0 with derivative 0 at x = 0. Example: the programmed speed
+/// `(1 - cos(pi*min(t, 2)/2))/2` has at t = 2 the derivatives of the rising branch
+/// (d/dt = (pi/4) sin(pi) ~ 0, d²/dt² = -pi²/8), just after t = 2 those of the constant one.
+/// Such expressions never use the quadratic kernel. text() and the derivative texts print
+/// them with the engine's GiNaC names: rd_abs(u), rd_sgn(u) (u >= 0 ? 1 : -1), rd_min(a, b),
+/// rd_max(a, b), rd_step(u), rd_clamp(x, lo, hi), rd_if_lt(u, v, a, b) (u < v ? a : b) and
+/// rd_if_le(u, v, a, b) (u <= v ? a : b).
+///
+/// Limits (ExpressionOptions): the text may be at most max_length = 64 KiB long and nest at most
+/// max_depth = 256 levels (parentheses, function arguments, unary signs, exponents); both are
+/// checked before any recursive work and raise refdyn::Error naming the limit. Within them,
+/// construction time and memory grow about linearly with the length of the text (chains of
+/// + - * / are n-ary, not nested); symbolic differentiation itself can still grow an
+/// expression (a product of n distinct factors has a gradient of n products).
 ///
 /// Thread safety: an Expression is immutable after construction; evaluating one Expression from
 /// several threads at once is safe (each call uses its own scratch). Construction uses GiNaC,
 /// which is not thread-safe; constructors serialise on an internal mutex, but other GiNaC users
 /// in the same process are not covered by it.
+///
+/// Allocation: evaluate() and value() never allocate for tapes of at most kStackRegisters
+/// registers (nor the quadratic kernel); larger tapes allocate once per thread and size, or
+/// never with an ExpressionWorkspace sized for the expression (tests/expression_alloc_test.cpp).
 
 #include <cstddef>
 #include <map>
@@ -64,6 +107,18 @@ struct ExpressionOptions {
   /// value = c0 + xᵀ(b + A x / 2), gradient = b + A x, Hessian = A. The kernel is checked
   /// against the tape at construction. false: always the tape (tests, benchmarks).
   bool specialize = true;
+  /// Limits checked before any recursive work (the parser, GiNaC and the compiler recurse over
+  /// the expression tree; these bounds keep them far from the stack limit and keep the cost of
+  /// construction proportional to the text). Exceeding one throws refdyn::Error naming the
+  /// limit, the value found and this option.
+  /// Longest accepted text, in bytes (characters). 64 KiB by default.
+  std::size_t max_length = 64 * 1024;
+  /// Deepest accepted nesting. Each of these opens one level around what it contains: a
+  /// parenthesis, a function call's arguments, a unary sign (each '-' of `- - x`) and the
+  /// exponent of ^ (a^b^c nests c two levels deep). Chains of + - * / at one level do not nest
+  /// (1+1+...+1 has depth 1). 256 by default; raising it far (beyond a few thousand) can
+  /// overflow the stack in GiNaC.
+  int max_depth = 256;
 };
 
 class Expression {
@@ -85,8 +140,14 @@ class Expression {
   int num_variables() const;
   /// Variable names in argument order, whitespace-stripped.
   const std::vector<std::string>& variables() const;
-  /// Indices of the variables the expression depends on, ascending (gradient sparsity).
+  /// Indices of the variables the expression depends on after parameter substitution and
+  /// simplification, ascending (gradient sparsity).
   std::vector<int> used_variables() const;
+  /// Indices of the variables written in the text, ascending; a superset of used_variables()
+  /// (`x + k*t` with k = 0 references t but does not use it). To rebuild an expression over
+  /// fewer variables, keep at least these: a name missing from the list is an unknown
+  /// identifier even where a parameter cancels it.
+  std::vector<int> referenced_variables() const;
   int derivative_order() const;
   /// The source text as given.
   const std::string& source() const;
@@ -117,7 +178,9 @@ class Expression {
   int tape_size() const;
   int register_count() const;
   /// Tape size the same expression would have without common-subexpression elimination (every
-  /// occurrence compiled separately); for tests and documentation of the CSE gain.
+  /// occurrence compiled separately); for tests and documentation of the CSE gain. Counting
+  /// stops at max(65536, 16 × tape_size()) (derivatives share sub-expressions, and compiling
+  /// every occurrence can be exponentially larger): a value at that cap means "at least".
   int tape_size_without_cse() const;
   /// Human-readable listing of the tape (one instruction per line).
   std::string tape_listing() const;

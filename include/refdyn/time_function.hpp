@@ -36,7 +36,10 @@ TimeFunctionPtr raised_cosine(double f0, double df, double period);
 TimeFunctionPtr cycloidal(double rise, double duration, double f0 = 0.0, double t0 = 0.0);
 
 /// f(t) given as an expression in `t` and named parameters, e.g. "z0 + dz*(1 - cos(2*pi*t/T))/2";
-/// f' and f'' are exact (GiNaC). Throws Error for a text that does not parse.
+/// f' and f'' are exact (GiNaC). Syntax: expression.hpp, including abs, min, max, step, clamp and
+/// if(t < T, a, b), whose derivatives are finite one-sided values at the switching point (e.g.
+/// "(1 - cos(pi*min(t, 2)/2))/2" at t = 2). A parameter that cancels t (amp*sin(t), amp = 0)
+/// gives a constant function. Throws Error for a text that does not parse.
 TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters = {});
 
 }  // namespace refdyn
