@@ -59,19 +59,24 @@ class ExpressionConstraint final : public Constraint {
         hint = " (hint: velocities vx(P), vy(P), vz(P), qd(j) are allowed only in first-order constraints)";
       throw Error("constraint '" + name + "': " + e.what() + hint);
     }
-    std::vector<std::string> used_names;
+    // State dependence from the variables left after the parameters are substituted; the
+    // expression itself is rebuilt over every variable written in the text (a parameter may
+    // cancel one, as in k*q(j2) with k = 0, and a rebuild without it would not know the name).
+    bool depends_on_state = false;
     for (int k : probe->used_variables()) {
+      depends_on_state = depends_on_state || all[k].kind != VarKind::Time;
+      if (all[k].kind == VarKind::Time) rheonomic_ = true;
+    }
+    if (!depends_on_state)
+      throw Error("constraint '" + name + "': the expression does not depend on the state (after substituting the "
+                  "parameters it is " + probe->text() + "); a constraint must involve q, qd or a point");
+    std::vector<std::string> used_names;
+    for (int k : probe->referenced_variables()) {
       used_names.push_back(names[k]);
       vars_.push_back(all[k]);
       if (all[k].kind == VarKind::PointCoord || all[k].kind == VarKind::PointVel)
         if (std::find(points_.begin(), points_.end(), all[k].index) == points_.end()) points_.push_back(all[k].index);
-      if (all[k].kind == VarKind::Time) rheonomic_ = true;
     }
-    bool depends_on_state = false;
-    for (const Var& v : vars_) depends_on_state = depends_on_state || v.kind != VarKind::Time;
-    if (!depends_on_state)
-      throw Error("constraint '" + name + "': the expression does not depend on the state (after substituting the "
-                  "parameters it is " + probe->text() + "); a constraint must involve q, qd or a point");
     expr_ = std::make_unique<Expression>(text, used_names, params, first_order ? 1 : 2);
   }
   int scratch_size() const override {

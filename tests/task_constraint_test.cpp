@@ -168,3 +168,17 @@ TEST(ExpressionConstraint, OneSetEvaluatedFromTwoThreadsAtOnce) {
   b.join();
   for (int k = 0; k < K; ++k) ASSERT_EQ(serial[k], parallel[k]) << k;
 }
+
+// A parameter that cancels a variable (k = 0) leaves a valid constraint; one that leaves no
+// state at all is reported as such (it once gave "unknown identifier").
+TEST(ExpressionConstraint, ParameterThatCancelsAVariable) {
+  const Model m = models::paper_manipulator();
+  std::mt19937 rng(3);
+  const Eigen::VectorXd q = test::random_vector(rng, 3), qd = test::random_vector(rng, 3);
+  const Eval with_zero = eval(m, expression_constraint(m, "c", "x(E) - 1 + k*q(psi1) + k*t", false, {{"k", 0.0}}), 0.4, q, qd);
+  const Eval plain = eval(m, expression_constraint(m, "c", "x(E) - 1", false), 0.4, q, qd);
+  expect_same(with_zero, plain);
+  EXPECT_FALSE(expression_constraint(m, "c", "x(E) - 1 + k*t", false, {{"k", 0.0}})->rheonomic());
+  test::expect_error_mentioning([&] { expression_constraint(m, "c", "k*q(psi1) + t - 1", false, {{"k", 0.0}}); },
+                                {"constraint 'c'", "does not depend on the state"});
+}
