@@ -1,7 +1,8 @@
 // Consumer of the installed refdyn package (see tests/consumer/CMakeLists.txt). Builds a
 // planar 2R arm from a DH table and checks against closed forms: the mass matrix M(q), the
 // gravity vector g(q), the end-effector position and the body pseudo-inertias (a 4×4 Eigen
-// matrix returned by value from the library: the layout-sensitive case). Prints
+// matrix returned by value from the library: the layout-sensitive case; Data's matrices are
+// allocated by the library and freed here: the allocator-sensitive case). Prints
 // "refdyn consumer: OK ..." and exits 0 when everything agrees, else names the mismatch and
 // exits 1. Uses only the stable headers model.hpp, recursive_dynamics.hpp, kinematics.hpp.
 #include "refdyn/kinematics.hpp"
@@ -45,8 +46,7 @@ int main() {
     rows[i].inertia.mass = m[i];
     // Standard DH: the link frame sits at the distal end, x along the link.
     rows[i].inertia.com = Vec3(r[i] - l[i], 0.0, 0.0);
-    rows[i].inertia.I_com = Mat3::Identity() * 0.01;
-    rows[i].inertia.I_com(2, 2) = I[i];
+    rows[i].inertia.I_com = Eigen::Vector3d(0.01, I[i], I[i]).asDiagonal();  // a slender link along x
   }
   ModelDescription d = from_dh(rows, DHConvention::Standard, "planar_2r");
   d.gravity = Vec3(0.0, -g0, 0.0);  // in the plane of motion
@@ -85,8 +85,8 @@ int main() {
     check("H(1,3) = 0", holders[i].H(1, 3), 0.0);
     check("holder.after", holders[i].after, 42.0);
   }
-  std::printf("refdyn consumer: %s (EIGEN_MAX_ALIGN_BYTES=%d, alignof(Mat4)=%zu, AVX=%d)\n",
-              failures == 0 ? "OK" : "FAILED", EIGEN_MAX_ALIGN_BYTES, alignof(Mat4),
+  std::printf("refdyn consumer: %s (EIGEN_MAX_ALIGN_BYTES=%d, EIGEN_DEFAULT_ALIGN_BYTES=%d, alignof(Mat4)=%zu, AVX=%d)\n",
+              failures == 0 ? "OK" : "FAILED", EIGEN_MAX_ALIGN_BYTES, EIGEN_DEFAULT_ALIGN_BYTES, alignof(Mat4),
 #ifdef __AVX__
               1
 #else

@@ -34,7 +34,7 @@ if(NOT libs)
   message(FATAL_ERROR "install_consumer: librefdyn_core.a was not installed under ${prefix}/lib")
 endif()
 # Nothing exported may force the library's instruction set on its users.
-file(GLOB exported ${prefix}/lib/cmake/refdyn/*.cmake ${prefix}/lib/*/cmake/refdyn/*.cmake)
+file(GLOB exported ${prefix}/lib/cmake/refdyn/refdynTargets*.cmake ${prefix}/lib/*/cmake/refdyn/refdynTargets*.cmake)
 foreach(f ${exported})
   file(READ ${f} text)
   if(text MATCHES "march")
