@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs every Debian package refdyn needs to build, test, benchmark and plot.
+# Installs every Debian package refdyn needs to build, test, benchmark, plot and fuzz
+# (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
 PACKAGES=(
@@ -9,6 +10,7 @@ PACKAGES=(
   libyaml-cpp-dev libcli11-dev libginac-dev
   liburdfdom-dev liborocos-kdl-dev libmujoco-dev
   python3 python3-matplotlib
+  clang-14 libclang-rt-14-dev llvm-14
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -11,10 +11,11 @@ Writes RESULTS_DIR/figures/<name>.png (200 dpi) and .pdf:
   track_errors      |q - q_ref| of every experiment (log scale), one panel per joint
   track_efforts     controller torques/forces of every experiment, one panel per joint
 Figures are rendered to temporary files and moved into place only after all of them
-rendered. A missing file or column ends with a one-line error and exit status 2.
+rendered, with mode 0666 minus the umask (like the CSV files). Any bad input (a missing,
+empty, binary, non-UTF-8 or malformed file, a missing column) ends the program with one line
+"refdyn: error: FILE: message" on stderr and exit status 2, and no figure is written.
 """
 
-import csv
 import glob
 import os
 import sys
@@ -30,21 +31,70 @@ PROG = "plot_results.py"
 FLOOR = 1e-16
 
 
+class InputError(Exception):
+    """A missing or malformed input; reported as one line, exit status 2."""
+
+
+def one_line(msg):
+    """The message with control characters (e.g. a newline in a folder name) escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(msg))
+
+
 def fail(msg):
-    print(f"{PROG}: error: {msg}", file=sys.stderr)
-    sys.exit(2)
+    raise InputError(msg)
 
 
 def read_csv(path):
-    if not os.path.isfile(path):
+    """A numeric CSV with a header row: ({column: ndarray}, [columns]); InputError otherwise."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except FileNotFoundError:
         fail(f"{path}: not found")
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if len(rows) < 2:
+    except IsADirectoryError:
+        fail(f"{path}: is a folder, expected a CSV file")
+    except OSError as exc:
+        fail(f"{path}: cannot read ({exc.strerror or exc})")
+    if not raw.strip():
+        fail(f"{path}: empty file, expected a header row")
+    if b"\0" in raw:
+        fail(f"{path}: binary data (NUL bytes), expected CSV text")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        fail(f"{path}: not UTF-8 text (byte {exc.start})")
+    lines = text.splitlines()
+    header = [h.strip() for h in lines[0].split(",")]
+    if any(not h for h in header):
+        fail(f"{path}:1: empty column name in the header")
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        fail(f"{path}:1: duplicate column {one_line(dup[0])}")
+    rows = []
+    for n, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        values = line.split(",")
+        if len(values) != len(header):
+            fail(f"{path}:{n}: {len(values)} values, expected {len(header)} (one per header column)")
+        try:
+            rows.append([float(v) for v in values])
+        except ValueError:
+            bad = next(v for v in values if not _is_float(v))
+            fail(f"{path}:{n}: not a number: {bad.strip()[:40]!r}")
+    if not rows:
         fail(f"{path}: no data rows")
-    header = rows[0]
-    data = np.array([[float(v) for v in r] for r in rows[1:]])
+    data = np.array(rows, dtype=float)
+    data[~np.isfinite(data)] = np.nan  # drawn as gaps
     return {h: data[:, i] for i, h in enumerate(header)}, header
+
+
+def _is_float(v):
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
 
 
 def columns(table, header, prefix):
@@ -67,6 +117,8 @@ def main():
     if len(sys.argv) != 2:
         fail("usage: plot_results.py RESULTS_DIR")
     d = sys.argv[1]
+    if not os.path.isdir(d):
+        fail(f"{d}: not a folder")
     plan_path = os.path.join(d, "plan.csv")
     plan, ph = read_csv(plan_path)
     t = need(plan, "t", plan_path)
@@ -154,25 +206,51 @@ def main():
         figs["track_efforts"] = fig2
 
     out = os.path.join(d, "figures")
-    os.makedirs(out, exist_ok=True)
+    render_and_write(figs, out)
+
+
+def render_and_write(figs, out):
+    """Render every figure to temporary files in `out`, then move them all into place."""
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as exc:
+        fail(f"{out}: cannot create the figures folder ({exc.strerror or exc})")
+    umask = os.umask(0)
+    os.umask(umask)
     staged = []
     try:
         for name, fig in figs.items():
             if not fig.get_tight_layout():
                 fig.tight_layout()
             for ext in ("png", "pdf"):
-                fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix="." + ext, dir=out)
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=f".{ext}.tmp", dir=out)
                 os.close(fd)
-                fig.savefig(tmp, dpi=200, format=ext)
                 staged.append((tmp, os.path.join(out, f"{name}.{ext}")))
-    except Exception as e:  # noqa: BLE001
+                fig.savefig(tmp, dpi=200, format=ext)
+                os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; the CSVs get 0666 & ~umask
+            plt.close(fig)
+        for tmp, final in staged:
+            os.replace(tmp, final)
+    except BaseException as exc:
         for tmp, _ in staged:
-            os.unlink(tmp)
-        fail(f"rendering failed: {e}")
-    for tmp, final in staged:
-        os.replace(tmp, final)
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        if isinstance(exc, OSError):
+            fail(f"{getattr(exc, 'filename', None) or out}: cannot write ({exc.strerror or exc})")
+        raise
+    for _, final in staged:
         print(final)
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except InputError as exc:
+        print(f"refdyn: error: {one_line(exc)}", file=sys.stderr)
+        sys.exit(2)
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, not a traceback
+        print(f"refdyn: internal error: {PROG}: {type(exc).__name__}: {one_line(exc)} (please report)",
+              file=sys.stderr)
+        sys.exit(1)

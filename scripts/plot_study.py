@@ -16,10 +16,13 @@ RESULTS_DIR/summary.json, and writes RESULTS_DIR/figures/<name>.png and <name>.p
   fig9_friction              runs on the plant with friction: errors (log) and torques
   fig10_plan                 the plan: constraint residuals, required joint efforts, Q_c
 
-Every input file and column is checked before any figure is drawn; a missing one ends the
-program with a one-line error and exit status 2. Figures are rendered to temporary files in
+Every input file and column is checked before any figure is drawn; any bad input (a missing,
+empty, binary, non-UTF-8 or malformed CSV, a missing column, a bad summary.json) ends the
+program with one line "refdyn: error: FILE: message" on stderr and exit status 2 (warnings are
+printed only when the figures were written). Figures are rendered to temporary files in
 the figures folder and moved into place (os.replace) only after all of them rendered, so a
-failure never leaves a half-written or mixed set of figures. The written paths are printed,
+failure never leaves a half-written or mixed set of figures; their mode is 0666 minus the
+umask, like the CSV files. The written paths are printed,
 one per line.
 """
 
@@ -30,7 +33,6 @@ import os
 import re
 import sys
 import tempfile
-import warnings
 
 import matplotlib
 
@@ -113,45 +115,84 @@ class InputError(Exception):
     """A missing or malformed input; reported as one line, exit status 2."""
 
 
+WARNINGS = []
+
+
+def one_line(msg):
+    """The message with control characters (e.g. a newline in a folder name) escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(msg))
+
+
 def warn(msg):
-    print(f"{PROG}: warning: {msg}", file=sys.stderr)
+    """Collected, printed only on success (an error is exactly one line)."""
+    WARNINGS.append(f"{PROG}: warning: {one_line(msg)}")
 
 
 # ----------------------------------------------------------------------------- input
 
+def parse_csv(path):
+    """A numeric CSV with a header row: (columns, rows); InputError if it is not one."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder, expected a CSV file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not raw.strip():
+        raise InputError(f"{path}: empty file, expected a header row")
+    if b"\0" in raw:
+        raise InputError(f"{path}: binary data (NUL bytes), expected CSV text")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    lines = text.splitlines()
+    cols = [c.strip() for c in lines[0].split(",")]
+    rows = []
+    for n, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        values = line.split(",")
+        if len(values) != len(cols):
+            raise InputError(f"{path}:{n}: {len(values)} values per row but {len(cols)} header "
+                             "columns")
+        try:
+            rows.append([float(v) for v in values])
+        except ValueError:
+            bad = next(v for v in values if not _is_float(v))
+            raise InputError(f"{path}:{n}: cannot parse numbers (not a number: "
+                             f"{bad.strip()[:40]!r})") from None
+    return cols, rows
+
+
+def _is_float(v):
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
+
+
 def read_csv(path, required):
     """Read a numeric CSV with a header row into {column: ndarray}, checking `required`."""
-    if not os.path.isfile(path):
-        raise InputError(f"{path}: file not found")
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            header = f.readline()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    cols = [c.strip() for c in header.strip().split(",")] if header.strip() else []
-    if not cols:
-        raise InputError(f"{path}: empty file, expected a header row")
+    cols, rows = parse_csv(path)
     missing = [c for c in required if c not in cols]
     if missing:
         what = "column" if len(missing) == 1 else f"{len(missing)} columns"
-        shown = ", ".join(missing[:6]) + (f", ... (header: {header.strip()[:60]!r})"
+        shown = ", ".join(missing[:6]) + (f", ... (header: {','.join(cols)[:60]!r})"
                                           if len(missing) > 6 else "")
         raise InputError(f"{path}: missing {what} {shown}")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # "loadtxt: input contained no data"
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
-    except ValueError as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else "bad number"
-        raise InputError(f"{path}: cannot parse numbers ({msg})") from None
-    if data.size == 0 or data.shape[0] == 0:
+    if not rows:
         raise InputError(f"{path}: no data rows")
-    if data.shape[1] != len(cols):
-        raise InputError(f"{path}: {data.shape[1]} values per row but {len(cols)} header columns")
+    data = np.array(rows, dtype=float)
     table = {c: data[:, i] for i, c in enumerate(cols)}
     bad = [c for c in required if not np.all(np.isfinite(table[c]))]
     if bad:
         warn(f"{path}: non-finite values in {', '.join(bad)} (drawn as gaps)")
+        data[~np.isfinite(data)] = np.nan
     t = table["t"]
     if t.size > 1 and not np.all(np.diff(t) > 0):
         warn(f"{path}: column t is not strictly increasing")
@@ -171,6 +212,8 @@ def enumerate_runs(results_dir, summary):
     """[(label, alpha_deg, friction)] from summary.json, else from track_*.csv names."""
     runs = []
     entries = summary.get("runs") if isinstance(summary, dict) else None
+    if entries is not None and not isinstance(entries, list):
+        raise InputError(f"{os.path.join(results_dir, 'summary.json')}: runs must be a list")
     if entries:
         for i, r in enumerate(entries):
             label = r.get("label") if isinstance(r, dict) else None
@@ -178,12 +221,20 @@ def enumerate_runs(results_dir, summary):
                 raise InputError(f"{os.path.join(results_dir, 'summary.json')}: runs[{i}] "
                                  "has no label")
             m = LABEL_RE.match(label)
+            if not isinstance(label, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", label):
+                raise InputError(f"{os.path.join(results_dir, 'summary.json')}: runs[{i}]: "
+                                 f"label {one_line(label)[:40]!r} is not a plain name")
+            m = LABEL_RE.match(label)
             alpha = r.get("alpha0_deg", float(m.group(1)) if m else None)
             friction = r.get("plant_friction", (m.group(2) == "friction") if m else None)
             if alpha is None or friction is None:
                 raise InputError(f"{os.path.join(results_dir, 'summary.json')}: run {label}: "
                                  "missing alpha0_deg or plant_friction")
-            runs.append((label, float(alpha), bool(friction)))
+            if (isinstance(alpha, bool) or not isinstance(alpha, (int, float))
+                    or not math.isfinite(alpha) or not isinstance(friction, bool)):
+                raise InputError(f"{os.path.join(results_dir, 'summary.json')}: run {label}: "
+                                 "alpha0_deg must be a number and plant_friction true/false")
+            runs.append((label, float(alpha), friction))
         return runs
     for path in sorted(glob.glob(os.path.join(results_dir, "track_*.csv"))):
         label = os.path.basename(path)[len("track_"):-len(".csv")]
@@ -204,8 +255,14 @@ def load_inputs(results_dir):
         try:
             with open(spath, encoding="utf-8") as f:
                 summary = json.load(f)
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{spath}: cannot read JSON ({exc})") from None
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{spath}: not UTF-8 text (byte {exc.start})") from None
+        except OSError as exc:
+            raise InputError(f"{spath}: cannot read ({exc.strerror or exc})") from None
+        except (ValueError, RecursionError) as exc:
+            raise InputError(f"{spath}: not valid JSON ({one_line(exc)})") from None
+        if not isinstance(summary, dict):
+            raise InputError(f"{spath}: expected a JSON object at the top level")
     else:
         warn(f"{spath}: not found; runs taken from track_*.csv, paper ellipse half-axes")
 
@@ -214,6 +271,9 @@ def load_inputs(results_dir):
         e = summary.get("ellipse")
         if not isinstance(e, dict) or "a" not in e or "b" not in e:
             raise InputError(f"{spath}: missing key ellipse.a / ellipse.b")
+        if not all(isinstance(e[k], (int, float)) and not isinstance(e[k], bool)
+                   and math.isfinite(e[k]) and e[k] > 0 for k in ("a", "b")):
+            raise InputError(f"{spath}: ellipse.a and ellipse.b must be positive numbers")
         ellipse = (float(e["a"]), float(e["b"]))
 
     plan = read_csv(os.path.join(results_dir, "plan.csv"), PLAN_COLUMNS)
@@ -554,7 +614,7 @@ def main(argv):
     try:
         plan, runs, ellipse = load_inputs(results_dir)
     except InputError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        print(f"refdyn: error: {one_line(exc)}", file=sys.stderr)
         return 2
     outdir = os.path.join(results_dir, "figures")
     plt.rcParams.update(RC)
@@ -563,18 +623,25 @@ def main(argv):
         pending = render_all(build_figures(plan, runs, ellipse), outdir)
         umask = os.umask(0)
         os.umask(umask)
+        for tmp, _ in pending:
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; the CSVs get 0666 & ~umask
         for tmp, final in pending:
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600
             os.replace(tmp, final)
-    except Exception as exc:  # noqa: BLE001 - one line, not a traceback
-        print(f"{PROG}: error: while writing figures to {outdir}: "
-              f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
-              file=sys.stderr)
-        return 1
+    except OSError as exc:  # e.g. a read-only results folder: one line, nothing half-written
+        print(f"refdyn: error: {one_line(getattr(exc, 'filename', None) or outdir)}: "
+              f"cannot write ({one_line(exc.strerror or exc)})", file=sys.stderr)
+        return 2
     for _, final in pending:
         print(final)
+    for w in WARNINGS:
+        print(w, file=sys.stderr)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        sys.exit(main(sys.argv))
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, not a traceback
+        print(f"refdyn: internal error: {PROG}: {type(exc).__name__}: {one_line(exc)} "
+              "(please report)", file=sys.stderr)
+        sys.exit(1)

@@ -3,8 +3,9 @@
 #   1. writes plan.csv, track_*.csv and summary.json with the study's exact columns and
 #      plausible shapes into a temporary folder (kept with KEEP=1, or give it as $1),
 #   2. runs the plotter and checks every figure exists as PNG and PDF,
-#   3. checks that a missing column and a missing file fail with one line, exit 2, and leave
-#      no temporary or partial figure behind.
+#   3. checks that a missing column, a missing file, binary / non-UTF-8 / corrupted / empty
+#      CSVs and a broken summary.json fail with one line "refdyn: error: FILE: ...", exit 2,
+#      and leave no temporary or partial figure behind; figures get mode 0666 minus the umask.
 # Uses Debian's /usr/bin/python3 (matplotlib); override with PYTHON=...
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -129,6 +130,36 @@ ls -A "$bad/figures" | grep -q '\.tmp$' && fail "temporary files left behind"
 rm "$bad/track_a80_nofriction.csv"; sed -i '1s/,tau_zz,/,tau_z3,/' "$bad/track_a70_friction.csv"
 set +e; err=$("$PY" scripts/plot_study.py "$bad" 2>&1 >/dev/null); rc=$?; set -e
 [[ $rc -eq 2 && "$err" == *track_a80_nofriction.csv*"not found"* ]] || fail "missing file: $rc $err"
+
+# Binary, non-UTF-8 and corrupted CSVs, broken summary.json: one line "refdyn: error: FILE: ...",
+# exit 2, no traceback, old figures untouched.
+cp "$DIR/track_a80_nofriction.csv" "$bad/"
+cp "$bad/plan.csv" "$bad/plan.csv.good"; cp "$bad/summary.json" "$bad/summary.json.good"
+check_bad() {  # FILE DESCRIPTION
+  set +e; err=$("$PY" scripts/plot_study.py "$bad" 2>&1 >/dev/null); rc=$?; set -e
+  [[ $rc -eq 2 ]] || fail "$2: exit $rc, expected 2: $err"
+  [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "$2: not one line: $err"
+  [[ "$err" == "refdyn: error: $bad/$1"* ]] || fail "$2: unclear error: $err"
+  [[ $(stat -c %Y.%s "$bad/figures/fig6_joints.png") == "$stamp" ]] || fail "$2: figure touched"
+  if ls -A "$bad/figures" | grep -q '\.tmp$'; then fail "$2: temporary files left behind"; fi
+}
+head -c 3000 /dev/urandom > "$bad/plan.csv"; printf '\0' >> "$bad/plan.csv"; check_bad plan.csv "binary CSV"
+{ printf 't,q_\xe9\n'; tail -n +2 "$bad/plan.csv.good"; } > "$bad/plan.csv"; check_bad plan.csv "non-UTF-8 CSV"
+{ head -n 100 "$bad/plan.csv.good"; printf '0.1,abc\n'; } > "$bad/plan.csv"; check_bad plan.csv "corrupted CSV"
+: > "$bad/plan.csv"; check_bad plan.csv "empty CSV"
+cp "$bad/plan.csv.good" "$bad/plan.csv"
+printf '{"runs": [' > "$bad/summary.json"; check_bad summary.json "truncated JSON"
+printf '[1, 2]' > "$bad/summary.json"; check_bad summary.json "JSON not an object"
+printf '{"runs": [{"label": "a45_nofriction", "alpha0_deg": "x", "plant_friction": false}], "ellipse": {"a": 1, "b": 1}}' \
+  > "$bad/summary.json"; check_bad summary.json "alpha0_deg not a number"
+printf '\xff\xfe{}' > "$bad/summary.json"; check_bad summary.json "non-UTF-8 JSON"
+cp "$bad/summary.json.good" "$bad/summary.json"; rm "$bad/plan.csv.good" "$bad/summary.json.good"
+
+# Figures get the CSV files' mode (0666 minus the umask).
+(umask 027; rm -rf "$bad/figures"; "$PY" scripts/plot_study.py "$bad" > /dev/null 2>&1) || fail "umask 027 run failed"
+for f in "$bad"/figures/*; do
+  [[ $(stat -c %a "$f") == 640 ]] || fail "$f: mode $(stat -c %a "$f"), expected 640 under umask 027"
+done
 
 # No summary.json: runs from track_*.csv, still works (with a warning).
 rm "$bad/summary.json" "$bad/track_a80_friction.csv"; rm -rf "$bad/figures"

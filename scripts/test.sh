@@ -1,10 +1,47 @@
 #!/usr/bin/env bash
-# Builds everything (library, CLI, tests, benchmarks) and runs the whole test suite with CTest.
-set -euo pipefail
+# The whole test suite (= CI, .ci/run):
+#   1. builds everything (library, CLI, tests, benchmarks, examples) into build/ and runs CTest;
+#   2. the sanitizer suite: ASan + UBSan build in build-asan/, CTest (scripts/test-sanitizers.sh);
+#   3. each libFuzzer target for 60 s (scripts/fuzz.sh, build-fuzz/).
+# Every stage runs even if an earlier one failed; the script prints one line per stage and
+# exits non-zero if any failed. For a quick local run:
+#   REFDYN_SANITIZERS=0 REFDYN_FUZZ_SECONDS=0 bash scripts/test.sh
+# See docs/testing.md.
+set -uo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
+bash scripts/install-deps.sh || exit 1
 BUILD_DIR=${BUILD_DIR:-build}
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
-cmake --build "$BUILD_DIR" -j "$(nproc)"
-cd "$BUILD_DIR"
-ctest --output-on-failure -j "$(nproc)"
+JOBS=${JOBS:-$(nproc)}
+FUZZ_SECONDS=${REFDYN_FUZZ_SECONDS:-60}
+declare -a summary=()
+failed=0
+stage() {  # NAME COMMAND...: runs the command, records PASS/FAIL and its duration
+  local name=$1 start=$SECONDS rc
+  shift
+  echo "==== test.sh: $name"
+  "$@"
+  rc=$?
+  if [[ $rc -eq 0 ]]; then
+    summary+=("PASS  $name ($((SECONDS - start)) s)")
+  else
+    summary+=("FAIL  $name (exit $rc, $((SECONDS - start)) s)")
+    failed=1
+  fi
+  return $rc
+}
+normal_suite() {
+  cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release &&
+    cmake --build "$BUILD_DIR" -j "$JOBS" &&
+    (cd "$BUILD_DIR" && ctest --output-on-failure -j "$JOBS")
+}
+
+stage "build + tests ($BUILD_DIR)" normal_suite
+if [[ "${REFDYN_SANITIZERS:-1}" != 0 ]]; then
+  stage "sanitizers: ASan + UBSan build + tests (build-asan)" env JOBS="$JOBS" bash scripts/test-sanitizers.sh
+fi
+if [[ "$FUZZ_SECONDS" != 0 ]]; then
+  stage "fuzzing: ${FUZZ_SECONDS} s per target (build-fuzz)" env JOBS="$JOBS" bash scripts/fuzz.sh "$FUZZ_SECONDS"
+fi
+echo "==== test.sh: summary"
+printf '  %s\n' "${summary[@]}"
+exit $failed
