@@ -29,10 +29,12 @@ stage() {  # NAME COMMAND...: runs the command, records PASS/FAIL and its durati
   fi
   return $rc
 }
+CTEST_LOG=$(mktemp /tmp/refdyn_ctest.XXXXXX)
+trap 'rm -f "$CTEST_LOG"' EXIT
 normal_suite() {
   cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release &&
     cmake --build "$BUILD_DIR" -j "$JOBS" &&
-    (cd "$BUILD_DIR" && ctest --output-on-failure -j "$JOBS")
+    (cd "$BUILD_DIR" && ctest --output-on-failure -j "$JOBS" | tee "$CTEST_LOG"; exit "${PIPESTATUS[0]}")
 }
 
 stage "build + tests ($BUILD_DIR)" normal_suite
@@ -44,4 +46,11 @@ if [[ "$FUZZ_SECONDS" != 0 ]]; then
 fi
 echo "==== test.sh: summary"
 printf '  %s\n' "${summary[@]}"
+# The main suite's counts as the closing line ("N passed, N failed"), from ctest's own summary.
+counts=$(grep -E '^[0-9]+% tests passed, [0-9]+ tests? failed out of [0-9]+' "$CTEST_LOG" | tail -n 1)
+if [[ -n "$counts" ]]; then
+  total=${counts##* out of }
+  bad=$(sed -E 's/.* ([0-9]+) tests? failed.*/\1/' <<<"$counts")
+  echo "ctest: $((total - bad)) passed, $bad failed"
+fi
 exit $failed
