@@ -253,9 +253,9 @@ TEST(Results, SummaryJsonIsValidForHostileNamesAndTablesHaveTheDocumentedColumns
     expression: x(E) - (L1 + 0.05*(1 - cos(2*pi*t))/2)
 forces: [{type: effort, joint: j2, value: 0.1}]
 )");
-  text.replace(text.find("name: arm"), 9, "name: \"a\\\"b\\\\c\\ttab\"");
+  text.replace(text.find("name: arm"), 9, "name: \"a\\\"b\\\\c ψ\"");
   const auto p = io::parse_problem(text, "names.yaml");
-  EXPECT_EQ(p->name, "a\"b\\c\ttab");
+  EXPECT_EQ(p->name, "a\"b\\c ψ");
   const io::Results r = io::run_problem(*p);
   ASSERT_TRUE(r.ok());
   const fs::path dir = fs::temp_directory_path() / ("refdyn_results_test_" + std::to_string(::getpid()));
