@@ -33,7 +33,9 @@ Results run_problem(const Problem& p, const RunOptions& o) {
     res.feasibility.complete = false;
     res.feasibility.incomplete_reason = res.plan.summary.message;
   }
-  if (o.track)
+  // Experiments track the plan up to where it ended; a plan that stopped at t0 leaves nothing
+  // to track (the stopped plan is reported).
+  if (o.track && res.plan.summary.t_end > p.integrator.t0)
     for (const auto& ex : p.experiments) {
       RunRecord r;
       r.experiment = ex.get();
