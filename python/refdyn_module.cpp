@@ -108,11 +108,6 @@ struct PyModel {
   void fk(const Vec& q) { forward_kinematics(*model, data, q); }
 };
 
-Vec3 to_vec3(const std::vector<double>& v, const char* what) {
-  if (v.size() != 3) throw Error(std::string(what) + ": expected 3 numbers, got " + std::to_string(v.size()));
-  return Vec3(v[0], v[1], v[2]);
-}
-
 py::dict limits_dict(const JointLimits& l) {
   py::dict d;
   d["lower"] = l.lower;
