@@ -11,12 +11,14 @@ import refdyn
 path = pathlib.Path(__file__).resolve().parents[1] / "paper" / "paper.yaml"
 base = yaml.safe_load(path.read_text())
 base.pop("experiments")  # planning only
-values = [float(v) for v in sys.argv[1:]] or [0.05, 0.1, 0.2, 0.3, 0.4]
-print(f"{'dz [m]':>7} {'status':>8} {'feasible':>8}  peak |required effort| per joint")
+values = [float(v) for v in sys.argv[1:]] or [0.1, 0.3, 0.5, 0.6, 0.9]
+print(f"{'dz [m]':>7} {'status':>8} {'feasible':>8}  peak |required effort| per joint; violations")
 for dz in values:
     scenario = dict(base, parameters=dict(base["parameters"], dz=dz))
     r = refdyn.run(scenario)
     plan = r.plan
     peak = np.abs(plan.group("required_")).max(axis=0)
     efforts = ", ".join(f"{j} {p:7.2f}" for j, p in zip(plan.joints, peak))
-    print(f"{dz:7.2f} {plan.status:>8} {str(r.feasibility['feasible']):>8}  {efforts}")
+    bad = "; ".join(f"{v['joint']} {v['quantity']} {v['worst']:.3g} (limit {v['limit']:g})"
+                    for v in r.feasibility["violations"])
+    print(f"{dz:7.2f} {plan.status:>8} {str(r.feasibility['feasible']):>8}  {efforts}  {bad}")

@@ -24,6 +24,9 @@ import numpy as np
 from ._refdyn import Error, Model, NumericalFailure, Problem  # noqa: F401
 from . import _refdyn
 
+for _cls in (Error, NumericalFailure, Model, Problem):
+    _cls.__module__ = "refdyn"  # refdyn.Error in tracebacks, not refdyn._refdyn.Error
+
 __all__ = [
     "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
     "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",

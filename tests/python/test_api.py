@@ -47,6 +47,12 @@ def test_file_text_and_dict_give_the_same_plan():
     assert np.array_equal(from_file.data, from_dict.data)
 
 
+def test_paper_file_as_a_yaml_dict_gives_the_same_plan(paper_results):
+    yaml = pytest.importorskip("yaml")
+    d = yaml.safe_load(PAPER_YAML.read_text())
+    assert np.array_equal(refdyn.plan(d).data, paper_results.plan.data)
+
+
 def test_problem_properties():
     p = refdyn.load(PAPER_YAML)
     assert p.name == "paper_manipulator"

@@ -43,7 +43,7 @@ def test_missing_file_and_bad_text():
 
 
 def test_dict_errors_name_the_key():
-    d = {"model": {"dh": {"joints": [{"name": "j1", "a": 1, "mass": -1}]}},
+    d = {"model": {"dh": {"joints": [{"name": "j1", "type": "revolute", "a": 1, "mass": -1}]}},
          "initial": {"q": [0]}}
     with pytest.raises(refdyn.Error, match=r"^<dict>:\d+: model\.dh\.joints\[0\]\.mass: "):
         refdyn.from_dict(d)
@@ -51,7 +51,7 @@ def test_dict_errors_name_the_key():
 
 def test_model_function_argument_errors():
     m = refdyn.load(PAPER_YAML).model
-    with pytest.raises(refdyn.Error, match="q: expected 3"):
+    with pytest.raises(refdyn.Error, match=r"^q: expected size 3, got size 2"):
         m.mass_matrix(np.zeros(2))
     with pytest.raises(refdyn.Error, match="finite"):
         m.mass_matrix(np.array([0, np.nan, 0]))
