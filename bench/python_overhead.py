@@ -41,23 +41,26 @@ def main():
 
     problem = refdyn.load(PAPER)
     refdyn.run(problem)  # warm-up
-    py, cpp = [], []
+    py, cpp, py_cpu, cpp_cpu = [], [], [], []
     for _ in range(args.batches):
         out = subprocess.run([args.timing, str(PAPER), str(args.reps + 1)], check=True,
                              capture_output=True, text=True).stdout.split("\n")
         cpp += [float(line.split()[0]) for line in out[1:] if line]  # first: warm-up
+        cpp_cpu += [float(line.split()[1]) for line in out[1:] if line]
         for _ in range(args.reps):
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.thread_time()  # run_problem runs in this thread
             r = refdyn.run(problem)
             plan = r.plan
             cells = plan.data.size
             del r, plan
+            py_cpu.append(time.thread_time() - c)
             py.append(time.perf_counter() - t)
             assert cells == 5001 * 31
-    mc, mp = statistics.median(cpp), statistics.median(py)
     print(f"paper plan (run_problem + plan table + free), {len(cpp)} C++ / {len(py)} Python repetitions:")
-    print(f"  C++    median {mc * 1e3:7.2f} ms  (min {min(cpp) * 1e3:6.2f})")
-    print(f"  Python median {mp * 1e3:7.2f} ms  (min {min(py) * 1e3:6.2f})  ratio {mp / mc:.3f}")
+    for what, c_, p_ in (("wall", cpp, py), ("thread CPU", cpp_cpu, py_cpu)):
+        mc, mp = statistics.median(c_), statistics.median(p_)
+        print(f"  {what:>10}: C++ median {mc * 1e3:6.2f} ms (min {min(c_) * 1e3:6.2f}),"
+              f" Python median {mp * 1e3:6.2f} ms (min {min(p_) * 1e3:6.2f}), ratio of medians {mp / mc:.3f}")
 
     model = problem.model
     q = np.array([0.3, 1.25 * np.pi, 0.5])
