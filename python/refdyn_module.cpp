@@ -98,15 +98,42 @@ io::ProgressFactory progress_factory(const py::object& callback) {
 }
 
 // ---------------------------------------------------------------- model
-/// A compiled Model and one workspace. The functions return new arrays (copies).
+/// A compiled Model and one workspace. Arguments are copied into per-model scratch vectors (no
+/// allocation when their size is right; a wrong size reaches the library's own check and
+/// message); results are returned as new NumPy arrays.
+using Arr = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
 struct PyModel {
   explicit PyModel(const Model& m) : model(std::make_shared<const Model>(m)), data(*model) {}
   std::shared_ptr<const Model> model;
   Data data;
+  Vec a[3];  // scratch for q, qd, qdd / tau
 
-  void check_q(const Vec& q) const { model->check_q(q); }
-  void fk(const Vec& q) { forward_kinematics(*model, data, q); }
+  const Vec& arg(int slot, const Arr& x, const char* what) {
+    if (x.ndim() != 1)
+      throw Error(std::string(what) + ": expected a 1-D array, got " + std::to_string(x.ndim()) + " dimensions");
+    Vec& v = a[slot];
+    if (v.size() != x.shape(0)) v.resize(x.shape(0));
+    std::copy(x.data(), x.data() + x.shape(0), v.data());
+    return v;
+  }
+  void fk(const Arr& q) { forward_kinematics(*model, data, arg(0, q, "q")); }
 };
+
+py::array_t<double> out(const Vec& v) {
+  py::array_t<double> r(v.size());
+  std::copy(v.data(), v.data() + v.size(), r.mutable_data());
+  return r;
+}
+
+template <typename Derived>
+py::array_t<double> out(const Eigen::MatrixBase<Derived>& m) {
+  py::array_t<double> r({m.rows(), m.cols()});
+  auto w = r.mutable_unchecked<2>();
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j) w(i, j) = m(i, j);
+  return r;
+}
 
 py::dict limits_dict(const JointLimits& l) {
   py::dict d;
@@ -146,8 +173,6 @@ std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bo
   }
   return r;
 }
-
-Vec vec_of(const Eigen::VectorXd& v) { return v; }
 
 }  // namespace
 
@@ -189,43 +214,46 @@ PYBIND11_MODULE(_refdyn, m) {
       .def("__repr__", [](const PyModel& s) {
         return "<refdyn.Model '" + s.model->name + "' nq=" + std::to_string(s.model->nq) + ">";
       })
-      .def("mass_matrix", [](PyModel& s, const Vec& q) { return Eigen::MatrixXd(mass_matrix(*s.model, s.data, q)); },
+      .def("mass_matrix", [](PyModel& s, const Arr& q) { return out(mass_matrix(*s.model, s.data, s.arg(0, q, "q"))); },
            py::arg("q"), "M(q), shape (nq, nq).")
-      .def("bias_forces", [](PyModel& s, const Vec& q, const Vec& qd) { return vec_of(bias_forces(*s.model, s.data, q, qd)); },
-           py::arg("q"), py::arg("qd"), "c(q, qd) + g(q), shape (nq,).")
-      .def("gravity_forces", [](PyModel& s, const Vec& q) { return vec_of(gravity_forces(*s.model, s.data, q)); },
+      .def("bias_forces", [](PyModel& s, const Arr& q, const Arr& qd) {
+             return out(bias_forces(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd")));
+           }, py::arg("q"), py::arg("qd"), "c(q, qd) + g(q), shape (nq,).")
+      .def("gravity_forces", [](PyModel& s, const Arr& q) { return out(gravity_forces(*s.model, s.data, s.arg(0, q, "q"))); },
            py::arg("q"), "g(q), shape (nq,).")
-      .def("inverse_dynamics", [](PyModel& s, const Vec& q, const Vec& qd, const Vec& qdd) {
-             return vec_of(inverse_dynamics(*s.model, s.data, q, qd, qdd));
+      .def("inverse_dynamics", [](PyModel& s, const Arr& q, const Arr& qd, const Arr& qdd) {
+             return out(inverse_dynamics(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"), s.arg(2, qdd, "qdd")));
            }, py::arg("q"), py::arg("qd"), py::arg("qdd"), "tau = M qdd + c + g (RNEA), shape (nq,).")
-      .def("forward_dynamics", [](PyModel& s, const Vec& q, const Vec& qd, const Vec& tau) {
-             return vec_of(forward_dynamics(*s.model, s.data, q, qd, tau));
+      .def("forward_dynamics", [](PyModel& s, const Arr& q, const Arr& qd, const Arr& tau) {
+             return out(forward_dynamics(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"), s.arg(2, tau, "tau")));
            }, py::arg("q"), py::arg("qd"), py::arg("tau"), "qdd = M^-1 (tau - c - g), shape (nq,).")
-      .def("kinetic_energy", [](PyModel& s, const Vec& q, const Vec& qd) { return kinetic_energy(*s.model, s.data, q, qd); },
-           py::arg("q"), py::arg("qd"))
-      .def("potential_energy", [](PyModel& s, const Vec& q) { return potential_energy(*s.model, s.data, q); }, py::arg("q"))
-      .def("point_position", [](PyModel& s, const Vec& q, const std::string& point) {
+      .def("kinetic_energy", [](PyModel& s, const Arr& q, const Arr& qd) {
+             return kinetic_energy(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"));
+           }, py::arg("q"), py::arg("qd"))
+      .def("potential_energy", [](PyModel& s, const Arr& q) { return potential_energy(*s.model, s.data, s.arg(0, q, "q")); },
+           py::arg("q"))
+      .def("point_position", [](PyModel& s, const Arr& q, const std::string& point) {
              const int p = s.model->point_index(point);
              s.fk(q);
-             return Vec(point_position(*s.model, s.data, p));
+             return out(Vec(point_position(*s.model, s.data, p)));
            }, py::arg("q"), py::arg("point"), "World position of a named point, shape (3,).")
-      .def("point_jacobian", [](PyModel& s, const Vec& q, const std::string& point) {
+      .def("point_jacobian", [](PyModel& s, const Arr& q, const std::string& point) {
              const int p = s.model->point_index(point);
              s.fk(q);
              point_jacobian(*s.model, s.data, p);
-             return Eigen::MatrixXd(s.data.Jp);
+             return out(s.data.Jp);
            }, py::arg("q"), py::arg("point"), "d r_P / d q in the world frame, shape (3, nq).")
-      .def("point_velocity", [](PyModel& s, const Vec& q, const Vec& qd, const std::string& point) {
+      .def("point_velocity", [](PyModel& s, const Arr& q, const Arr& qd, const std::string& point) {
              const int p = s.model->point_index(point);
              s.fk(q);
-             const PointDrift d = point_drift(*s.model, s.data, p, qd);
-             return py::make_tuple(Vec(d.velocity), Vec(d.drift));
+             const PointDrift d = point_drift(*s.model, s.data, p, s.arg(1, qd, "qd"));
+             return py::make_tuple(out(Vec(d.velocity)), out(Vec(d.drift)));
            }, py::arg("q"), py::arg("qd"), py::arg("point"),
            "(velocity C qd, drift d = r_P'' - C qdd) of a named point in the world frame.")
-      .def("link_transform", [](PyModel& s, const Vec& q, const std::string& link) {
+      .def("link_transform", [](PyModel& s, const Arr& q, const std::string& link) {
              const int b = s.model->body_index(link);
              s.fk(q);
-             return Eigen::Matrix4d(link_transform(*s.model, s.data, b).matrix());
+             return out(link_transform(*s.model, s.data, b).matrix());
            }, py::arg("q"), py::arg("link"), "4x4 pose of a link's frame in the world.");
 
   m.def("model_from_urdf_file", [](const std::string& path, const std::string& root, bool points) {

@@ -57,8 +57,13 @@ def test_model_function_argument_errors():
         m.mass_matrix(np.array([0, np.nan, 0]))
     with pytest.raises(refdyn.Error, match="did you mean 'E'"):
         m.point_position(np.zeros(3), "F")
+    with pytest.raises(refdyn.Error, match=r"^q: expected a 1-D array, got 2 dimensions"):
+        m.mass_matrix(np.zeros((3, 1)))
+    with pytest.raises(refdyn.Error, match=r"^qd: expected size 3, got size 4"):
+        m.bias_forces(np.zeros(3), np.zeros(4))
     with pytest.raises(TypeError):
         m.mass_matrix("abc")
+    np.testing.assert_array_equal(m.mass_matrix([0.1, 0.2, 0.3]), m.mass_matrix(np.array([0.1, 0.2, 0.3])))
 
 
 def test_track_without_experiments():
