@@ -221,8 +221,9 @@ def test_progress_callable_and_bar(capfd):
     assert "planning" in err and "100.0%" in err
 
 
-def test_runs_release_the_gil():
-    problem = refdyn.load(PAPER_YAML)
+def gil_probe(problem):
+    """(largest gap between this thread's loop iterations, the run's own wall time) while
+    another thread runs refdyn.track(problem)."""
     done = threading.Event()
     result = {}
 
@@ -236,9 +237,19 @@ def test_runs_release_the_gil():
     while not done.is_set():
         stamps.append(time.perf_counter())
     th.join()
-    wall = result["r"].wall_time
-    gaps = np.diff(stamps)
-    # With the GIL held during the run this thread would stall for the whole run (one gap
-    # of about `wall`); released, it keeps running (only the table conversion holds it).
-    assert wall > 0.05
-    assert gaps.max() < 0.5 * wall, (gaps.max(), wall)
+    return float(np.diff(stamps).max()), result["r"].wall_time
+
+
+def test_runs_release_the_gil():
+    # With the GIL held during the run this thread would stall for the whole run (one gap of
+    # about `wall`, every time); released, it keeps running (only the table conversion holds
+    # it). Up to three attempts, so that a descheduled moment on a loaded machine is no failure.
+    problem = refdyn.load(PAPER_YAML)
+    probes = []
+    for _ in range(3):
+        gap, wall = gil_probe(problem)
+        probes.append((gap, wall))
+        assert wall > 0.05
+        if gap < 0.5 * wall:
+            return
+    pytest.fail(f"this thread stalled during every run: (largest gap, run wall time) = {probes}")
