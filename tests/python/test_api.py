@@ -253,3 +253,17 @@ def test_runs_release_the_gil():
         if gap < 0.5 * wall:
             return
     pytest.fail(f"this thread stalled during every run: (largest gap, run wall time) = {probes}")
+
+
+def test_progress_callback_exception_aborts_the_run():
+    seen = []
+
+    def stop(what, t, t0, t1):
+        seen.append(t)
+        if t > 0.2:
+            raise KeyboardInterrupt("stop")
+
+    with pytest.raises(KeyboardInterrupt, match="stop"):
+        refdyn.plan(MINIMAL_YAML, progress=stop)
+    assert 0.2 < seen[-1] < 0.5
+    assert refdyn.plan(MINIMAL_YAML).ok  # nothing left behind
