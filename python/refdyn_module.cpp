@@ -9,6 +9,7 @@
 // Errors: refdyn::Error → refdyn.Error (a ValueError), refdyn::NumericalFailure →
 // refdyn.NumericalFailure (a refdyn.Error), message unchanged. Runs release the GIL.
 
+#include "refdyn/constraints.hpp"
 #include "refdyn/error.hpp"
 #include "refdyn/feasibility.hpp"
 #include "refdyn/io/results.hpp"
@@ -290,6 +291,23 @@ PYBIND11_MODULE(_refdyn, m) {
         for (const auto& e : p.experiments) r.push_back(e->name);
         return r;
       })
+      .def("constraints", [](const Problem& p, double t, const Vec& q, const Vec& qd) {
+             p.model.check_q(q, "q");
+             p.model.check_q(qd, "qd");
+             Data data(p.model);
+             ConstraintEval ev(p.model, p.constraints);
+             evaluate_constraints(p.model, data, p.constraints, ev, t, q, qd);
+             py::dict d;
+             std::vector<std::string> rows;
+             for (int i = 0; i < p.constraints.rows(); ++i) rows.push_back(p.constraints.row_name(i));
+             d["rows"] = rows;
+             d["phi"] = ev.phi;
+             d["phid"] = ev.phid;
+             d["A"] = ev.A;
+             d["gamma"] = ev.gamma;
+             return d;
+           }, py::arg("t"), py::arg("q"), py::arg("qd"),
+           "The constraint rows at (t, q, qd): {rows, phi (Phi or c), phid, A (m x n), gamma}.")
       .def("__repr__", [](const Problem& p) { return "<refdyn.Problem '" + p.name + "' from " + p.file + ">"; });
 
   m.def("load_problem", [](const std::string& path) {

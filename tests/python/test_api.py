@@ -267,3 +267,20 @@ def test_progress_callback_exception_aborts_the_run():
         refdyn.plan(MINIMAL_YAML, progress=stop)
     assert 0.2 < seen[-1] < 0.5
     assert refdyn.plan(MINIMAL_YAML).ok  # nothing left behind
+
+
+def test_problem_constraints():
+    p = refdyn.load(PAPER_YAML)
+    c = p.constraints(p.t0, p.q0, p.qd0)
+    assert c["rows"] == p.constraint_rows == ["ellipse", "height"]
+    assert c["phi"].shape == (2,) and c["A"].shape == (2, 3) and c["gamma"].shape == (2,)
+    assert np.max(np.abs(c["phi"])) < 1e-8              # the initial state is consistent
+    q, qd, t, eps = p.q0 + [0.2, 0.1, 0.05], np.array([0.3, -0.2, 0.1]), 0.7, 1e-7
+    c = p.constraints(t, q, qd)
+    A_fd = np.column_stack([(p.constraints(t, q + eps * e, qd)["phi"] - p.constraints(t, q - eps * e, qd)["phi"])
+                            / (2 * eps) for e in np.eye(3)])
+    np.testing.assert_allclose(c["A"], A_fd, atol=1e-6)
+    dphi_dt = (p.constraints(t + eps, q, qd)["phi"] - p.constraints(t - eps, q, qd)["phi"]) / (2 * eps)
+    np.testing.assert_allclose(c["phid"], c["A"] @ qd + dphi_dt, atol=1e-6)
+    with pytest.raises(refdyn.Error, match="^qd: expected size 3"):
+        p.constraints(0.0, q, np.zeros(2))
