@@ -17,7 +17,7 @@ import json as _json
 import os as _os
 import sys as _sys
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, List, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 

@@ -5,7 +5,6 @@ import subprocess
 import numpy as np
 import pytest
 
-import refdyn
 from conftest import PAPER_YAML
 
 
