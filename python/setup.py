@@ -18,7 +18,7 @@ class CMakeBuild(build_ext):
         subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
                         f"-DPython_EXECUTABLE={python}"], check=True)
         subprocess.run(["cmake", "--build", str(build), "-j", os.environ.get("REFDYN_JOBS", "2"),
-                        "--target", "_refdyn"], check=True)
+                        "--target", "refdyn_python"], check=True)
         name = pathlib.Path(self.get_ext_filename(ext.name)).name
         dest = pathlib.Path(self.get_ext_fullpath(ext.name))
         dest.parent.mkdir(parents=True, exist_ok=True)
