@@ -139,7 +139,7 @@ def parse_urdf(xml: str, source_name: str = "<string>", root_link: str = "", poi
 
 # --------------------------------------------------------------------------- trajectories
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # eq: arrays have no single truth value
 class Trajectory:
     """A recorded motion: `data` (float64, shape (samples, columns)) with named `columns`, the
     columns of refdyn's CSV files (t, q_*, qd_*, qdd_*, qref_*, e_*, tau_*, states, <point>_x|y|z,
@@ -232,7 +232,7 @@ class Trajectory:
                 f"status={self.status!r})")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # eq: arrays have no single truth value
 class Results:
     """Everything one run of a scenario gives: the plan, the closed-loop runs (by experiment
     name; empty unless tracked), the feasibility report and summary.json as dicts."""
