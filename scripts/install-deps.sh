@@ -9,7 +9,7 @@ PACKAGES=(
   libyaml-cpp-dev libcli11-dev libginac-dev
   liburdfdom-dev liborocos-kdl-dev libmujoco-dev
   python3 python3-matplotlib
-  pybind11-dev python3-dev python3-numpy python3-pytest
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
