@@ -11,6 +11,7 @@ PACKAGES=(
   liburdfdom-dev liborocos-kdl-dev libmujoco-dev
   python3 python3-matplotlib
   clang-14 libclang-rt-14-dev llvm-14
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

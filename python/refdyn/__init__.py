@@ -1,0 +1,302 @@
+"""refdyn: task-based motion planning from reference dynamics, from Python.
+
+    import refdyn
+    problem = refdyn.load("examples/paper/paper.yaml")     # a file, YAML text or a dict
+    plan = refdyn.plan(problem)                             # a Trajectory (NumPy arrays)
+    plan["psi1"], plan.q, plan.t                            # columns by name, typed views
+    result = refdyn.track(problem)                          # plan + closed-loop runs + feasibility
+    model = problem.model                                   # FK, Jacobian, M, c + g, ID, FD
+
+Errors in the input raise refdyn.Error (a ValueError) with the one-line message of the C++
+library ("file:line: key: ..."). A run that stops (a numerical outcome) is not an exception:
+see Trajectory.ok / .status / .message. See docs/python.md.
+"""
+from __future__ import annotations
+
+import json as _json
+import os as _os
+import sys as _sys
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Optional, Union
+
+import numpy as np
+
+from ._refdyn import Error, Model, NumericalFailure, Problem  # noqa: F401
+from . import _refdyn
+
+for _cls in (Error, NumericalFailure, Model, Problem):
+    _cls.__module__ = "refdyn"  # refdyn.Error in tracebacks, not refdyn._refdyn.Error
+
+__all__ = [
+    "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
+    "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",
+]
+__version__ = "0.1.0"
+
+# --------------------------------------------------------------------------- scenarios
+
+def load(source: Union[str, "_os.PathLike[str]", dict, Problem]) -> Problem:
+    """A built scenario from a file path, YAML text (a str with a newline) or a dict."""
+    if isinstance(source, Problem):
+        return source
+    if isinstance(source, dict):
+        return from_dict(source)
+    if isinstance(source, str) and "\n" in source:
+        return loads(source)
+    if isinstance(source, (str, _os.PathLike)):
+        return _refdyn.load_problem(_os.fspath(source))
+    raise TypeError(f"refdyn.load: expected a path, YAML text or a dict, got {type(source).__name__}")
+
+
+def loads(yaml_text: str, source_name: str = "<string>") -> Problem:
+    """A built scenario from YAML text. `source_name` names it in messages and anchors relative
+    paths (e.g. a URDF file): pass a path such as "dir/scenario.yaml" to resolve them from dir."""
+    return _refdyn.parse_problem(yaml_text, source_name)
+
+
+def _plain(x: Any) -> Any:
+    """Dict/list/scalars with NumPy values turned into plain Python (for JSON)."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _dict_text(d: dict) -> str:
+    # JSON is YAML: floats are written with repr (round-trip exact); one key per line, so that
+    # a message's line number points into this text (refdyn.scenario_text(d) shows it).
+    return _json.dumps(_plain(d), indent=1)
+
+
+def scenario_text(d: dict) -> str:
+    """The YAML (JSON) text that from_dict parses; error line numbers refer to it."""
+    return _dict_text(d)
+
+
+def from_dict(d: dict, source_name: str = "<dict>") -> Problem:
+    """A built scenario from a dict with the keys of a scenario file (docs/scenario.md).
+    Numbers may be expressions in strings ("90*deg"); NumPy arrays are accepted for lists."""
+    return _refdyn.parse_problem(_dict_text(d), source_name)
+
+
+# --------------------------------------------------------------------------- models
+
+def model(section: Union[dict, str], parameters: Optional[dict] = None, source_name: str = "<model>") -> Model:
+    """A Model from a scenario's `model:` section (dh, links or urdf; points, gravity, base),
+    as a dict or YAML text, with optional parameters for its expressions."""
+    if isinstance(section, str):
+        try:
+            import yaml  # python3-yaml
+        except ImportError as e:  # pragma: no cover
+            raise TypeError("refdyn.model: pass a dict (YAML text needs python3-yaml)") from e
+        section = yaml.safe_load(section)
+    if not isinstance(section, dict):
+        raise TypeError(f"refdyn.model: expected a dict, got {type(section).__name__}")
+    n = _count_coordinates(section, source_name)
+    scenario = {"name": section.get("name", "model"), "model": section,
+                "initial": {"q": [0] * n}, "integrator": {"t1": 1e-3}}
+    if parameters:
+        scenario = {"parameters": dict(parameters), **scenario}
+    return _refdyn.parse_problem(_dict_text(scenario), source_name).model
+
+
+def _count_coordinates(section: dict, source_name: str) -> int:
+    def movable(entries, what):
+        if not isinstance(entries, list):
+            raise Error(f"{source_name}: model.{what}: expected a list of joints")
+        return sum(1 for e in entries if not (isinstance(e, dict) and str(e.get("type", "revolute")) == "fixed"))
+    if "dh" in section:
+        dh = section["dh"]
+        return movable(dh.get("joints") if isinstance(dh, dict) else dh, "dh.joints")
+    if "links" in section:
+        return movable(section["links"], "links")
+    if "urdf" in section:
+        u = section["urdf"]
+        path = u.get("file") if isinstance(u, dict) else u
+        if not isinstance(path, str):
+            raise Error(f"{source_name}: model.urdf.file: expected a file name")
+        base = _os.path.dirname(source_name) if source_name and not source_name.startswith("<") else ""
+        root = u.get("root", "") if isinstance(u, dict) else ""
+        return load_urdf(_os.path.join(base, path), root_link=root).nq
+    return 0  # build_problem reports what is missing
+
+
+def load_urdf(path: Union[str, "_os.PathLike[str]"], root_link: str = "", points_for_links: bool = True) -> Model:
+    """A Model from a URDF file (urdfdom). <mimic> couplings are constraints, not part of a
+    model: use a scenario file (model: {urdf: ...}) to get them."""
+    return _refdyn.model_from_urdf_file(_os.fspath(path), root_link, points_for_links)
+
+
+def parse_urdf(xml: str, source_name: str = "<string>", root_link: str = "", points_for_links: bool = True) -> Model:
+    """A Model from URDF text."""
+    return _refdyn.model_from_urdf_string(xml, source_name, root_link, points_for_links)
+
+
+# --------------------------------------------------------------------------- trajectories
+
+@dataclass(frozen=True, eq=False)  # eq: arrays have no single truth value
+class Trajectory:
+    """A recorded motion: `data` (float64, shape (samples, columns)) with named `columns`, the
+    columns of refdyn's CSV files (t, q_*, qd_*, qdd_*, qref_*, e_*, tau_*, states, <point>_x|y|z,
+    targets, phi_*, phid_*, force signals, Qc_*, required_*, reaction_*, lambda_*). A column by
+    name: traj["q_psi1"] (or traj["psi1"] for q). Typed views: t, q, qd, qdd, q_ref, tau, point(P).
+    The run's status: ok, status, message, t_end, steps, wall_time, max_constraint_residual."""
+    name: str
+    columns: tuple
+    data: np.ndarray
+    joints: tuple
+    points: tuple
+    summary: Dict[str, Any] = field(default_factory=dict)
+    layout: Dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def _make(cls, name, table, summary, layout):
+        header, data = table
+        data.setflags(write=False)
+        return cls(name=name, columns=tuple(header), data=data, joints=tuple(layout["joints"]),
+                   points=tuple(layout["points"]), summary=summary, layout=layout)
+
+    # --- columns
+    def index(self, column: str) -> int:
+        try:
+            return self.columns.index(column)
+        except ValueError:
+            if "q_" + column in self.columns:
+                return self.columns.index("q_" + column)
+            raise KeyError(f"{self.name}: no column '{column}' (columns: {', '.join(self.columns)})") from None
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.data[:, self.index(column)]
+
+    def __contains__(self, column: str) -> bool:
+        return column in self.columns
+
+    def __len__(self) -> int:
+        return self.data.shape[0]
+
+    def group(self, prefix: str) -> np.ndarray:
+        """Columns prefix + joint for every joint, shape (samples, nq); e.g. group("tau_")."""
+        return self.data[:, [self.index(prefix + j) for j in self.joints]]
+
+    def point(self, name: str) -> np.ndarray:
+        """World positions of a recorded point, shape (samples, 3)."""
+        return self.data[:, [self.index(f"{name}_{c}") for c in "xyz"]]
+
+    def as_dict(self) -> Dict[str, np.ndarray]:
+        return {c: self.data[:, i] for i, c in enumerate(self.columns)}
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.data[:, 0]
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.group("q_")
+
+    @property
+    def qd(self) -> np.ndarray:
+        return self.group("qd_")
+
+    @property
+    def qdd(self) -> np.ndarray:
+        return self.group("qdd_")
+
+    @property
+    def q_ref(self) -> np.ndarray:
+        return self.group("qref_")
+
+    @property
+    def tau(self) -> np.ndarray:
+        return self.group("tau_")
+
+    # --- status
+    @property
+    def ok(self) -> bool:
+        return bool(self.summary.get("ok", True))
+
+    @property
+    def status(self) -> str:
+        return self.summary.get("status", "")
+
+    @property
+    def message(self) -> str:
+        return self.summary.get("message", "")
+
+    def __repr__(self) -> str:
+        return (f"Trajectory({self.name!r}, {self.data.shape[0]} samples x {self.data.shape[1]} columns, "
+                f"status={self.status!r})")
+
+
+@dataclass(frozen=True, eq=False)  # eq: arrays have no single truth value
+class Results:
+    """Everything one run of a scenario gives: the plan, the closed-loop runs (by experiment
+    name; empty unless tracked), the feasibility report and summary.json as dicts."""
+    problem: Problem
+    plan: Trajectory
+    runs: Dict[str, Trajectory]
+    feasibility: Dict[str, Any]
+    summary: Dict[str, Any]
+    ok: bool
+    wall_time: float
+    _native: Any = field(repr=False, default=None)
+
+    def write(self, directory: Union[str, "_os.PathLike[str]"]) -> None:
+        """Writes plan.csv, feasibility.json, summary.json and track_<name>.csv (as the CLI)."""
+        self._native.write(_os.fspath(directory))
+
+    @property
+    def feasibility_text(self) -> str:
+        return self._native.feasibility_text
+
+
+TrackResult = Results
+
+
+def _progress(progress):
+    if progress is None or progress is False:
+        return None
+    if callable(progress):
+        return progress
+    state = {}
+
+    def bar(what, t, t0, t1):
+        frac = 1.0 if t1 <= t0 else min(1.0, max(0.0, (t - t0) / (t1 - t0)))
+        filled = int(30 * frac)
+        _sys.stderr.write(f"\r{what:<32.32} [{'#' * filled}{'.' * (30 - filled)}] {100 * frac:5.1f}%")
+        if frac >= 1.0 and not state.get(what):
+            state[what] = True
+            _sys.stderr.write("\n")
+        _sys.stderr.flush()
+    return bar
+
+
+def run(scenario, track: bool = False, progress: Union[bool, Callable, None] = False) -> Results:
+    """Plans the scenario (and with track=True runs its experiments); the GIL is released
+    during the run. progress: False (default), True (a bar on stderr) or callable(what, t, t0, t1)."""
+    problem = load(scenario)
+    r = _refdyn.run(problem, track, _progress(progress))
+    plan_ = Trajectory._make("plan", r.plan_table, r.plan_summary, r.plan_layout)
+    runs = {name: Trajectory._make(name, r.run_table(i), r.run_summary(i), r.run_layout(i))
+            for i, name in enumerate(r.run_names)}
+    return Results(problem=problem, plan=plan_, runs=runs, feasibility=_json.loads(r.feasibility_json),
+                   summary=_json.loads(r.summary_json), ok=r.ok, wall_time=r.wall_time, _native=r)
+
+
+def plan(scenario, progress: Union[bool, Callable, None] = False) -> Trajectory:
+    """The planned reference motion of a scenario (file, YAML text, dict or Problem)."""
+    return run(scenario, track=False, progress=progress).plan
+
+
+def track(scenario, progress: Union[bool, Callable, None] = False) -> Results:
+    """Plan + every closed-loop experiment: Results with .plan, .runs[name], .feasibility."""
+    return run(scenario, track=True, progress=progress)
+
+
+def feasibility(scenario) -> Dict[str, Any]:
+    """The feasibility report of the planned motion as a dict (feasibility.json)."""
+    return run(scenario).feasibility

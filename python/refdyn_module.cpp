@@ -1,0 +1,364 @@
+// The compiled part of the Python package `refdyn` (module refdyn._refdyn). The pure-Python
+// part (python/refdyn/__init__.py) wraps it: Trajectory dataclass, scenario from a dict, progress.
+//
+//   Problem (io::load_problem / io::parse_problem) ──run──▶ Results (io::run_problem)
+//     .plan / .runs: trajectory tables (io::trajectory_table) as (column names, float64 array)
+//     .feasibility_json / .summary_json: the JSON text the CLI writes (json.loads'ed in Python)
+//   Model: the model functions on one Data workspace (FK, point Jacobian, M, c + g, ID, FD).
+//
+// Errors: refdyn::Error → refdyn.Error (a ValueError), refdyn::NumericalFailure →
+// refdyn.NumericalFailure (a refdyn.Error), message unchanged. Runs release the GIL.
+
+#include "refdyn/constraints.hpp"
+#include "refdyn/error.hpp"
+#include "refdyn/feasibility.hpp"
+#include "refdyn/io/results.hpp"
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/io/urdf.hpp"
+#include "refdyn/kinematics.hpp"
+#include "refdyn/model.hpp"
+#include "refdyn/problem.hpp"
+#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/reference_dynamics.hpp"
+
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace py = pybind11;
+using namespace refdyn;
+
+namespace {
+
+using Vec = Eigen::VectorXd;
+
+// ---------------------------------------------------------------- trajectories
+/// A trajectory table as (column names, float64 array of shape (samples, columns)).
+py::tuple table_of(const Trajectory& tr) {
+  const io::CsvTable tab = io::trajectory_table(tr);
+  const py::ssize_t rows = static_cast<py::ssize_t>(tab.rows.size());
+  const py::ssize_t cols = static_cast<py::ssize_t>(tab.header.size());
+  py::array_t<double> a({rows, cols});
+  auto m = a.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < rows; ++i) {
+    const auto& r = tab.rows[static_cast<size_t>(i)];
+    for (py::ssize_t j = 0; j < cols; ++j) m(i, j) = r[static_cast<size_t>(j)];
+  }
+  return py::make_tuple(tab.header, a);
+}
+
+py::dict summary_of(const IntegrationSummary& s) {
+  py::dict d;
+  d["status"] = std::string(to_string(s.status));
+  d["ok"] = s.ok();
+  d["message"] = s.message;
+  d["steps"] = s.steps;
+  d["rejected_steps"] = s.rejected_steps;
+  d["rhs_evaluations"] = s.rhs_evaluations;
+  d["t_end"] = s.t_end;
+  d["wall_time"] = s.wall_time;
+  d["max_constraint_residual"] = s.max_constraint_residual;
+  return d;
+}
+
+/// The layout of a trajectory (what the columns group into).
+py::dict layout_of(const Trajectory& tr) {
+  py::dict d;
+  d["joints"] = tr.joints;
+  d["points"] = tr.points;
+  d["state_names"] = tr.state_names;
+  d["constraint_rows"] = tr.constraint_rows;
+  d["target_signals"] = tr.target_signals;
+  d["force_signals"] = tr.force_signals;
+  return d;
+}
+
+// ---------------------------------------------------------------- progress
+/// Progress for io::run_problem: a Python callable progress(what, t, t0, t1), called with the
+/// GIL held at most ~100 times per run (and once at the end), or none.
+io::ProgressFactory progress_factory(const py::object& callback) {
+  if (callback.is_none()) return {};
+  auto cb = std::make_shared<py::object>(callback);
+  return [cb](const std::string& what, double t0, double t1) -> std::function<void(double)> {
+    auto next = std::make_shared<double>(t0);
+    const double dt = (t1 - t0) / 100.0;
+    return [cb, what, t0, t1, next, dt](double t) {
+      if (t < *next && t < t1) return;
+      *next = t + dt;
+      py::gil_scoped_acquire gil;
+      (*cb)(what, t, t0, t1);
+    };
+  };
+}
+
+// ---------------------------------------------------------------- model
+/// A compiled Model and one workspace. Arguments are copied into per-model scratch vectors (no
+/// allocation when their size is right; a wrong size reaches the library's own check and
+/// message); results are returned as new NumPy arrays.
+using Arr = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+struct PyModel {
+  explicit PyModel(const Model& m) : model(std::make_shared<const Model>(m)), data(*model) {}
+  std::shared_ptr<const Model> model;
+  Data data;
+  Vec a[3];  // scratch for q, qd, qdd / tau
+
+  const Vec& arg(int slot, const Arr& x, const char* what) {
+    if (x.ndim() != 1)
+      throw Error(std::string(what) + ": expected a 1-D array, got " + std::to_string(x.ndim()) + " dimensions");
+    Vec& v = a[slot];
+    if (v.size() != x.shape(0)) v.resize(x.shape(0));
+    std::copy(x.data(), x.data() + x.shape(0), v.data());
+    return v;
+  }
+  void fk(const Arr& q) { forward_kinematics(*model, data, arg(0, q, "q")); }
+};
+
+py::array_t<double> out(const Vec& v) {
+  py::array_t<double> r(v.size());
+  std::copy(v.data(), v.data() + v.size(), r.mutable_data());
+  return r;
+}
+
+template <typename Derived>
+py::array_t<double> out(const Eigen::MatrixBase<Derived>& m) {
+  py::array_t<double> r({m.rows(), m.cols()});
+  auto w = r.mutable_unchecked<2>();
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j) w(i, j) = m(i, j);
+  return r;
+}
+
+py::dict limits_dict(const JointLimits& l) {
+  py::dict d;
+  d["lower"] = l.lower;
+  d["upper"] = l.upper;
+  d["velocity"] = l.velocity;
+  d["effort"] = l.effort;
+  return d;
+}
+
+std::shared_ptr<PyModel> urdf_model(const ModelDescription& d) { return std::make_shared<PyModel>(build_model(d)); }
+
+io::UrdfOptions urdf_options(const std::string& root_link, bool points_for_links) {
+  io::UrdfOptions o;
+  o.root_link = root_link;
+  o.points_for_links = points_for_links;
+  return o;
+}
+
+// ---------------------------------------------------------------- problems and results
+struct PyResults {
+  std::shared_ptr<const Problem> problem;  // the Results' reference dynamics refer to it
+  io::Results results;
+};
+
+std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bool track, const py::object& progress) {
+  if (track && problem->experiments.empty())
+    throw Error(problem->file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+  io::RunOptions o;
+  o.track = track;
+  o.progress = progress_factory(progress);
+  auto r = std::make_shared<PyResults>();
+  r->problem = problem;
+  {
+    py::gil_scoped_release release;
+    r->results = io::run_problem(*problem, o);
+  }
+  return r;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_refdyn, m) {
+  m.doc() = "refdyn: task-based motion planning from reference dynamics (compiled part)";
+
+  static py::exception<Error> error(m, "Error", PyExc_ValueError);
+  static py::exception<NumericalFailure> numerical(m, "NumericalFailure", error.ptr());
+  // Translators registered later are tried first: the more specific one last.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const NumericalFailure& e) {
+      numerical(e.what());
+    } catch (const Error& e) {
+      error(e.what());
+    }
+  });
+
+  // ------------------------------------------------------------ Model
+  py::class_<PyModel, std::shared_ptr<PyModel>>(m, "Model",
+      "A compiled multibody model with its own workspace. Functions take q, qd, ... as 1-D arrays of size nq "
+      "and return new float64 arrays. Not thread-safe (one workspace); copy() for another.")
+      .def_property_readonly("name", [](const PyModel& s) { return s.model->name; })
+      .def_property_readonly("nq", [](const PyModel& s) { return s.model->nq; })
+      .def_property_readonly("joint_names", [](const PyModel& s) { return s.model->joint_name; })
+      .def_property_readonly("link_names", [](const PyModel& s) { return s.model->body_name; })
+      .def_property_readonly("point_names", [](const PyModel& s) { return s.model->point_name; })
+      .def_property_readonly("gravity", [](const PyModel& s) { return Vec(s.model->gravity); })
+      .def_property_readonly("total_mass", [](const PyModel& s) { return s.model->total_mass(); })
+      .def_property_readonly("limits", [](const PyModel& s) {
+        py::dict d;
+        for (int i = 0; i < s.model->nq; ++i) d[py::str(s.model->joint_name[i])] = limits_dict(s.model->limits[i]);
+        return d;
+      }, "Per joint: {lower, upper, velocity, effort} (inf: none).")
+      .def("summary", [](const PyModel& s) { return s.model->summary(); })
+      .def("copy", [](const PyModel& s) { return std::make_shared<PyModel>(*s.model); },
+           "The same model (same id) with a workspace of its own.")
+      .def("__repr__", [](const PyModel& s) {
+        return "<refdyn.Model '" + s.model->name + "' nq=" + std::to_string(s.model->nq) + ">";
+      })
+      .def("mass_matrix", [](PyModel& s, const Arr& q) { return out(mass_matrix(*s.model, s.data, s.arg(0, q, "q"))); },
+           py::arg("q"), "M(q), shape (nq, nq).")
+      .def("bias_forces", [](PyModel& s, const Arr& q, const Arr& qd) {
+             return out(bias_forces(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd")));
+           }, py::arg("q"), py::arg("qd"), "c(q, qd) + g(q), shape (nq,).")
+      .def("gravity_forces", [](PyModel& s, const Arr& q) { return out(gravity_forces(*s.model, s.data, s.arg(0, q, "q"))); },
+           py::arg("q"), "g(q), shape (nq,).")
+      .def("inverse_dynamics", [](PyModel& s, const Arr& q, const Arr& qd, const Arr& qdd) {
+             return out(inverse_dynamics(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"), s.arg(2, qdd, "qdd")));
+           }, py::arg("q"), py::arg("qd"), py::arg("qdd"), "tau = M qdd + c + g (RNEA), shape (nq,).")
+      .def("forward_dynamics", [](PyModel& s, const Arr& q, const Arr& qd, const Arr& tau) {
+             return out(forward_dynamics(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"), s.arg(2, tau, "tau")));
+           }, py::arg("q"), py::arg("qd"), py::arg("tau"), "qdd = M^-1 (tau - c - g), shape (nq,).")
+      .def("kinetic_energy", [](PyModel& s, const Arr& q, const Arr& qd) {
+             return kinetic_energy(*s.model, s.data, s.arg(0, q, "q"), s.arg(1, qd, "qd"));
+           }, py::arg("q"), py::arg("qd"))
+      .def("potential_energy", [](PyModel& s, const Arr& q) { return potential_energy(*s.model, s.data, s.arg(0, q, "q")); },
+           py::arg("q"))
+      .def("point_position", [](PyModel& s, const Arr& q, const std::string& point) {
+             const int p = s.model->point_index(point);
+             s.fk(q);
+             return out(Vec(point_position(*s.model, s.data, p)));
+           }, py::arg("q"), py::arg("point"), "World position of a named point, shape (3,).")
+      .def("point_jacobian", [](PyModel& s, const Arr& q, const std::string& point) {
+             const int p = s.model->point_index(point);
+             s.fk(q);
+             point_jacobian(*s.model, s.data, p);
+             return out(s.data.Jp);
+           }, py::arg("q"), py::arg("point"), "d r_P / d q in the world frame, shape (3, nq).")
+      .def("point_velocity", [](PyModel& s, const Arr& q, const Arr& qd, const std::string& point) {
+             const int p = s.model->point_index(point);
+             s.fk(q);
+             const PointDrift d = point_drift(*s.model, s.data, p, s.arg(1, qd, "qd"));
+             return py::make_tuple(out(Vec(d.velocity)), out(Vec(d.drift)));
+           }, py::arg("q"), py::arg("qd"), py::arg("point"),
+           "(velocity C qd, drift d = r_P'' - C qdd) of a named point in the world frame.")
+      .def("link_transform", [](PyModel& s, const Arr& q, const std::string& link) {
+             const int b = s.model->body_index(link);
+             s.fk(q);
+             return out(link_transform(*s.model, s.data, b).matrix());
+           }, py::arg("q"), py::arg("link"), "4x4 pose of a link's frame in the world.");
+
+  m.def("model_from_urdf_file", [](const std::string& path, const std::string& root, bool points) {
+        std::vector<io::UrdfMimic> mimics;  // couplings are constraints of a scenario, not part of a model
+        return urdf_model(io::load_urdf(path, urdf_options(root, points), &mimics));
+      }, py::arg("path"), py::arg("root_link") = "", py::arg("points_for_links") = true);
+  m.def("model_from_urdf_string", [](const std::string& xml, const std::string& source, const std::string& root,
+                                     bool points) {
+        std::vector<io::UrdfMimic> mimics;
+        return urdf_model(io::parse_urdf(xml, source, urdf_options(root, points), &mimics));
+      }, py::arg("xml"), py::arg("source_name") = "<string>", py::arg("root_link") = "",
+      py::arg("points_for_links") = true);
+
+  // ------------------------------------------------------------ Problem
+  py::class_<Problem, std::shared_ptr<Problem>>(m, "Problem", "A built scenario (io::load_problem / parse_problem).")
+      .def_readonly("file", &Problem::file)
+      .def_readonly("name", &Problem::name)
+      .def_readonly("parameters", &Problem::parameters)
+      .def_property_readonly("model", [](const Problem& p) { return std::make_shared<PyModel>(p.model); },
+                             "A copy of the problem's model (with a workspace of its own).")
+      .def_property_readonly("joint_names", [](const Problem& p) { return p.model.joint_name; })
+      .def_property_readonly("q0", [](const Problem& p) { return p.q0; })
+      .def_property_readonly("qd0", [](const Problem& p) { return p.qd0; })
+      .def_property_readonly("t0", [](const Problem& p) { return p.integrator.t0; })
+      .def_property_readonly("t1", [](const Problem& p) { return p.integrator.t1; })
+      .def_property_readonly("step", [](const Problem& p) { return p.integrator.step; })
+      .def_property_readonly("constraint_rows", [](const Problem& p) {
+        std::vector<std::string> r;
+        for (int i = 0; i < p.constraints.rows(); ++i) r.push_back(p.constraints.row_name(i));
+        return r;
+      })
+      .def_property_readonly("experiments", [](const Problem& p) {
+        std::vector<std::string> r;
+        for (const auto& e : p.experiments) r.push_back(e->name);
+        return r;
+      })
+      .def("constraints", [](const Problem& p, double t, const Vec& q, const Vec& qd) {
+             p.model.check_q(q, "q");
+             p.model.check_q(qd, "qd");
+             Data data(p.model);
+             ConstraintEval ev(p.model, p.constraints);
+             evaluate_constraints(p.model, data, p.constraints, ev, t, q, qd);
+             py::dict d;
+             std::vector<std::string> rows;
+             for (int i = 0; i < p.constraints.rows(); ++i) rows.push_back(p.constraints.row_name(i));
+             d["rows"] = rows;
+             d["phi"] = ev.phi;
+             d["phid"] = ev.phid;
+             d["A"] = ev.A;
+             d["gamma"] = ev.gamma;
+             return d;
+           }, py::arg("t"), py::arg("q"), py::arg("qd"),
+           "The constraint rows at (t, q, qd): {rows, phi (Phi or c), phid, A (m x n), gamma}.")
+      .def("__repr__", [](const Problem& p) { return "<refdyn.Problem '" + p.name + "' from " + p.file + ">"; });
+
+  m.def("load_problem", [](const std::string& path) {
+        std::unique_ptr<Problem> p;
+        {
+          py::gil_scoped_release release;
+          p = io::load_problem(path);
+        }
+        return std::shared_ptr<Problem>(std::move(p));
+      }, py::arg("path"));
+  m.def("parse_problem", [](const std::string& yaml, const std::string& source) {
+        std::unique_ptr<Problem> p;
+        {
+          py::gil_scoped_release release;
+          p = io::parse_problem(yaml, source);
+        }
+        return std::shared_ptr<Problem>(std::move(p));
+      }, py::arg("yaml"), py::arg("source_name") = "<string>");
+
+  // ------------------------------------------------------------ Results
+  py::class_<PyResults, std::shared_ptr<PyResults>>(m, "Results")
+      .def_property_readonly("ok", [](const PyResults& r) { return r.results.ok(); })
+      .def_property_readonly("wall_time", [](const PyResults& r) { return r.results.wall_time; })
+      .def_property_readonly("plan_table", [](const PyResults& r) { return table_of(r.results.plan); })
+      .def_property_readonly("plan_summary", [](const PyResults& r) { return summary_of(r.results.plan.summary); })
+      .def_property_readonly("plan_layout", [](const PyResults& r) { return layout_of(r.results.plan); })
+      .def_property_readonly("run_names", [](const PyResults& r) {
+        std::vector<std::string> n;
+        for (const auto& run : r.results.runs) n.push_back(run.experiment->name);
+        return n;
+      })
+      .def("run_table", [](const PyResults& r, size_t i) { return table_of(r.results.runs.at(i).result); })
+      .def("run_summary", [](const PyResults& r, size_t i) {
+        const auto& res = r.results.runs.at(i).result;
+        py::dict d = summary_of(res.summary);
+        d["saturated_samples"] = res.saturated_samples;
+        return d;
+      })
+      .def("run_layout", [](const PyResults& r, size_t i) { return layout_of(r.results.runs.at(i).result); })
+      .def_property_readonly("feasibility_json", [](const PyResults& r) { return r.results.feasibility.json(); })
+      .def_property_readonly("feasibility_text", [](const PyResults& r) { return r.results.feasibility.text(); })
+      .def_property_readonly("feasible", [](const PyResults& r) { return r.results.feasibility.feasible(); })
+      .def_property_readonly("summary_json", [](const PyResults& r) {
+        return io::summary_json(*r.problem, r.results).dump(0);
+      })
+      .def("write", [](const PyResults& r, const std::string& dir) {
+        io::write_results(dir, *r.problem, r.results, io::summary_json(*r.problem, r.results));
+      }, py::arg("dir"), "Writes plan.csv, feasibility.json, summary.json, track_<name>.csv as the CLI does.");
+
+  m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress) {
+        return run(p, track, progress);
+      }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(),
+      "io::run_problem without the GIL. progress: None or callable(what, t, t0, t1).");
+}
