@@ -70,8 +70,10 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
-  llt_k_ = Eigen::LLT<Eigen::MatrixXd>(n_ - m_);
-  llt_m_ = Eigen::LLT<Eigen::MatrixXd>(m_);
+  // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
+  // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.
+  llt_k_.compute(Eigen::MatrixXd::Identity(n_ - m_, n_ - m_));
+  llt_m_.compute(Eigen::MatrixXd::Identity(m_, m_));
   if (!opt_.independent.empty()) {
     std::vector<int> ind;
     for (const auto& name : opt_.independent) ind.push_back(model.joint_index(name));
