@@ -237,7 +237,24 @@ namespace {
 constexpr double kMaxExactPowerBits = 4096;
 
 /// GiNaC's number for a literal: integers exact, decimals as floats (as GiNaC's parser did).
-ex number(const std::string& lit) { return GiNaC::numeric(lit.c_str()); }
+/// A decimal exponent beyond the double range is decided here, before CLN would build the exact
+/// number 10^e (1e99999999 took seconds and hundreds of MB): too large is an error, too small
+/// is zero.
+ex number(const std::string& lit) {
+  const auto e = lit.find_first_of("eE");
+  if (e != std::string::npos) {
+    const std::string exponent = lit.substr(e + 1);
+    const bool negative = !exponent.empty() && exponent[0] == '-';
+    const size_t digits = exponent.find_first_not_of("+-");
+    const std::string magnitude = digits == std::string::npos ? "" : exponent.substr(digits);
+    if (magnitude.size() > 4 || (!magnitude.empty() && std::stoi(magnitude) > 1000)) {
+      if (lit.substr(0, e).find_first_not_of("0.") == std::string::npos) return ex(0);  // 0e±huge
+      if (negative) return ex(0);
+      throw BadConstant{"is beyond the range of double-precision numbers (about 1.8e308)", lit, true};
+    }
+  }
+  return GiNaC::numeric(lit.c_str());
+}
 
 ex parameter(double v) {
   if (v == std::trunc(v) && std::fabs(v) < 9007199254740992.0)
@@ -246,7 +263,9 @@ ex parameter(double v) {
 }
 
 ex power(const ex& b, const ex& p) {
-  if (real_number(b) && real_number(p) && num(p).is_integer() && !num(b).is_zero()) {
+  // Integer or not: a power of numbers too large to represent exactly (a float tower such as
+  // 2.^4.^2.^2.1 made CLN ask for a 70 GB block) is computed in double precision.
+  if (real_number(b) && real_number(p) && !num(b).is_zero()) {
     const double bits = std::fabs(num(p).to_double()) *
                         std::max(1.0, std::fabs(std::log2(std::fabs(num(b).to_double()))));
     if (bits > kMaxExactPowerBits) {
