@@ -1003,15 +1003,15 @@ TEST(Expression, ParameterThatCancelsAVariable) {
                {"unknown identifier 'q(j2)'"});
 }
 
-}  // namespace
-}  // namespace refdyn
-
 // Fuzzer findings (tests/data/fuzz/): constants far outside the double range are decided before
 // CLN builds them exactly; both used to take seconds and hundreds of MB (or a 70 GB request).
 TEST(ExpressionLimits, HugeLiteralsAndPowerTowersAreDecidedInDoublePrecision) {
-  test::expect_error_mentioning([] { Expression("1e99999999", {"x"}); }, {"1e99999999", "range"});
+  expect_error([] { Expression("1e99999999", {"x"}); }, {"1e99999999", "range"});
   EXPECT_EQ(Expression("x + 1e-99999999", {"x"}).text(), "x");
-  test::expect_error_mentioning([] { Expression("(5+ a)^2. ^2.^4.^2. ^2.^2.1", {"a"}); }, {"inf"});
+  expect_error([] { Expression("(5+ a)^2. ^2.^4.^2. ^2.^2.1", {"a"}); }, {"inf"});
   const double two = 2.0;
   EXPECT_NEAR(Expression("x^2.5", {"x"}, {}, 0).value(&two), std::pow(2.0, 2.5), 1e-15);
 }
+
+}  // namespace
+}  // namespace refdyn
