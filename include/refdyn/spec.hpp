@@ -44,7 +44,7 @@ struct SpecValue {
   /// List element; a Null value when out of range or this is no list.
   const SpecValue& operator[](size_t i) const;
   /// Items of a list or entries of a map.
-  size_t size() const { return is_list() ? items.size() : is_map() ? entries.size() : 0; }
+  size_t size() const;
   /// Location of the key `key` of this map (the key's own line), else this value's location.
   SourceLocation key_location(const std::string& key) const;
   /// "nothing", "'text'", "a list" or "a mapping": for "got …" in messages.
@@ -58,6 +58,8 @@ struct SpecValue::Entry {
   int key_line = 0;
   SpecValue value;
 };
+
+inline size_t SpecValue::size() const { return is_list() ? items.size() : is_map() ? entries.size() : 0; }
 
 /// One entry of an extensible section: a constraint, a force element or a controller. `kind`
 /// selects the registry entry (registry.hpp) that owns the other keys of `fields`.
