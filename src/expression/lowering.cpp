@@ -9,6 +9,7 @@
 #include "refdyn/text.hpp"
 
 #include <cln/float.h>
+#include <stdexcept>
 
 #include <sstream>
 #include <unordered_set>
@@ -263,6 +264,8 @@ ex parameter(double v) {
 }
 
 ex power(const ex& b, const ex& p) {
+  if (real_number(b) && num(b).is_zero() && real_number(p) && num(p).is_negative())
+    throw std::domain_error("division by zero");  // 0^negative, before GiNaC (see Product)
   // Integer or not: a power of numbers too large to represent exactly (a float tower such as
   // 2.^4.^2.^2.1 made CLN ask for a 70 GB block) is computed in double precision.
   if (real_number(b) && real_number(p) && !num(b).is_zero()) {
@@ -349,8 +352,13 @@ std::vector<ex> build(const ParseResult& fe, const std::vector<GiNaC::realsymbol
           // constant zero divisor throws "division by zero" here, at this node).
           GiNaC::exvector factors;
           factors.reserve(args.size());
-          for (std::uint32_t k = 0; k < node.count; ++k)
+          for (std::uint32_t k = 0; k < node.count; ++k) {
+            // A zero divisor is reported before GiNaC sees it: GiNaC throws from inside its
+            // allocation and leaks the half-built power object.
+            if (flag(k) && real_number(args[k]) && num(args[k]).is_zero())
+              throw std::domain_error("division by zero");
             factors.push_back(flag(k) ? GiNaC::pow(args[k], -1) : args[k]);
+          }
           out[i] = GiNaC::mul(factors);
           break;
         }
