@@ -1011,6 +1011,14 @@ TEST(ExpressionLimits, HugeLiteralsAndPowerTowersAreDecidedInDoublePrecision) {
   expect_error([] { Expression("(5+ a)^2. ^2.^4.^2. ^2.^2.1", {"a"}); }, {"inf"});
   const double two = 2.0;
   EXPECT_NEAR(Expression("x^2.5", {"x"}, {}, 0).value(&two), std::pow(2.0, 2.5), 1e-15);
+  // A huge integer power of a non-constant base (GiNaC ran for minutes building 4^n) and zero
+  // divisors (GiNaC leaked the object it was building when it threw).
+  expect_error([] { Expression("(a + x/4)^3333333300009504329359048420006", {"x"}, {{"a", 1.5}}); },
+               {"integer exponent", "larger than 4096"});
+  expect_error([] { Expression("x/(1-1)", {"x"}); }, {"division by zero"});
+  expect_error([] { Expression("x + 0^(-2)", {"x"}); }, {"division by zero"});
+  const double one = 1.0;
+  EXPECT_EQ(Expression("x^4096", {"x"}, {}, 0).value(&one), 1.0) << "the limit itself is allowed";
 }
 
 }  // namespace

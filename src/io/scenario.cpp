@@ -22,8 +22,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// Most values a scenario may hold after YAML aliases are expanded: aliases share nodes in
+/// yaml-cpp, so a few lines (`b: [*a, *a, …]` nested) can stand for billions of values.
+constexpr long kMaxSpecValues = 1'000'000;
+
 /// YAML → SpecValue: scalar keys only, each key once (both lines named otherwise).
-SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::string& key, const SpecReader& r) {
+SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::string& key, const SpecReader& r,
+                  long& budget) {
+  if (--budget < 0)
+    r.fail(SourceLocation{file, n.Mark().is_null() ? 0 : n.Mark().line + 1}, key,
+           "the file expands to more than " + std::to_string(kMaxSpecValues) +
+               " values (YAML aliases repeated inside aliases?); a scenario is far smaller");
   SpecValue v;
   v.where = {file, n.Mark().is_null() ? 0 : n.Mark().line + 1};
   switch (n.Type()) {
@@ -38,7 +47,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
     case YAML::NodeType::Sequence:
       v.kind = SpecValue::Kind::List;
       for (size_t i = 0; i < n.size(); ++i)
-        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r));
+        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r, budget));
       break;
     case YAML::NodeType::Map:
       v.kind = SpecValue::Kind::Map;
@@ -55,7 +64,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
             r.fail(SourceLocation{file, line}, child,
                    "key '" + k + "' is given twice (lines " + std::to_string(e.key_line) + " and " + std::to_string(line) +
                        "); keep one");
-        v.entries.push_back({k, line, to_spec(kv.second, file, child, r)});
+        v.entries.push_back({k, line, to_spec(kv.second, file, child, r, budget)});
       }
       break;
   }
@@ -191,7 +200,8 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (!yroot.IsMap()) throw Error(source + ": expected a YAML mapping at the top level (keys such as model:, constraints:)");
   ScenarioSpec s;
   s.file = source;
-  s.root = to_spec(yroot, source, "", c);
+  long budget = kMaxSpecValues;
+  s.root = to_spec(yroot, source, "", c, budget);
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
