@@ -6,6 +6,7 @@
 #include "refdyn/registry.hpp"
 #include "refdyn/text.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
@@ -70,6 +71,20 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
   }
   return v;
 }
+
+/// Counts documents (and where the last one started) without building nodes.
+struct DocumentCounter final : YAML::EventHandler {
+  int last_start_line = 0;
+  void OnDocumentStart(const YAML::Mark& m) override { last_start_line = m.is_null() ? 0 : m.line + 1; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
 
 /// Reads the structure of the file; `c` only locates errors (it evaluates nothing here).
 class Reader {
@@ -174,9 +189,18 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (text.size() > max_input_bytes)
     throw Error(source + ": " + std::to_string(text.size()) + " bytes, more than the limit of " +
                 std::to_string(max_input_bytes) + " bytes");
-  std::vector<YAML::Node> docs;
+  // Count the documents first (at most two: yaml-cpp's LoadAll loops for ever on some malformed
+  // input, e.g. "\t,pap", producing empty documents), then load the first one.
+  YAML::Node yroot;
+  int documents = 0, second_line = 0;
   try {
-    docs = YAML::LoadAll(text);
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentCounter counter;
+    while (documents < 2 && parser.HandleNextDocument(counter)) {
+      if (++documents == 2) second_line = counter.last_start_line;
+    }
+    if (documents <= 1) yroot = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     std::string hint;
     std::istringstream lines(text);
@@ -191,12 +215,9 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     throw Error(source + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
                 ": YAML syntax error: " + SpecReader::one_line(e.msg) + hint);
   }
-  if (docs.size() > 1) {
-    const int line = docs[1].Mark().is_null() ? 0 : docs[1].Mark().line + 1;
-    c.fail(SourceLocation{source, line}, "",
+  if (documents > 1)
+    c.fail(SourceLocation{source, second_line}, "",
            "a second YAML document (after '---'): a scenario file holds exactly one; remove it or split the file");
-  }
-  const YAML::Node yroot = docs.empty() ? YAML::Node() : docs[0];
   if (!yroot.IsMap()) throw Error(source + ": expected a YAML mapping at the top level (keys such as model:, constraints:)");
   ScenarioSpec s;
   s.file = source;
