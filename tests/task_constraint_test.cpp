@@ -156,7 +156,7 @@ TEST(ExpressionConstraint, OneSetEvaluatedFromTwoThreadsAtOnce) {
       for (int k = first; k < last; ++k) {
         evaluate_constraints(m, data, set, ev, 0.01 * k, q[k], qd[k]);
         Eigen::MatrixXd r(2, 6);
-        r << ev.A, ev.phi, ev.phid, ev.gamma, Eigen::VectorXd::Zero(2);
+        r << ev.A, ev.phi, ev.phid, ev.gamma;
         out[k] = r;
       }
   };
