@@ -130,7 +130,6 @@ struct ModelData {
 /// its id.
 class Model {
  public:
-  Model() = default;
   const int nq = 0;                 ///< number of generalized coordinates (= nv)
   const int nv = 0;
   const std::string name;
