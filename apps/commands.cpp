@@ -1,9 +1,11 @@
-// refdyn check / plan / track / kinds: thin clients of the library's pipeline
+// refdyn check / plan / track / generate / kinds: thin clients of the library's pipeline
 // (io::load_problem → io::run_problem → io::write_results).
 #include "commands.hpp"
 
 #include "refdyn/error.hpp"
+#include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/symbolic.hpp"
 #include "refdyn/registry.hpp"
 #include "refdyn/text.hpp"
 
@@ -168,6 +170,45 @@ int run_plan(const std::string& file, const std::string& out_dir, bool quiet, co
 
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in) {
   return plan_or_track(file, out_dir, quiet, true, in);
+}
+
+int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,
+                 const std::string& prefix, bool quiet, const InputOptions& in) {
+  bool c = false, latex = false, json = false;
+  std::string rest = formats;
+  while (!rest.empty()) {
+    const auto comma = rest.find(',');
+    const std::string f = rest.substr(0, comma);
+    rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
+    if (f == "c") c = true;
+    else if (f == "latex") latex = true;
+    else if (f == "json") json = true;
+    else throw Error("--format: expected a comma-separated list of c, latex, json, got '" + f + "'");
+  }
+  if (!c && !latex && !json) throw Error("--format: expected at least one of c, latex, json");
+  const auto problem = io::load_problem(file, in.max_input_bytes);
+  SymbolicOptions opt;
+  opt.prefix = prefix;
+  const SymbolicReferenceDynamics g = generate_symbolic(*problem, opt);
+  // Everything is formed before the first file is written: an error leaves the folder as it was.
+  std::vector<std::pair<std::string, std::string>> files;
+  if (c) {
+    files.emplace_back("reference_dynamics.h", g.c_header());
+    files.emplace_back("reference_dynamics.c", g.c_source());
+  }
+  if (latex) files.emplace_back("equations.tex", g.latex());
+  if (json) files.emplace_back("reference_dynamics.json", g.json());
+  io::prepare_output_dir(out_dir);
+  for (const auto& [name, text] : files) io::write_text_atomic(std::filesystem::path(out_dir) / name, text);
+  if (!quiet) {
+    const SymbolicSummary& s = g.summary();
+    std::printf("generated the reference dynamics of '%s': %d coordinates, %d constraint rows, %d force states, "
+                "%d parameters in %.2f s\n",
+                problem->name.c_str(), s.nq, s.constraints, s.nz, s.parameters, s.seconds);
+    if (c) std::printf("C: prefix %s, %ld common subexpressions, %ld operations\n", g.prefix().c_str(), s.c_temporaries, s.c_operations);
+    for (const auto& f : files) std::printf("  %s\n", (std::filesystem::path(out_dir) / f.first).c_str());
+  }
+  return kOk;
 }
 
 int run_kinds() {

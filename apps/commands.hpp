@@ -32,5 +32,7 @@ int run_plan(const std::string& file, const std::string& out_dir, bool quiet, co
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in);
 int run_plot(const std::string& dir);
 int run_kinds();
+int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,
+                 const std::string& prefix, bool quiet, const InputOptions& in);
 
 }  // namespace refdyn::app

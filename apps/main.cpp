@@ -70,9 +70,19 @@ int main(int argc, char** argv) {
   paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
 
+  std::string formats = "c,latex,json", prefix;
+  auto* generate = app.add_subcommand(
+      "generate", "Generate the reference dynamics as equations and code: equations.tex, reference_dynamics.c/.h, .json");
+  generate->add_option("file", file, "Scenario file (YAML)")->required();
+  generate->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
+  generate->add_option("--format", formats, "Comma-separated outputs: c, latex, json")->capture_default_str();
+  generate->add_option("--prefix", prefix, "Prefix of the C identifiers (default: rd_<scenario name>_)");
+  generate->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  input_options(generate);
+
   auto* kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
 
-  const std::vector<std::string> commands{"check", "plan", "track", "plot", "paper", "kinds"};
+  const std::vector<std::string> commands{"check", "plan", "track", "plot", "paper", "generate", "kinds"};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -90,6 +100,7 @@ int main(int argc, char** argv) {
     if (*track) return run_track(file, out_dir, quiet, in);
     if (*plot) return run_plot(out_dir);
     if (*paper) return run_paper_command(out_dir, quiet);
+    if (*generate) return run_generate(file, out_dir, formats, prefix, quiet, in);
     if (*kinds) return run_kinds();
   } catch (const refdyn::Error& e) {
     std::string msg = e.what();

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (fuzz/: expression parser, scenario parser) with clang and
+# Builds the libFuzzer targets (fuzz/: expression parser, scenario parser,
+# problem builder) with clang and
 # -fsanitize=fuzzer,address,undefined into build-fuzz/, and runs each for SECONDS (default 60).
 #   bash scripts/fuzz.sh [SECONDS]
 # Seed corpora are made at run time from tests/data/** and examples/**/*.yaml (nothing is
@@ -14,7 +15,7 @@ SECS=${1:-60}
 [[ "$SECS" =~ ^[0-9]+$ ]] || { echo "usage: scripts/fuzz.sh [SECONDS]" >&2; exit 1; }
 BUILD_DIR=${FUZZ_BUILD_DIR:-build-fuzz}
 OUT=${FUZZ_OUT:-$BUILD_DIR/findings}
-TARGETS=${FUZZ_TARGETS:-expression_fuzz scenario_fuzz}
+TARGETS=${FUZZ_TARGETS:-expression_fuzz scenario_fuzz problem_fuzz}
 JOBS=${JOBS:-$(nproc)}
 CXX_FUZZ=${CXX_FUZZ:-clang++-14}
 
@@ -33,11 +34,13 @@ else
   trap 'rm -rf "$WORK"' EXIT
 fi
 
-# Seeds. Scenario parser: every file below tests/data and every example scenario.
-mkdir -p "$WORK/scenario_fuzz" "$WORK/expression_fuzz"
+# Seeds. Scenario parser and problem builder: every file below tests/data and every example
+# scenario.
+mkdir -p "$WORK/scenario_fuzz" "$WORK/expression_fuzz" "$WORK/problem_fuzz"
 n=0
 while IFS= read -r -d '' f; do
-  cp "$f" "$WORK/scenario_fuzz/seed_$((n++))"
+  cp "$f" "$WORK/scenario_fuzz/seed_$n"
+  cp "$f" "$WORK/problem_fuzz/seed_$((n++))"
 done < <(find tests/data examples -type f \( -path 'tests/data/*' -o -name '*.yaml' \) -print0 | sort -z)
 # Expression parser: the right-hand sides of the scenario files (expressions, parameters,
 # time functions) and a few texts over its variables t, x(E), q(j1) and parameter a.

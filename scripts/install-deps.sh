@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian package refdyn needs to build, test, benchmark, plot and fuzz
-# (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer).
+# (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer;
+# texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
 PACKAGES=(
@@ -12,6 +13,7 @@ PACKAGES=(
   python3 python3-matplotlib
   clang-14 libclang-rt-14-dev llvm-14
   pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
+  texlive-latex-base
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

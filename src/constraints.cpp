@@ -29,6 +29,10 @@ class EllipticCylinder final : public ImplicitSurface {
   std::string describe() const override {
     return "((x - " + fmt(cx_) + ")/" + fmt(a_) + ")^2 + ((y - " + fmt(cy_) + ")/" + fmt(b_) + ")^2 - 1";
   }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    return SymbolicForm{{"(x(" + P + ") - " + symbolic_number(cx_) + ")^2*" + symbolic_number(ia2_) + " + (y(" + P +
+                         ") - " + symbolic_number(cy_) + ")^2*" + symbolic_number(ib2_) + " - 1"}};
+  }
  private:
   double ia2_, ib2_, a_, b_, cx_, cy_;
 };
@@ -45,6 +49,12 @@ class Sphere final : public ImplicitSurface {
     return v;
   }
   std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    std::string s;
+    for (int k = 0; k < 3; ++k)
+      s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_[k]) + ")^2";
+    return SymbolicForm{{s + " - " + symbolic_number(R_ * R_)}};
+  }
  private:
   Vec3 c_;
   double R_;
@@ -64,12 +74,28 @@ class Plane final : public ImplicitSurface {
   }
   bool rheonomic() const override { return true; }
   std::string describe() const override { return "n.r - (" + h_->describe() + ")"; }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    std::optional<SymbolicForm> h = h_->symbolic();
+    if (!h) return std::nullopt;
+    std::string s;
+    for (int k = 0; k < 3; ++k) s += std::string(k ? " + " : "") + symbolic_number(n_[k]) + "*" + "xyz"[k] + "(" + P + ")";
+    h->rows[0] = s + " - (" + h->rows[0] + ")";
+    return h;
+  }
  private:
   Vec3 n_;
   TimeFunctionPtr h_;
 };
 
 // ---------------- constraint kinds ----------------
+/// before + f(t) + after, with f's parameters; none if f has no symbolic form.
+std::optional<SymbolicForm> with_function(const std::string& before, const TimeFunction& f, const std::string& after) {
+  std::optional<SymbolicForm> s = f.symbolic();
+  if (!s) return std::nullopt;
+  s->rows[0] = before + s->rows[0] + after;
+  return s;
+}
+
 class PointOnSurface final : public Constraint {
  public:
   PointOnSurface(int p, std::string pn, SurfacePtr s) : p_(p), pn_(std::move(pn)), s_(std::move(s)) {}
@@ -87,6 +113,7 @@ class PointOnSurface final : public Constraint {
     gamma[0] = f.grad.dot(P.d) + P.v.dot(f.hess * P.v) + 2 * f.grad_t.dot(P.v) + f.ftt;
   }
   std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
+  std::optional<SymbolicForm> symbolic() const override { return s_->symbolic(pn_); }
  private:
   int p_;
   std::string pn_;
@@ -112,6 +139,9 @@ class PointCoordinate final : public Constraint {
   std::string describe() const override {
     return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
   }
+  std::optional<SymbolicForm> symbolic() const override {
+    return with_function(std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (", *f_, ")");
+  }
   const TimeFunction* target() const override { return f_.get(); }
  private:
   int p_, k_;
@@ -135,6 +165,7 @@ class JointTrajectory final : public Constraint {
     gamma[0] = -f.ddf;
   }
   std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override { return with_function("q(" + jn_ + ") - (", *f_, ")"); }
   const TimeFunction* target() const override { return f_.get(); }
  private:
   int j_;
@@ -160,6 +191,9 @@ class JointCoupling final : public Constraint {
   }
   std::string describe() const override {
     return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    return SymbolicForm{{"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)}};
   }
  private:
   int j_, l_;
@@ -188,6 +222,14 @@ class PointsCoincide final : public Constraint {
     }
   }
   std::string describe() const override { return "r(" + n1_ + ") - r(" + n2_ + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    for (int k : axes_) {
+      const std::string a(1, "xyz"[k]);
+      f.rows.push_back(a + "(" + n1_ + ") - " + a + "(" + n2_ + ")");
+    }
+    return f;
+  }
  private:
   int p1_, p2_;
   std::string n1_, n2_;
@@ -211,6 +253,19 @@ class KnifeEdge final : public Constraint {
     gamma[0] = P.w.cross(n).dot(P.v) + n.dot(P.d);
   }
   std::string describe() const override { return "no lateral slip at " + pn_; }
+  std::optional<SymbolicForm> symbolic() const override {
+    // (R a)·v_P
+    std::string s;
+    for (int r = 0; r < 3; ++r) {
+      std::string nr;
+      for (int c = 0; c < 3; ++c)
+        if (a_[c] != 0.0)
+          nr += std::string(nr.empty() ? "" : " + ") + "R" + std::to_string(r + 1) + std::to_string(c + 1) + "(" + pn_ +
+                ")*" + symbolic_number(a_[c]);
+      if (!nr.empty()) s += std::string(s.empty() ? "" : " + ") + "(" + nr + ")*v" + "xyz"[r] + "(" + pn_ + ")";
+    }
+    return SymbolicForm{{s.empty() ? "0" : s}};
+  }
  private:
   int p_;
   std::string pn_;
@@ -234,6 +289,12 @@ class PointSpeed final : public Constraint {
     gamma[0] = u_.dot(P.d) - s.df;
   }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::string s;
+    for (int k = 0; k < 3; ++k)
+      if (u_[k] != 0.0) s += std::string(s.empty() ? "" : " + ") + symbolic_number(u_[k]) + "*v" + "xyz"[k] + "(" + pn_ + ")";
+    return with_function((s.empty() ? "0" : s) + " - (", *s_, ")");
+  }
   const TimeFunction* target() const override { return s_.get(); }
  private:
   int p_;

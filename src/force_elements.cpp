@@ -22,6 +22,12 @@ class JointDamping final : public ForceElement {
     Q[j_] -= b_ * qd[j_];
     if (dQ) (*dQ)(j_, j_) -= b_;
   }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    f.rows = {"-" + symbolic_number(b_) + "*qd(" + n_ + ")"};
+    f.joints = {j_};
+    return f;
+  }
  private:
   int j_;
   std::string n_;
@@ -35,6 +41,12 @@ class JointSpring final : public ForceElement {
   void apply(double, const Eigen::VectorXd& q, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
     Q[j_] -= k_ * (q[j_] - r_);
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
+    f.joints = {j_};
+    return f;
   }
  private:
   int j_;
@@ -50,6 +62,14 @@ class JointEffort final : public ForceElement {
   void apply(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
     Q[j_] += f_->eval(t).f;
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::optional<SymbolicForm> f = f_->symbolic();
+    if (!f) return std::nullopt;
+    f->functions = {{"effort", f->rows[0]}};
+    f->rows = {"effort"};
+    f->joints = {j_};
+    return f;
   }
  private:
   int j_;
@@ -112,6 +132,28 @@ LuGreFriction::LuGreFriction(const Model& model, const std::string& joint, LuGre
   need(std::isfinite(p.sigma1) && p.sigma1 >= 0, w + "sigma1", "a finite value >= 0", p.sigma1);
   need(std::isfinite(p.sigma2) && p.sigma2 >= 0, w + "sigma2", "a finite value >= 0", p.sigma2);
   need(std::isfinite(p.v_stribeck) && p.v_stribeck > 0, w + "Stribeck velocity", "a finite value > 0", p.v_stribeck);
+}
+
+std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
+  std::optional<SymbolicForm> f = profile_->symbolic();
+  if (!f) return std::nullopt;
+  f->functions = {{"psi_dr", f->rows[0]}};
+  f->rows = {symbolic_number(p_.stiffness) + "*(psi_dr - q(" + joint_name_ + ")) + " + symbolic_number(p_.damping) +
+             "*(d_psi_dr - qd(" + joint_name_ + "))"};
+  f->joints = {j_};
+  return f;
+}
+
+std::optional<SymbolicForm> LuGreFriction::symbolic() const {
+  const std::string v = "qd(" + joint_name_ + ")";
+  const std::string g = "(" + symbolic_number(p_.mu_k) + " + (" + symbolic_number(p_.mu_s) + " - " +
+                        symbolic_number(p_.mu_k) + ")*exp(-(" + v + "/" + symbolic_number(p_.v_stribeck) + ")^2))";
+  SymbolicForm f;
+  f.state_rates = {v + " - " + symbolic_number(p_.sigma0) + "*abs(" + v + ")*z(0)/" + g};
+  f.rows = {"-(" + symbolic_number(p_.sigma0) + "*z(0) + " + symbolic_number(p_.sigma1) + "*zdot(0) + " +
+            symbolic_number(p_.sigma2) + "*" + v + ")"};
+  f.joints = {j_};
+  return f;
 }
 
 void LuGreFriction::apply(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const double* z,

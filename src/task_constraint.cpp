@@ -46,7 +46,7 @@ class ExpressionConstraint final : public Constraint {
  public:
   ExpressionConstraint(const Model& m, const std::string& name, const std::string& text, bool first_order,
                        const std::map<std::string, double>& params)
-      : first_order_(first_order), text_(text) {
+      : first_order_(first_order), text_(text), params_(params) {
     std::vector<Var> all;
     const std::vector<std::string> names = candidate_names(m, first_order, all);
     std::unique_ptr<Expression> probe;
@@ -88,6 +88,7 @@ class ExpressionConstraint final : public Constraint {
   bool rheonomic() const override { return rheonomic_; }
   std::vector<int> points() const override { return points_; }
   std::string describe() const override { return text_ + " = 0"; }
+  std::optional<SymbolicForm> symbolic() const override { return SymbolicForm{{text_}, params_}; }
 
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
@@ -176,6 +177,7 @@ class ExpressionConstraint final : public Constraint {
   bool first_order_;
   bool rheonomic_ = false;
   std::string text_;
+  std::map<std::string, double> params_;
   std::vector<Var> vars_;
   std::vector<int> points_;
   std::unique_ptr<Expression> expr_;
@@ -184,7 +186,8 @@ class ExpressionConstraint final : public Constraint {
 class ExpressionTimeFunction final : public TimeFunction {
  public:
   ExpressionTimeFunction(const std::string& text, const std::map<std::string, double>& params)
-      : text_(text), expr_(text, {"t"}, params, 2) {}
+      : text_(text), params_(params), expr_(text, {"t"}, params, 2) {}
+  std::optional<SymbolicForm> symbolic() const override { return SymbolicForm{{text_}, params_}; }
   TimeValue eval(double t) const override {
     TimeValue v;
     expr_.evaluate(&t, v.f, &v.df, &v.ddf);
@@ -193,6 +196,7 @@ class ExpressionTimeFunction final : public TimeFunction {
   std::string describe() const override { return text_; }
  private:
   std::string text_;
+  std::map<std::string, double> params_;
   Expression expr_;
 };
 

@@ -62,6 +62,9 @@ class Constraint {
   /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
   /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
   virtual const TimeFunction* target() const { return nullptr; }
+  /// The rows as texts of the expression language (symbolic_form.hpp): Φ(q, t) for holonomic
+  /// rows, c(q, q̇, t) for first-order ones; none for a kind without a closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
 
   std::string name;
   ConstraintOrigin origin = ConstraintOrigin::Programmed;
@@ -83,6 +86,8 @@ class ImplicitSurface {
   virtual Value eval(const Vec3& r, double t) const = 0;
   virtual bool rheonomic() const { return false; }
   virtual std::string describe() const = 0;
+  /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
+  virtual std::optional<SymbolicForm> symbolic(const std::string& /*point*/) const { return std::nullopt; }
 };
 using SurfacePtr = std::shared_ptr<const ImplicitSurface>;
 

@@ -33,6 +33,9 @@ class ForceElement {
   virtual void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                        double* out) const {}
 
+  /// Q as texts of the expression language (symbolic_form.hpp): `rows` with their `joints`, the
+  /// states' `state_rates`; none for an element without a closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
   /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
   std::string label;
 };
@@ -64,6 +67,7 @@ class FlexibleDrive final : public ForceElement {
   std::vector<std::string> signal_names() const override;
   void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                double* out) const override;
+  std::optional<SymbolicForm> symbolic() const override;
   const TimeFunction& profile() const { return *profile_; }
   int joint() const { return j_; }
  private:
@@ -89,6 +93,7 @@ class LuGreFriction final : public ForceElement {
   std::vector<std::string> state_names() const override { return {"z_" + joint_name_}; }
   void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  std::optional<SymbolicForm> symbolic() const override;
   const LuGreParams& params() const { return p_; }
   int joint() const { return j_; }
  private:

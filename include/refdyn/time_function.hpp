@@ -2,8 +2,11 @@
 /// Scalar functions of time with exact first and second derivatives: prescribed trajectories
 /// z_a(t), drive profiles ψ_dr(t), programmed speeds s(t), joint torques τ(t).
 
+#include "refdyn/symbolic_form.hpp"
+
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,6 +21,9 @@ class TimeFunction {
   virtual ~TimeFunction() = default;
   virtual TimeValue eval(double t) const = 0;
   virtual std::string describe() const = 0;
+  /// f(t) as a text of the expression language in t (symbolic_form.hpp), for `refdyn generate`;
+  /// none if the function has no closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
 };
 using TimeFunctionPtr = std::shared_ptr<const TimeFunction>;
 

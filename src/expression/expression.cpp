@@ -12,6 +12,15 @@ namespace refdyn {
 
 using namespace expr_detail;
 
+GiNaC::ex expr_detail::symbolic_value(const std::string& text, const std::vector<std::string>& variables,
+                                      const std::vector<GiNaC::realsymbol>& syms) {
+  ExpressionOptions o;
+  o.derivative_order = 0;
+  o.specialize = false;
+  const ParseResult fe = parse_front_end(text, variables, {}, o);
+  return lower_symbolic(text, fe, syms, o).value;
+}
+
 Expression::Expression(const std::string& text, const std::vector<std::string>& variables,
                        const std::map<std::string, double>& parameters, int derivative_order)
     : Expression(text, variables, parameters, [&] {

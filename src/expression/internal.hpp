@@ -373,5 +373,11 @@ void compile_tape(const Symbolic& s, const std::vector<GiNaC::realsymbol>& syms,
 /// GiNaC is not thread-safe: every use of it in the engine holds this mutex.
 std::mutex& ginac_mutex();
 
+/// The value of `text` as a GiNaC expression in `syms` (one per variable, same order; no
+/// parameters: names meant as parameters are passed as variables), for the code generator
+/// (src/symbolic). Same syntax, limits and errors as Expression; the caller holds ginac_mutex().
+GiNaC::ex symbolic_value(const std::string& text, const std::vector<std::string>& variables,
+                         const std::vector<GiNaC::realsymbol>& syms);
+
 }  // namespace expr_detail
 }  // namespace refdyn

@@ -29,6 +29,13 @@ class Distance final : public Constraint {
   std::string describe() const override {
     return "|r(" + an_ + ") - r(" + bn_ + ")| - (" + d_->describe() + ") = 0";
   }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::optional<SymbolicForm> d = d_->symbolic();
+    if (!d) return std::nullopt;
+    d->rows[0] = "sqrt((x(" + an_ + ") - x(" + bn_ + "))^2 + (y(" + an_ + ") - y(" + bn_ + "))^2 + (z(" + an_ + ") - z(" +
+                 bn_ + "))^2) - (" + d->rows[0] + ")";
+    return d;
+  }
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
     const PointState& P = in.points[a_];

@@ -1,0 +1,312 @@
+// generate_symbolic: a Problem's reference dynamics as GiNaC expressions (see symbolic.hpp).
+#include "internal.hpp"
+
+#include "../expression/internal.hpp"
+#include "refdyn/error.hpp"
+#include "refdyn/symbolic_form.hpp"
+#include "refdyn/text.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cctype>
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+namespace refdyn {
+
+std::string symbolic_number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  std::string s = buf;
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";  // keep it a decimal (not inf/nan)
+  return v < 0 ? "(" + s + ")" : s;
+}
+
+using symbolic_detail::ex;
+using symbolic_detail::Vec3s;
+
+namespace {
+
+std::string latex_name(const std::string& name) {
+  // a_1b → a_{1b}; other underscores escaped
+  std::string out;
+  const auto us = name.find('_');
+  std::string base = us == std::string::npos ? name : name.substr(0, us);
+  std::string sub = us == std::string::npos ? "" : name.substr(us + 1);
+  if (us == std::string::npos) {
+    // trailing digits become a subscript: z0 → z_{0}
+    size_t k = base.size();
+    while (k > 1 && std::isdigit(static_cast<unsigned char>(base[k - 1]))) --k;
+    if (k < base.size()) {
+      sub = base.substr(k);
+      base = base.substr(0, k);
+    }
+  }
+  auto esc = [](const std::string& s) {
+    std::string r;
+    for (char ch : s) {
+      if (ch == '_') r += "\\_";
+      else r += ch;
+    }
+    return r;
+  };
+  static const char* greek[] = {"alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "kappa",
+                                "lambda", "mu", "nu", "xi", "rho", "sigma", "tau", "phi", "chi", "psi", "omega",
+                                "Gamma", "Delta", "Theta", "Lambda", "Phi", "Psi", "Omega"};
+  std::string b = base.size() > 1 ? "\\mathit{" + esc(base) + "}" : esc(base);
+  for (const char* g : greek)
+    if (base == g) b = std::string("\\") + g;
+  return sub.empty() ? b : b + "_{" + esc(sub) + "}";
+}
+
+/// Binds the variables of the expression language (symbolic_form.hpp) to expressions.
+class Binder {
+ public:
+  explicit Binder(SymbolicReferenceDynamics::Impl& impl) : impl_(impl) {}
+  void bind(const std::string& name, const ex& value) {
+    names_.push_back(name);
+    values_.push_back(value);
+  }
+  void pop(std::size_t n) {
+    names_.resize(names_.size() - n);
+    values_.resize(values_.size() - n);
+  }
+  /// Parses text with the bound variables and the form's parameters (kept symbolic).
+  ex parse(const std::string& text, const std::map<std::string, double>& parameters, const std::string& where) {
+    std::vector<std::string> vars = names_;
+    std::vector<ex> vals = values_;
+    std::vector<const std::pair<const std::string, double>*> params;  // for vars[names_.size() + k]
+    for (const auto& entry : parameters) {
+      if (std::find(vars.begin(), vars.end(), entry.first) != vars.end()) continue;  // a variable wins
+      vars.push_back(entry.first);
+      params.push_back(&entry);
+    }
+    std::vector<GiNaC::realsymbol> syms;
+    syms.reserve(vars.size());
+    for (const auto& v : vars) syms.emplace_back(v);
+    ex e;
+    try {
+      e = expr_detail::symbolic_value(text, vars, syms);
+    } catch (const Error& err) {
+      throw Error(where + ": " + err.what());
+    }
+    GiNaC::exmap sub;
+    for (size_t i = 0; i < syms.size(); ++i) {
+      if (!e.has(syms[i])) continue;
+      // a parameter becomes a symbol of the generated code only when a formula uses it
+      sub[syms[i]] = i < vals.size() ? vals[i]
+                                     : parameter(params[i - vals.size()]->first, params[i - vals.size()]->second, where);
+    }
+    return sub.empty() ? e : e.subs(sub, GiNaC::subs_options::no_pattern);
+  }
+
+ private:
+  ex parameter(const std::string& name, double value, const std::string& where) {
+    auto& names = impl_.param_names;
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it != names.end()) {
+      const size_t k = static_cast<size_t>(it - names.begin());
+      if (!(impl_.param_values[k] == value))
+        throw Error(where + ": parameter '" + name + "' = " + fmt(value) + " differs from the value " +
+                    fmt(impl_.param_values[k]) + " used elsewhere (hint: one name, one value)");
+      return impl_.params[k];
+    }
+    names.push_back(name);
+    impl_.param_values.push_back(value);
+    impl_.params.emplace_back(name, latex_name(name));
+    return impl_.params.back();
+  }
+
+  SymbolicReferenceDynamics::Impl& impl_;
+  std::vector<std::string> names_;
+  std::vector<ex> values_;
+};
+
+std::string identifier(const std::string& s) {
+  std::string r;
+  for (char ch : s) r += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
+  if (r.empty() || std::isdigit(static_cast<unsigned char>(r[0]))) r = "m" + r;
+  return r;
+}
+
+}  // namespace
+
+SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const SymbolicOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (problem.options.paper_literal_forces)
+    throw Error("generate: the paper-literal force option (forces: paper_literal) has no generated form "
+                "(hint: remove it; the generated equations use Lagrange's forces)");
+  auto impl = std::make_shared<SymbolicReferenceDynamics::Impl>();
+  SymbolicReferenceDynamics::Impl& S = *impl;
+  const Model& model = problem.model;
+  const int n = model.nq;
+  S.name = problem.name;
+  S.prefix = options.prefix.empty() ? "rd_" + identifier(problem.name) + "_" : options.prefix;
+  {
+    bool ok = !S.prefix.empty() && (std::isalpha(static_cast<unsigned char>(S.prefix[0])) || S.prefix[0] == '_');
+    for (char ch : S.prefix) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
+    if (!ok) throw Error("generate: prefix '" + options.prefix + "' is not a C identifier (hint: letters, digits, _)");
+  }
+  S.n = n;
+  S.cse = options.cse;
+  S.nz = problem.forces.num_states();
+  S.m = problem.constraints.rows();
+  S.joints = model.joint_name;
+  S.states = problem.forces.state_names();
+  S.alpha = problem.options.alpha;
+  S.beta = problem.options.beta;
+  S.beta1 = problem.options.beta_first_order;
+
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+  S.t = GiNaC::realsymbol("t", "t");
+  for (int i = 0; i < n; ++i) {
+    const std::string k = std::to_string(i + 1);
+    S.q.emplace_back("q(" + model.joint_name[i] + ")", "q_{" + k + "}");
+    S.qd.emplace_back("qd(" + model.joint_name[i] + ")", "\\dot{q}_{" + k + "}");
+  }
+  for (int k = 0; k < S.nz; ++k) S.z.emplace_back("state(" + std::to_string(k) + ")", "z_{" + std::to_string(k + 1) + "}");
+
+  std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
+  const symbolic_detail::SymbolicModel sm = symbolic_detail::symbolic_model(model, q);
+
+  // --- variables of the expression language ---
+  Binder B(S);
+  B.bind("t", S.t);
+  for (int i = 0; i < n; ++i) {
+    B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
+    B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
+  }
+  for (size_t p = 0; p < model.point_name.size(); ++p) {
+    const int b = model.point_body[p];
+    const Vec3& pos = model.point_position[p];
+    Vec3s r;
+    std::array<ex, 9> R;
+    if (b < 0) {
+      r = symbolic_detail::clean(pos);
+      for (int k = 0; k < 9; ++k) R[k] = (k % 4 == 0) ? 1 : 0;
+    } else {
+      R = sm.R[b];
+      const Vec3s pc = symbolic_detail::clean(pos);
+      for (int k = 0; k < 3; ++k) r[k] = sm.r[b][k] + R[3 * k] * pc[0] + R[3 * k + 1] * pc[1] + R[3 * k + 2] * pc[2];
+    }
+    const std::string& P = model.point_name[p];
+    static const char* axes[] = {"x", "y", "z"};
+    for (int k = 0; k < 3; ++k) {
+      ex v = 0;
+      for (int i = 0; i < n; ++i) v += r[k].diff(S.q[i]) * S.qd[i];
+      B.bind(std::string(axes[k]) + "(" + P + ")", r[k]);
+      B.bind(std::string("v") + axes[k] + "(" + P + ")", v);
+    }
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c) B.bind("R" + std::to_string(a + 1) + std::to_string(c + 1) + "(" + P + ")", R[3 * a + c]);
+  }
+
+  // --- constraints: Φ (or c), Φ̇, A, γ by differentiation ---
+  const ConstraintSet& cs = problem.constraints;
+  S.phi.assign(S.m, 0);
+  S.phid.assign(S.m, 0);
+  S.gamma.assign(S.m, 0);
+  S.A.assign(static_cast<size_t>(S.m) * n, 0);
+  for (int k = 0; k < cs.size(); ++k) {
+    const Constraint& c = *cs.constraints()[k];
+    const std::optional<SymbolicForm> form = c.symbolic();
+    const std::string where = "generate: constraint '" + c.name + "'";
+    if (!form)
+      throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
+    if (static_cast<int>(form->rows.size()) != c.rows())
+      throw Error(where + ": its symbolic form has " + std::to_string(form->rows.size()) + " rows, expected " +
+                  std::to_string(c.rows()));
+    for (int r = 0; r < c.rows(); ++r) {
+      const int row = cs.row_offset(k) + r;
+      const ex f = B.parse(form->rows[r], form->parameters, where);
+      S.row_names.push_back(cs.row_name(row));
+      S.row_origin.push_back(to_string(c.origin));
+      S.first_order_row.push_back(c.first_order() ? 1 : 0);
+      S.phi[row] = f;
+      if (!c.first_order()) {
+        for (int i = 0; i < n; ++i)
+          if (f.has(S.qd[i]))
+            throw Error(where + ": a position constraint depends on the velocity " + model.joint_name[i]);
+        ex fd = f.diff(S.t);
+        for (int i = 0; i < n; ++i) {
+          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.q[i]);
+          fd += S.A[static_cast<size_t>(row) * n + i] * S.qd[i];
+        }
+        ex g = fd.diff(S.t);
+        for (int i = 0; i < n; ++i) g += fd.diff(S.q[i]) * S.qd[i];
+        S.phid[row] = fd;
+        S.gamma[row] = g;
+      } else {
+        ex g = f.diff(S.t);
+        for (int i = 0; i < n; ++i) {
+          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qd[i]);
+          g += f.diff(S.q[i]) * S.qd[i];
+        }
+        S.phid[row] = f;
+        S.gamma[row] = g;
+      }
+    }
+  }
+
+  // --- force elements: Q and ż ---
+  S.Q.assign(n, 0);
+  S.zdot.assign(S.nz, 0);
+  for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
+    const ForceElement& e = *problem.forces.elements()[k];
+    const std::string where = "generate: force element " + e.name();
+    const std::optional<SymbolicForm> form = e.symbolic();
+    if (!form) throw Error(where + " has no symbolic form");
+    const int off = problem.forces.state_offset(static_cast<int>(k));
+    if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())
+      throw Error(where + ": inconsistent symbolic form");
+    std::size_t bound = 0;
+    for (int s = 0; s < e.num_states(); ++s, ++bound) B.bind("z(" + std::to_string(s) + ")", S.z[off + s]);
+    for (const auto& [fname, text] : form->functions) {
+      const ex f = B.parse(text, form->parameters, where + ": function " + fname);
+      B.bind(fname, f);
+      B.bind("d_" + fname, f.diff(S.t));
+      bound += 2;
+    }
+    std::vector<ex> rates;
+    for (int s = 0; s < e.num_states(); ++s) rates.push_back(B.parse(form->state_rates[s], form->parameters, where));
+    for (int s = 0; s < e.num_states(); ++s, ++bound) {
+      S.zdot[off + s] = rates[s];
+      B.bind("zdot(" + std::to_string(s) + ")", rates[s]);
+    }
+    for (size_t r = 0; r < form->rows.size(); ++r) {
+      const int j = form->joints[r];
+      if (j < 0 || j >= n) throw Error(where + ": joint index out of range");
+      S.Q[j] += B.parse(form->rows[r], form->parameters, where);
+    }
+    B.pop(bound);
+  }
+
+  // --- dynamics: Newton–Euler ---
+  S.c = sm.inverse_dynamics(qd, {}, false);
+  S.g = sm.inverse_dynamics({}, {}, true);
+  S.M.assign(static_cast<size_t>(n) * n, 0);
+  for (int j = 0; j < n; ++j) {
+    std::vector<ex> e(n, ex(0));
+    e[j] = 1;
+    const std::vector<ex> col = sm.inverse_dynamics({}, e, false);
+    for (int i = j; i < n; ++i) S.M[static_cast<size_t>(i) * n + j] = S.M[static_cast<size_t>(j) * n + i] = col[i];
+  }
+
+  // --- partition ---
+  std::vector<char> is_ind(n, 0);
+  for (const std::string& name : problem.options.independent) is_ind[model.joint_index(name)] = 1;
+  if (S.m > 0 && static_cast<int>(problem.options.independent.size()) != n - S.m)
+    throw Error("generate: the partition names " + std::to_string(problem.options.independent.size()) +
+                " independent coordinates, expected n − m = " + std::to_string(n - S.m));
+  for (int i = 0; i < n; ++i) (is_ind[i] || S.m == 0 ? S.independent : S.dependent).push_back(i);
+
+  S.summary.nq = n;
+  S.summary.nz = S.nz;
+  S.summary.constraints = S.m;
+  S.summary.parameters = static_cast<int>(S.params.size());
+  S.summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return SymbolicReferenceDynamics(impl);
+}
+
+}  // namespace refdyn

@@ -1,0 +1,69 @@
+#pragma once
+// Private to the generator (src/symbolic/*.cpp).
+//   model.cpp     symbolic kinematics and Newton–Euler dynamics (GiNaC) of a Model
+//   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
+//   emit.cpp      C99 (with common-subexpression elimination), LaTeX and JSON writers
+#include "refdyn/model.hpp"
+#include "refdyn/symbolic.hpp"
+
+#include <ginac/ginac.h>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace refdyn::symbolic_detail {
+
+using GiNaC::ex;
+using Vec3s = std::array<ex, 3>;
+using Mat3s = std::array<ex, 9>;  // row-major
+
+/// A double as a GiNaC number: integers exactly, others as IEEE doubles.
+ex number(double v);
+/// A vector of the model as numbers, entries within 4 ulp of its largest one written as 0.
+Vec3s clean(const Vec3& v);
+
+/// World kinematics and dynamics of a Model as GiNaC expressions of the coordinate symbols.
+struct SymbolicModel {
+  std::vector<Mat3s> R;   ///< world orientation of each body
+  std::vector<Vec3s> r;   ///< world position of each body origin
+  std::vector<Mat3s> local_R;  ///< orientation of each body in its parent's frame (world for roots)
+  std::vector<Vec3s> local_p;  ///< its origin in the parent's frame
+  /// Joint-space inverse dynamics M q̈ + c + g at the given symbolic q̈ (empty: 0) and q̇ (empty:
+  /// 0), with or without gravity (Newton–Euler in body frames).
+  std::vector<ex> inverse_dynamics(const std::vector<ex>& qd, const std::vector<ex>& qdd, bool gravity) const;
+
+  const Model* model = nullptr;
+  std::vector<ex> q;      ///< coordinate symbols
+};
+
+/// Builds the forward kinematics: rotation entries within 4 ulp of 0 or ±1 are snapped to the
+/// exact values (DH twists of ±90° give cos = 6e-17), which keeps the formulas readable.
+SymbolicModel symbolic_model(const Model& model, const std::vector<ex>& q);
+
+}  // namespace refdyn::symbolic_detail
+
+namespace refdyn {
+
+struct SymbolicReferenceDynamics::Impl {
+  std::string name;
+  std::string prefix;
+  int n = 0, nz = 0, m = 0;
+  std::vector<std::string> joints, states;
+  std::vector<std::string> row_names, row_origin;
+  std::vector<char> first_order_row;
+  std::vector<int> independent, dependent;
+  std::vector<std::string> param_names;
+  std::vector<double> param_values;
+  double alpha = 0, beta = 0, beta1 = 0;
+  bool cse = true;
+
+  GiNaC::realsymbol t;
+  std::vector<GiNaC::realsymbol> q, qd, z, params;
+  std::vector<GiNaC::ex> M;                 ///< n×n row-major
+  std::vector<GiNaC::ex> c, g, Q, zdot;     ///< n, n, n, nz
+  std::vector<GiNaC::ex> phi, phid, A, gamma;  ///< m, m, m×n, m
+  SymbolicSummary summary;
+};
+
+}  // namespace refdyn

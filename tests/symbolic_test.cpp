@@ -1,0 +1,208 @@
+// generate_symbolic (src/symbolic/): closed-form mass matrix of a 2R arm read back from the JSON,
+// parameters kept symbolic, LaTeX structure (and a pdflatex run when it is installed), the
+// C writer's common-subexpression elimination, errors, and the `refdyn generate` command.
+// The generated C against the numeric engine: symbolic_c_test.cpp.
+#include "refdyn/expression.hpp"
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/symbolic.hpp"
+
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace refdyn {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string example(const std::string& name) {
+  return std::string(REFDYN_SOURCE_DIR) + "/examples/" + name + "/" + name + ".yaml";
+}
+
+std::string read(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// The JSON string value of "key" (first occurrence after `from`), unescaped (no escapes expected).
+std::string json_string_after(const std::string& json, const std::string& key, std::size_t from = 0) {
+  const auto k = json.find("\"" + key + "\": ", from);
+  if (k == std::string::npos) return "";
+  const auto a = json.find('"', k + key.size() + 4);
+  const auto b = json.find('"', a + 1);
+  return json.substr(a + 1, b - a - 1);
+}
+
+/// The JSON array of strings after "key": [...] (flattened, for M).
+std::vector<std::string> json_strings_of(const std::string& json, const std::string& key) {
+  std::vector<std::string> out;
+  auto k = json.find("\"" + key + "\": [");
+  if (k == std::string::npos) return out;
+  int depth = 0;
+  std::size_t i = json.find('[', k);
+  for (; i < json.size(); ++i) {
+    if (json[i] == '[') ++depth;
+    if (json[i] == ']' && --depth == 0) break;
+    if (json[i] == '"') {
+      const auto e = json.find('"', i + 1);
+      out.push_back(json.substr(i + 1, e - i - 1));
+      i = e;
+    }
+  }
+  return out;
+}
+
+TEST(GenerateSymbolic, PlanarArmMassMatrixIsTheClosedForm) {
+  const auto problem = io::load_problem(example("planar_2r_circle"));
+  const SymbolicReferenceDynamics g = generate_symbolic(*problem);
+  const std::string json = g.json();
+  const std::vector<std::string> M = json_strings_of(json, "M");
+  ASSERT_EQ(M.size(), 4u) << json;
+  // uniform bars along x, com at L/2, I_zz = m L²/12 about the centre of mass
+  const double L1 = 0.5, L2 = 0.4, m1 = 2.0, m2 = 1.5;
+  const double I1 = m1 * L1 * L1 / 12, I2 = m2 * L2 * L2 / 12, c1 = L1 / 2, c2 = L2 / 2;
+  for (double q2 : {-2.0, -0.3, 0.0, 0.7, 2.5}) {
+    const double q1 = 0.4 * q2 + 0.1;
+    const double x[2] = {q1, q2};
+    const double M11 = I1 + m1 * c1 * c1 + I2 + m2 * (L1 * L1 + c2 * c2 + 2 * L1 * c2 * std::cos(q2));
+    const double M12 = I2 + m2 * (c2 * c2 + L1 * c2 * std::cos(q2));
+    const double M22 = I2 + m2 * c2 * c2;
+    const std::vector<double> expected{M11, M12, M12, M22};
+    for (int k = 0; k < 4; ++k) {
+      const Expression e(M[k], {"q(q1)", "q(q2)"}, {}, 0);
+      EXPECT_NEAR(e.value(x), expected[k], 1e-14) << "M entry " << k << ": " << M[k];
+    }
+    // gravity (along −y): g_2 = m2 g c2 cos(q1 + q2)
+    const std::vector<std::string> gv = json_strings_of(json, "g");
+    ASSERT_EQ(gv.size(), 2u);
+    const Expression g2(gv[1], {"q(q1)", "q(q2)"}, {}, 0);
+    EXPECT_NEAR(g2.value(x), m2 * 9.81 * c2 * std::cos(q1 + q2), 1e-13);
+  }
+}
+
+TEST(GenerateSymbolic, ScenarioParametersStaySymbolic) {
+  const auto problem = io::load_problem(example("planar_2r_circle"));
+  const SymbolicReferenceDynamics g = generate_symbolic(*problem);
+  EXPECT_EQ(g.summary().nq, 2);
+  EXPECT_EQ(g.summary().constraints, 2);
+  const std::string json = g.json();
+  // the circle: (x(E) - cx)^2 + (y(E) - cy)^2 - R^2 keeps cx, cy, R; the speed keeps v0
+  const std::string phi = json_string_after(json, "phi");
+  for (const char* name : {"cx", "cy", "R"}) EXPECT_NE(phi.find(name), std::string::npos) << phi;
+  for (const char* name : {"\"cx\": 0.59999999999999998", "\"R\": 0.14999999999999999", "\"v0\": "})
+    EXPECT_NE(json.find(name), std::string::npos) << name;
+  const std::string h = g.c_header();
+  for (const char* field : {"double cx;", "double cy;", "double R;", "double v0;", "double rd_alpha;"})
+    EXPECT_NE(h.find(field), std::string::npos) << field;
+  const std::string c = g.c_source();
+  EXPECT_NE(c.find("p->R"), std::string::npos);
+  EXPECT_NE(c.find("p->R = 0.14999999999999999;"), std::string::npos);
+}
+
+TEST(GenerateSymbolic, CommonSubexpressionEliminationShrinksTheCode) {
+  const auto problem = io::load_problem(example("paper"));
+  SymbolicOptions with, without;
+  without.cse = false;
+  const SymbolicReferenceDynamics a = generate_symbolic(*problem, with), b = generate_symbolic(*problem, without);
+  a.c_source();
+  b.c_source();
+  EXPECT_GT(a.summary().c_temporaries, 0);
+  EXPECT_EQ(b.summary().c_temporaries, 0);
+  EXPECT_LT(a.summary().c_operations, b.summary().c_operations);
+  std::printf("paper model: %ld operations with CSE (%ld temporaries), %ld without\n", a.summary().c_operations,
+              a.summary().c_temporaries, b.summary().c_operations);
+}
+
+TEST(GenerateSymbolic, LatexDocumentIsWellFormed) {
+  const auto problem = io::load_problem(example("paper"));
+  const std::string tex = generate_symbolic(*problem).latex();
+  EXPECT_EQ(tex.find("\\documentclass"), tex.find('\n') + 1);
+  EXPECT_NE(tex.find("\\begin{document}"), std::string::npos);
+  EXPECT_NE(tex.rfind("\\end{document}\n"), std::string::npos);
+  EXPECT_EQ(tex.rfind("\\end{document}\n") + 15, tex.size());
+  int depth = 0, min_depth = 0;
+  for (std::size_t i = 0; i < tex.size(); ++i) {
+    if (tex[i] == '\\' && i + 1 < tex.size() && (tex[i + 1] == '{' || tex[i + 1] == '}')) {
+      ++i;
+      continue;
+    }
+    if (tex[i] == '{') ++depth;
+    if (tex[i] == '}') min_depth = std::min(min_depth, --depth);
+  }
+  EXPECT_EQ(depth, 0);
+  EXPECT_EQ(min_depth, 0);
+  auto count = [&](const std::string& s) {
+    std::size_t n = 0;
+    for (auto p = tex.find(s); p != std::string::npos; p = tex.find(s, p + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("\\begin{align*}"), count("\\end{align*}"));
+  EXPECT_EQ(count("\\left"), count("\\right"));
+  for (const char* entry : {"M_{11} &=", "M_{33} &=", "c_{1} &=", "g_{2} &=", "Q_{1} &=", "\\Phi_{1} &=",
+                            "\\gamma_{2} &=", "\\dot z_{1} &=", "q_{ic} = (q_{1})"})
+    EXPECT_NE(tex.find(entry), std::string::npos) << entry;
+  // the prismatic coordinate's mass entry is the total sliding mass
+  EXPECT_NE(tex.find("M_{33} &= 3 \\\\"), std::string::npos);
+
+  // Compile it when pdflatex is installed (texlive-latex-base; optional).
+  if (std::system("command -v pdflatex >/dev/null 2>&1") != 0) GTEST_SKIP() << "pdflatex not installed";
+  const fs::path dir = fs::temp_directory_path() / ("refdyn_tex_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "equations.tex") << tex;
+  const std::string cmd = "cd '" + dir.string() +
+                          "' && pdflatex -interaction=nonstopmode -halt-on-error equations.tex >log.txt 2>&1";
+  const int status = std::system(cmd.c_str());
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read(dir / "log.txt");
+  EXPECT_TRUE(fs::exists(dir / "equations.pdf"));
+  fs::remove_all(dir);
+}
+
+TEST(GenerateSymbolic, RejectsWhatItCannotGenerate) {
+  std::string yaml = read(example("planar_2r_circle"));
+  yaml += "\npaper_literal_forces: true\n";
+  const auto problem = io::parse_problem(yaml, example("planar_2r_circle"));
+  test::expect_error_mentioning([&] { generate_symbolic(*problem); }, {"paper-literal"});
+  const auto ok = io::load_problem(example("planar_2r_circle"));
+  SymbolicOptions o;
+  o.prefix = "9bad prefix";
+  test::expect_error_mentioning([&] { generate_symbolic(*ok, o); }, {"prefix", "not a C identifier"});
+}
+
+int run(const std::string& args) {
+  const std::string cmd = std::string("'") + REFDYN_CLI + "' " + args + " >/dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST(GenerateCommand, WritesTheRequestedFormatsAndNothingOnError) {
+  const fs::path dir = fs::temp_directory_path() / ("refdyn_generate_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  EXPECT_EQ(run("generate '" + example("four_bar") + "' -o '" + dir.string() + "' -q"), 0);
+  for (const char* f : {"reference_dynamics.c", "reference_dynamics.h", "equations.tex", "reference_dynamics.json"})
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  fs::remove_all(dir);
+  EXPECT_EQ(run("generate '" + example("four_bar") + "' -o '" + dir.string() + "' -q --format json,latex"), 0);
+  EXPECT_TRUE(fs::exists(dir / "reference_dynamics.json"));
+  EXPECT_TRUE(fs::exists(dir / "equations.tex"));
+  EXPECT_FALSE(fs::exists(dir / "reference_dynamics.c"));
+  fs::remove_all(dir);
+  // bad input: exit 2, nothing written
+  EXPECT_EQ(run("generate '" + example("four_bar") + "' -o '" + dir.string() + "' --format c,pdf"), 2);
+  EXPECT_EQ(run("generate '" + example("four_bar") + "' -o '" + dir.string() + "' --prefix 'a-b'"), 2);
+  EXPECT_EQ(run("generate /nonexistent.yaml -o '" + dir.string() + "'"), 2);
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+}  // namespace
+}  // namespace refdyn
