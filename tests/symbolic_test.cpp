@@ -4,6 +4,7 @@
 // The generated C against the numeric engine: symbolic_c_test.cpp.
 #include "refdyn/expression.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/recursive_dynamics.hpp"
 #include "refdyn/symbolic.hpp"
 
 #include "test_support.hpp"
@@ -88,6 +89,47 @@ TEST(GenerateSymbolic, PlanarArmMassMatrixIsTheClosedForm) {
     ASSERT_EQ(gv.size(), 2u);
     const Expression g2(gv[1], {"q(q1)", "q(q2)"}, {}, 0);
     EXPECT_NEAR(g2.value(x), m2 * 9.81 * c2 * std::cos(q1 + q2), 1e-13);
+  }
+}
+
+TEST(GenerateSymbolic, JsonFormulasEvaluateToTheEngine) {
+  // The paper example's Q (flexible drive with a clamped cycloid, LuGre with abs and states) and
+  // constraint rows, printed as expression-language texts, parsed back and evaluated.
+  const auto problem = io::load_problem(example("paper"));
+  const std::string json = generate_symbolic(*problem).json();
+  const Model& model = problem->model;
+  const int n = model.nq, nz = problem->forces.num_states(), m = problem->constraints.rows();
+  std::vector<std::string> vars;
+  for (int i = 0; i < n; ++i) vars.push_back("q(" + model.joint_name[i] + ")");
+  for (int i = 0; i < n; ++i) vars.push_back("qd(" + model.joint_name[i] + ")");
+  for (int k = 0; k < nz; ++k) vars.push_back("state(" + std::to_string(k) + ")");
+  vars.push_back("t");
+  const std::vector<std::string> Q = json_strings_of(json, "Q");
+  ASSERT_EQ(static_cast<int>(Q.size()), n);
+  Data data(model);
+  ConstraintEval ev(model, problem->constraints);
+  for (double t : {0.0, 1.3, 2.5, 5.0, 6.0}) {  // before, during, at the end of and after the drive's rise
+    Eigen::VectorXd q = problem->q0, qd(n), z(nz), Qe(n), zd(nz);
+    for (int i = 0; i < n; ++i) qd[i] = 0.3 * (i + 1) - 0.5;
+    for (int k = 0; k < nz; ++k) z[k] = 1e-3 * (k - 1);
+    std::vector<double> x;
+    for (int i = 0; i < n; ++i) x.push_back(q[i]);
+    for (int i = 0; i < n; ++i) x.push_back(qd[i]);
+    for (int k = 0; k < nz; ++k) x.push_back(z[k]);
+    x.push_back(t);
+    problem->forces.evaluate(t, q, qd, z.data(), Qe, zd.data());
+    for (int i = 0; i < n; ++i)
+      EXPECT_NEAR(Expression(Q[i], vars, {}, 0).value(x.data()), Qe[i], 1e-12 * std::max(1.0, std::abs(Qe[i])))
+          << "Q[" << i << "] at t = " << t << ": " << Q[i];
+    evaluate_constraints(model, data, problem->constraints, ev, t, q, qd);
+    std::size_t at = json.find("\"constraints\"");
+    for (int r = 0; r < m; ++r) {
+      at = json.find("\"phi\"", at + 1);
+      const std::string phi = json_string_after(json, "phi", at), gamma = json_string_after(json, "gamma", at);
+      EXPECT_NEAR(Expression(phi, vars, {}, 0).value(x.data()), ev.phi[r], 1e-13) << phi;
+      EXPECT_NEAR(Expression(gamma, vars, {}, 0).value(x.data()), ev.gamma[r], 1e-12 * std::max(1.0, std::abs(ev.gamma[r])))
+          << gamma;
+    }
   }
 }
 

@@ -36,6 +36,15 @@ class Printer {
   std::function<std::string(const ex&)> shared;  // C: temporaries
   long operations = 0;
 
+  /// A term printed with a leading minus (negative number, or product with a negative coefficient).
+  static bool negative_term(const ex& t) {
+    if (is_a<GiNaC::numeric>(t)) return GiNaC::ex_to<GiNaC::numeric>(t).is_negative();
+    if (is_a<GiNaC::mul>(t)) {
+      const ex c = t.op(t.nops() - 1);
+      return is_a<GiNaC::numeric>(c) && GiNaC::ex_to<GiNaC::numeric>(c).is_negative();
+    }
+    return false;
+  }
   /// Texts of nodes already printed (LaTeX: printing a shared graph once per node).
   std::map<ex, std::string, GiNaC::ex_is_less>* memo = nullptr;
 
@@ -97,14 +106,6 @@ class Printer {
                         ((d_ == Dialect::C || in_product) && is_a<GiNaC::power>(e));
     if (atomic) return s;
     return d_ == Dialect::Latex ? "\\left(" + s + "\\right)" : "(" + s + ")";
-  }
-  static bool negative_term(const ex& t) {
-    if (is_a<GiNaC::numeric>(t)) return GiNaC::ex_to<GiNaC::numeric>(t).is_negative();
-    if (is_a<GiNaC::mul>(t)) {
-      const ex c = t.op(t.nops() - 1);
-      return is_a<GiNaC::numeric>(c) && GiNaC::ex_to<GiNaC::numeric>(c).is_negative();
-    }
-    return false;
   }
   std::string sum(const ex& e) {
     std::string s;
@@ -187,44 +188,37 @@ class Printer {
       return r + (d_ == Dialect::Latex ? "\\right)" : ")");
     };
     using namespace expr_detail;
-    if (d_ == Dialect::Text) {  // the expression language (expression.hpp)
-      if (s == serial_abs()) return call("abs");
-      if (s == serial_sgn()) return "if(" + a[0] + " >= 0, 1, -1)";
-      if (s == serial_min()) return call("min");
-      if (s == serial_max()) return call("max");
-      if (s == serial_step()) return call("step");
-      if (s == serial_clamp()) return call("clamp");
-      if (s == serial_if_lt()) return "if(" + a[0] + " < " + a[1] + ", " + a[2] + ", " + a[3] + ")";
-      if (s == serial_if_le()) return "if(" + a[0] + " <= " + a[1] + ", " + a[2] + ", " + a[3] + ")";
-      return call(f.get_name());
+    // The piecewise functions of the expression engine (expression.hpp), per dialect: the
+    // expression language's own names, LaTeX operators, or the generated C file's static helpers.
+    const int d = static_cast<int>(d_);  // C, Latex, Text
+    static const char* const names[6][3] = {{"fabs", "", "abs"},
+                                            {"rd_sgn", "\\operatorname{sgn}", ""},
+                                            {"rd_min", "\\min", "min"},
+                                            {"rd_max", "\\max", "max"},
+                                            {"rd_step", "\\operatorname{step}", "step"},
+                                            {"rd_clamp", "\\operatorname{clamp}", "clamp"}};
+    const unsigned serials[6] = {serial_abs(), serial_sgn(), serial_min(), serial_max(), serial_step(), serial_clamp()};
+    if (d_ == Dialect::Latex && s == serial_abs()) return "\\left|" + a[0] + "\\right|";
+    if (d_ == Dialect::Text && s == serial_sgn()) return "if(" + a[0] + " >= 0, 1, -1)";
+    for (int k = 0; k < 6; ++k)
+      if (s == serials[k]) return call(names[k][d]);
+    if (s == serial_if_lt() || s == serial_if_le()) {
+      const bool lt = s == serial_if_lt();
+      if (d_ == Dialect::Latex)
+        return "\\begin{cases}" + a[2] + " & " + a[0] + (lt ? " < " : " \\le ") + a[1] + "\\\\ " + a[3] +
+               " & \\text{otherwise}\\end{cases}";
+      if (d_ == Dialect::Text) return "if(" + a[0] + (lt ? " < " : " <= ") + a[1] + ", " + a[2] + ", " + a[3] + ")";
+      return "(" + a[0] + (lt ? " < " : " <= ") + a[1] + " ? " + a[2] + " : " + a[3] + ")";
     }
+    if (d_ == Dialect::Text) return call(f.get_name());
     if (d_ == Dialect::Latex) {
-      if (s == serial_abs()) return "\\left|" + a[0] + "\\right|";
-      if (s == serial_sgn()) return call("\\operatorname{sgn}");
-      if (s == serial_min()) return call("\\min");
-      if (s == serial_max()) return call("\\max");
-      if (s == serial_step()) return call("\\operatorname{step}");
-      if (s == serial_clamp()) return call("\\operatorname{clamp}");
-      if (s == serial_if_lt())
-        return "\\begin{cases}" + a[2] + " & " + a[0] + " < " + a[1] + "\\\\ " + a[3] + " & \\text{otherwise}\\end{cases}";
-      if (s == serial_if_le())
-        return "\\begin{cases}" + a[2] + " & " + a[0] + " \\le " + a[1] + "\\\\ " + a[3] + " & \\text{otherwise}\\end{cases}";
       const std::string name = f.get_name();
-      static const char* known[] = {"sin", "cos", "tan", "sinh", "cosh", "tanh", "exp", "log", "arcsin", "arccos", "arctan"};
+      static const char* known[] = {"sin", "cos", "tan", "sinh", "cosh", "tanh", "exp", "log"};
       for (const char* k : known)
         if (name == k) return call(std::string("\\") + k);
       if (name == "asin" || name == "acos" || name == "atan") return call("\\arc" + name.substr(1));
       return call("\\operatorname{" + name + "}");
     }
-    // C: the piecewise functions are static helpers of the generated file
-    if (s == serial_abs()) return call("fabs");
-    if (s == serial_sgn()) return call("rd_sgn");
-    if (s == serial_min()) return call("rd_min");
-    if (s == serial_max()) return call("rd_max");
-    if (s == serial_step()) return call("rd_step");
-    if (s == serial_clamp()) return call("rd_clamp");
-    if (s == serial_if_lt()) return "(" + a[0] + " < " + a[1] + " ? " + a[2] + " : " + a[3] + ")";
-    if (s == serial_if_le()) return "(" + a[0] + " <= " + a[1] + " ? " + a[2] + " : " + a[3] + ")";
     const std::string name = f.get_name();
     if (name == "atan2") return call("atan2");
     if (name == "abs") return call("fabs");
@@ -579,7 +573,7 @@ class LatexWriter {
       std::size_t width = 0;
       for (size_t i = 0; i < e.nops(); ++i) {
         const ex t = e.op(i);
-        const bool neg = negative(t);
+        const bool neg = Printer::negative_term(t);
         const std::string term = p_.print(neg ? ex(-t) : t);
         if (i > 0 && width + term.size() > 140) {
           body += " \\\\\n  &\\quad";
@@ -605,14 +599,6 @@ class LatexWriter {
   std::size_t size() const { return defs_.size(); }
 
  private:
-  static bool negative(const ex& t) {
-    if (is_a<GiNaC::numeric>(t)) return GiNaC::ex_to<GiNaC::numeric>(t).is_negative();
-    if (is_a<GiNaC::mul>(t)) {
-      const ex c = t.op(t.nops() - 1);
-      return is_a<GiNaC::numeric>(c) && GiNaC::ex_to<GiNaC::numeric>(c).is_negative();
-    }
-    return false;
-  }
   /// sin(q_i), cos(q_i) → s_i, c_i
   std::string trig(const ex& e) const {
     if (!is_a<GiNaC::function>(e) || e.nops() != 1 || !is_a<GiNaC::symbol>(e.op(0))) return "";
