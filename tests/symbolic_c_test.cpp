@@ -1,7 +1,8 @@
 // The generated C (refdyn generate --format c, compiled at build time by tests/CMakeLists.txt)
-// against the numeric engine, at random states near each example's initial state: M, c, g, Q, ż,
-// Φ, Φ̇, A, γ and ẋ of the reference dynamics. Two independent routes: the generator's symbolic
-// Newton–Euler in the world frame with GiNaC-differentiated constraint formulas, the engine's
+// of five examples (the last, planar_2r_circle, fully constrained: n = m) against the numeric
+// engine at random states: M, c, g, Q, ż, Φ, Φ̇, A, γ and ẋ of the reference dynamics. Two
+// independent routes: the generator's symbolic Newton–Euler in body frames with
+// GiNaC-differentiated constraint formulas, the engine's
 // spatial-algebra RNEA/CRBA with analytic point kinematics and its own constraint code.
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/recursive_dynamics.hpp"
@@ -9,6 +10,7 @@
 
 #include "four_bar/reference_dynamics.h"
 #include "paper/reference_dynamics.h"
+#include "planar_2r_circle/reference_dynamics.h"
 #include "unicycle/reference_dynamics.h"
 #include "urdf_arm_line/reference_dynamics.h"
 
@@ -59,13 +61,17 @@ struct Generated {
 #define unicycle_NQ UNICYCLE_NQ
 #define unicycle_NZ UNICYCLE_NZ
 #define unicycle_NC UNICYCLE_NC
+#define planar_2r_circle_NQ PLANAR_2R_CIRCLE_NQ
+#define planar_2r_circle_NZ PLANAR_2R_CIRCLE_NZ
+#define planar_2r_circle_NC PLANAR_2R_CIRCLE_NC
 #define arm_NQ ARM_NQ
 #define arm_NZ ARM_NZ
 #define arm_NC ARM_NC
 
 std::vector<Generated> all_generated() {
   return {REFDYN_GENERATED(paper_, "paper"), REFDYN_GENERATED(four_bar_, "four_bar"),
-          REFDYN_GENERATED(unicycle_, "unicycle"), REFDYN_GENERATED(arm_, "urdf_arm_line")};
+          REFDYN_GENERATED(unicycle_, "unicycle"), REFDYN_GENERATED(arm_, "urdf_arm_line"),
+          REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle")};
 }
 
 /// max |a − b| / max(1, max |b|)
