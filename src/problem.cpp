@@ -370,6 +370,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       }
   }
   s->parameters = c.params;
+  s->model_spec = spec.model.value;
   const Model& m = s->model;
 
   // URDF <mimic> joints: material couplings, before the file's own constraints.

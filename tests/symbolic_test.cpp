@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -64,12 +65,35 @@ std::vector<std::string> json_strings_of(const std::string& json, const std::str
   return out;
 }
 
+/// The "parameters": {name: value, ...} object.
+std::map<std::string, double> json_parameters(const std::string& json) {
+  std::map<std::string, double> out;
+  const auto a = json.find("\"parameters\": {");
+  const auto b = json.find('}', a);
+  std::string body = json.substr(a + 15, b - a - 15);
+  std::size_t i = 0;
+  while ((i = body.find('"', i)) != std::string::npos) {
+    const auto e = body.find('"', i + 1);
+    const std::string name = body.substr(i + 1, e - i - 1);
+    const auto colon = body.find(':', e);
+    out[name] = std::strtod(body.c_str() + colon + 1, nullptr);
+    i = body.find(',', colon);
+    if (i == std::string::npos) break;
+  }
+  return out;
+}
+
 TEST(GenerateSymbolic, PlanarArmMassMatrixIsTheClosedForm) {
   const auto problem = io::load_problem(example("planar_2r_circle"));
   const SymbolicReferenceDynamics g = generate_symbolic(*problem);
   const std::string json = g.json();
   const std::vector<std::string> M = json_strings_of(json, "M");
   ASSERT_EQ(M.size(), 4u) << json;
+  // the scenario names the lengths and masses: they stay symbols of the formulas
+  const std::map<std::string, double> params = json_parameters(json);
+  for (const char* name : {"L1", "L2", "m1", "m2"}) EXPECT_EQ(params.count(name), 1u) << name << " in " << json;
+  EXPECT_NE(M[0].find("m2"), std::string::npos) << M[0];
+  EXPECT_NE(M[0].find("L1"), std::string::npos) << M[0];
   // uniform bars along x, com at L/2, I_zz = m L²/12 about the centre of mass
   const double L1 = 0.5, L2 = 0.4, m1 = 2.0, m2 = 1.5;
   const double I1 = m1 * L1 * L1 / 12, I2 = m2 * L2 * L2 / 12, c1 = L1 / 2, c2 = L2 / 2;
@@ -81,13 +105,13 @@ TEST(GenerateSymbolic, PlanarArmMassMatrixIsTheClosedForm) {
     const double M22 = I2 + m2 * c2 * c2;
     const std::vector<double> expected{M11, M12, M12, M22};
     for (int k = 0; k < 4; ++k) {
-      const Expression e(M[k], {"q(q1)", "q(q2)"}, {}, 0);
+      const Expression e(M[k], {"q(q1)", "q(q2)"}, params, 0);
       EXPECT_NEAR(e.value(x), expected[k], 1e-14) << "M entry " << k << ": " << M[k];
     }
     // gravity (along −y): g_2 = m2 g c2 cos(q1 + q2)
     const std::vector<std::string> gv = json_strings_of(json, "g");
     ASSERT_EQ(gv.size(), 2u);
-    const Expression g2(gv[1], {"q(q1)", "q(q2)"}, {}, 0);
+    const Expression g2(gv[1], {"q(q1)", "q(q2)"}, params, 0);
     EXPECT_NEAR(g2.value(x), m2 * 9.81 * c2 * std::cos(q1 + q2), 1e-13);
   }
 }
@@ -97,6 +121,7 @@ TEST(GenerateSymbolic, JsonFormulasEvaluateToTheEngine) {
   // constraint rows, printed as expression-language texts, parsed back and evaluated.
   const auto problem = io::load_problem(example("paper"));
   const std::string json = generate_symbolic(*problem).json();
+  const std::map<std::string, double> params = json_parameters(json);
   const Model& model = problem->model;
   const int n = model.nq, nz = problem->forces.num_states(), m = problem->constraints.rows();
   std::vector<std::string> vars;
@@ -119,15 +144,15 @@ TEST(GenerateSymbolic, JsonFormulasEvaluateToTheEngine) {
     x.push_back(t);
     problem->forces.evaluate(t, q, qd, z.data(), Qe, zd.data());
     for (int i = 0; i < n; ++i)
-      EXPECT_NEAR(Expression(Q[i], vars, {}, 0).value(x.data()), Qe[i], 1e-12 * std::max(1.0, std::abs(Qe[i])))
+      EXPECT_NEAR(Expression(Q[i], vars, params, 0).value(x.data()), Qe[i], 1e-12 * std::max(1.0, std::abs(Qe[i])))
           << "Q[" << i << "] at t = " << t << ": " << Q[i];
     evaluate_constraints(model, data, problem->constraints, ev, t, q, qd);
     std::size_t at = json.find("\"constraints\"");
     for (int r = 0; r < m; ++r) {
       at = json.find("\"phi\"", at + 1);
       const std::string phi = json_string_after(json, "phi", at), gamma = json_string_after(json, "gamma", at);
-      EXPECT_NEAR(Expression(phi, vars, {}, 0).value(x.data()), ev.phi[r], 1e-13) << phi;
-      EXPECT_NEAR(Expression(gamma, vars, {}, 0).value(x.data()), ev.gamma[r], 1e-12 * std::max(1.0, std::abs(ev.gamma[r])))
+      EXPECT_NEAR(Expression(phi, vars, params, 0).value(x.data()), ev.phi[r], 1e-13) << phi;
+      EXPECT_NEAR(Expression(gamma, vars, params, 0).value(x.data()), ev.gamma[r], 1e-12 * std::max(1.0, std::abs(ev.gamma[r])))
           << gamma;
     }
   }

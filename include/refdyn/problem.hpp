@@ -66,6 +66,9 @@ struct Problem {
   Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
   std::vector<std::unique_ptr<Experiment>> experiments;
   std::vector<std::string> report_points;   ///< points recorded in trajectories
+  /// The scenario's `model:` section as written (numbers as expressions of the parameters), for
+  /// generate_symbolic, which keeps the parameters symbolic; null for a Problem built in C++.
+  SpecValue model_spec;
   Limits limits;
 
   std::vector<int> report_point_indices() const;

@@ -168,26 +168,36 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (int k = 0; k < S.nz; ++k) S.z.emplace_back("state(" + std::to_string(k) + ")", "z_{" + std::to_string(k + 1) + "}");
 
   std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
-  const symbolic_detail::SymbolicModel sm = symbolic_detail::symbolic_model(model, q);
 
   // --- variables of the expression language ---
   Binder B(S);
   B.bind("t", S.t);
+  B.bind("deg", GiNaC::Pi / 180);  // exact: cos(90*deg) is 0, not 6e-17
+
+  // --- the model: as the scenario wrote it (parameters stay symbols), else the compiled numbers ---
+  symbolic_detail::SymbolicBodies bodies;
+  if (problem.model_spec && !problem.model_spec["urdf"]) {
+    bodies = symbolic_detail::bodies_from_spec(model, problem.model_spec, [&](const SpecValue& v) {
+      return B.parse(v.text, problem.parameters, "generate: " + v.where.file + ":" + std::to_string(v.where.line));
+    });
+  } else {
+    bodies = symbolic_detail::bodies_from_model(model);
+  }
+  const symbolic_detail::SymbolicModel sm = symbolic_detail::symbolic_model(bodies, model.gravity, q);
   for (int i = 0; i < n; ++i) {
     B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
     B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
   }
   for (size_t p = 0; p < model.point_name.size(); ++p) {
-    const int b = model.point_body[p];
-    const Vec3& pos = model.point_position[p];
+    const int b = sm.bodies.points[p].body;
+    const Vec3s& pc = sm.bodies.points[p].position;
     Vec3s r;
     std::array<ex, 9> R;
     if (b < 0) {
-      r = symbolic_detail::clean(pos);
+      r = pc;
       for (int k = 0; k < 9; ++k) R[k] = (k % 4 == 0) ? 1 : 0;
     } else {
       R = sm.R[b];
-      const Vec3s pc = symbolic_detail::clean(pos);
       for (int k = 0; k < 3; ++k) r[k] = sm.r[b][k] + R[3 * k] * pc[0] + R[3 * k + 1] * pc[1] + R[3 * k + 2] * pc[2];
     }
     const std::string& P = model.point_name[p];

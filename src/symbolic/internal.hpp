@@ -4,11 +4,13 @@
 //   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
 //   emit.cpp      C99 (with common-subexpression elimination), LaTeX and JSON writers
 #include "refdyn/model.hpp"
+#include "refdyn/spec.hpp"
 #include "refdyn/symbolic.hpp"
 
 #include <ginac/ginac.h>
 
 #include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -22,24 +24,56 @@ using Mat3s = std::array<ex, 9>;  // row-major
 ex number(double v);
 /// A vector of the model as numbers, entries within 4 ulp of its largest one written as 0.
 Vec3s clean(const Vec3& v);
+/// A rotation as numbers, entries within 4 ulp of 0 or ±1 written exactly.
+Mat3s rotation(const Mat3& R);
 
-/// World kinematics and dynamics of a Model as GiNaC expressions of the coordinate symbols.
+/// A body of the compiled model with symbolic geometry and inertia (numbers, or expressions of
+/// the scenario's parameters when the scenario wrote them so).
+struct SymbolicBody {
+  int parent = -1;
+  JointType type = JointType::Revolute;
+  Vec3 axis = Vec3::UnitZ();  ///< unit joint axis in the body frame (numbers)
+  Mat3s R;                    ///< placement of the joint frame in the parent body frame
+  Vec3s p;
+  ex offset;                  ///< joint offset
+  ex m;                       ///< mass
+  Vec3s h;                    ///< first moment m·c in the body frame
+  Mat3s I;                    ///< rotational inertia about the body origin, body axes
+};
+struct SymbolicPoint {
+  int body = -1;              ///< -1: fixed in the world
+  Vec3s position;             ///< in the body frame (world frame for body −1)
+};
+struct SymbolicBodies {
+  std::vector<SymbolicBody> bodies;
+  std::vector<SymbolicPoint> points;  ///< indexed like Model::point_name
+};
+
+/// The compiled model's numbers (rotation entries within 4 ulp of 0 or ±1, and vector entries
+/// within 4 ulp of the vector's largest, are written exactly: a DH twist of 90° leaves 6e-17).
+SymbolicBodies bodies_from_model(const Model& model);
+/// The same bodies built again from the scenario's `model:` section (dh: or links:) with every
+/// number as written: `value` turns a scalar of the spec into an expression of the parameters.
+/// Folding (fixed joints, DH link offsets, the base) as build_model does it.
+using SpecNumber = std::function<ex(const SpecValue&)>;
+SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const SpecNumber& value);
+
+/// World kinematics and dynamics as GiNaC expressions of the coordinate symbols.
 struct SymbolicModel {
-  std::vector<Mat3s> R;   ///< world orientation of each body
-  std::vector<Vec3s> r;   ///< world position of each body origin
+  std::vector<Mat3s> R;        ///< world orientation of each body
+  std::vector<Vec3s> r;        ///< world position of each body origin
   std::vector<Mat3s> local_R;  ///< orientation of each body in its parent's frame (world for roots)
   std::vector<Vec3s> local_p;  ///< its origin in the parent's frame
   /// Joint-space inverse dynamics M q̈ + c + g at the given symbolic q̈ (empty: 0) and q̇ (empty:
   /// 0), with or without gravity (Newton–Euler in body frames).
   std::vector<ex> inverse_dynamics(const std::vector<ex>& qd, const std::vector<ex>& qdd, bool gravity) const;
 
-  const Model* model = nullptr;
-  std::vector<ex> q;      ///< coordinate symbols
+  SymbolicBodies bodies;
+  Vec3 gravity;
+  std::vector<ex> q;           ///< coordinate symbols
 };
 
-/// Builds the forward kinematics: rotation entries within 4 ulp of 0 or ±1 are snapped to the
-/// exact values (DH twists of ±90° give cos = 6e-17), which keeps the formulas readable.
-SymbolicModel symbolic_model(const Model& model, const std::vector<ex>& q);
+SymbolicModel symbolic_model(const SymbolicBodies& bodies, const Vec3& gravity, const std::vector<ex>& q);
 
 }  // namespace refdyn::symbolic_detail
 
