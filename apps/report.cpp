@@ -31,13 +31,15 @@ constexpr const char* kDataMarker = "/*@@REFDYN_DATA@@*/";
 constexpr const char* kSummaryMarker = "@@REFDYN_SUMMARY@@";
 constexpr const char* kFeasibilityMarker = "@@REFDYN_FEASIBILITY@@";
 
-/// Text that goes inside a <script> element: "</" becomes "<\/" (the same string in JSON and JS).
+/// JSON text that goes inside a <script> element: every '<' becomes \u003c (in valid JSON a '<'
+/// can only be inside a string, where this is the same character), so neither "</script" nor
+/// "<!--" can appear in it.
 std::string script_safe(const std::string& s) {
   std::string out;
   out.reserve(s.size());
-  for (size_t i = 0; i < s.size(); ++i) {
-    out += s[i];
-    if (s[i] == '<' && i + 1 < s.size() && s[i + 1] == '/') out += '\\';
+  for (const char c : s) {
+    if (c == '<') out += "\\u003c";
+    else out += c;
   }
   return out;
 }
@@ -458,10 +460,16 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
   }
   in.problem = problem.get();
   in.plan = read_csv(dir / "plan.csv");
-  // The runs the summary lists, in its order (the experiments of the scenario, expanded).
-  for (const auto& e : problem->experiments) {
-    const fs::path f = dir / ("track_" + e->name + ".csv");
-    if (fs::exists(f)) in.runs.emplace_back(e->name, read_csv(f));
+  // The runs summary.json lists, in its order (not whatever track_*.csv an older run left).
+  static const std::regex label_re("\\{\"label\": \"([A-Za-z0-9._+=-]+)\"");
+  for (auto it = std::sregex_iterator(in.summary_json.begin(), in.summary_json.end(), label_re);
+       it != std::sregex_iterator(); ++it) {
+    const std::string name = (*it)[1].str();
+    const fs::path f = dir / ("track_" + name + ".csv");
+    if (!fs::exists(f))
+      throw Error("results folder '" + dir_name + "': summary.json lists the run '" + name + "' but there is no " +
+                  f.filename().string());
+    in.runs.emplace_back(name, read_csv(f));
   }
   const std::string html = report_html(in);  // everything is formed before anything is written
   const fs::path out = output.empty() ? dir / "report.html" : fs::path(output);

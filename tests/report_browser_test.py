@@ -5,7 +5,8 @@ can be fetched).
 
   1. `refdyn paper -o OUT/paper --report` writes report.html: < 5 MB, no external resource;
      `refdyn report OUT/paper` writes the same bytes from the files; bad input is one line
-     "refdyn: error: ..." with exit 2 and writes nothing.
+     "refdyn: error: ..." with exit 2 and writes nothing; `refdyn report` of a `refdyn plan`
+     folder finds the scenario through summary.json or --scenario (and that page has no error).
   2. The page opened with #selftest=2.5 (the replay scrubbed to t = 2.5 s) writes its own check
      into <pre id="selftest">, read with --dump-dom: no error (window.onerror, unhandled
      rejections and console.error are recorded from the first script on), WebGL works, every
@@ -86,6 +87,24 @@ r = run([REFDYN, "report", paper, "--scenario", os.path.join(OUT, "none.yaml"), 
 check(r.returncode == 2 and r.stderr.count("\n") == 1 and not os.path.exists(os.path.join(OUT, "x.html")),
       "a missing --scenario: one line, exit 2, nothing written (%s)" % r.stderr.strip())
 
+# A scenario file's results: `refdyn report DIR` finds the scenario through summary.json's "file"
+# (relative to where refdyn ran), or needs --scenario.
+SOURCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+planar = os.path.join(OUT, "planar")
+r = run([REFDYN, "plan", "examples/planar_2r_circle/planar_2r_circle.yaml", "-o", planar, "-q"], cwd=SOURCE)
+check(r.returncode == 0, "refdyn plan planar_2r_circle (%s)" % r.stderr.strip())
+r = run([REFDYN, "report", planar, "-q"], cwd=SOURCE)
+check(r.returncode == 0 and os.path.exists(os.path.join(planar, "report.html")),
+      "refdyn report finds the scenario named in summary.json (%s)" % r.stderr.strip())
+os.remove(os.path.join(planar, "report.html"))
+r = run([REFDYN, "report", planar, "-q"], cwd=OUT)
+check(r.returncode == 2 and "--scenario" in r.stderr and r.stderr.count("\n") == 1
+      and not os.path.exists(os.path.join(planar, "report.html")),
+      "from elsewhere: one line with the --scenario hint, exit 2, nothing written (%s)" % r.stderr.strip())
+r = run([REFDYN, "report", planar, "-q", "--scenario",
+         os.path.join(SOURCE, "examples/planar_2r_circle/planar_2r_circle.yaml")], cwd=OUT)
+check(r.returncode == 0 and os.path.exists(os.path.join(planar, "report.html")), "with --scenario (%s)" % r.stderr.strip())
+
 if not CHROMIUM:
     print("SKIP: chromium not installed (bash scripts/install-deps.sh installs it)")
     sys.exit(77 if not failures else 1)
@@ -142,6 +161,13 @@ print("|drawn - E(2.5)| = %.3e m (bound %.3e m: max|E''| = %.3f m/s^2 over frame
 check(ee["point"] == "E" and abs(ee["t"] - T) < 1e-12, "the replay is at t = %g s with end-effector E" % T)
 check(err_lerp < rounding, "the drawn end-effector is plan.csv's E interpolated between the replay frames")
 check(err < bound, "the drawn end-effector is at the plan's E(2.5) within the interpolation bound")
+
+# The planar arm's report (no experiments, a circle at constant speed) also runs without error.
+r = chromium("file://" + os.path.join(planar, "report.html") + "#selftest=1", "--dump-dom")
+m2 = re.search(r'<pre id="selftest"[^>]*>([^<]*)</pre>', r.stdout)
+st2 = json.loads(m2.group(1)) if m2 and m2.group(1).strip() else {"errors": ["no self-test output"], "graphs": 0, "plotsInked": -1}
+check(st2["errors"] == [] and st2["graphs"] > 0 and st2["plotsInked"] == st2["graphs"],
+      "planar_2r_circle report: no error, every plot inked (%s)" % st2["errors"])
 
 # ---- 3. screenshot ----
 shot = os.path.join(OUT, "report_paper_t2.5.png")
