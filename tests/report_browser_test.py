@@ -43,7 +43,7 @@ def run(args, **kw):
 
 def chromium(url, *extra):
     args = [CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader", "--window-size=1400,1000", "--hide-scrollbars",
+            "--enable-unsafe-swiftshader", "--disable-dev-shm-usage", "--window-size=1400,1000", "--hide-scrollbars",
             "--host-resolver-rules=MAP * ~NOTFOUND", "--no-first-run", "--disable-extensions",
             "--user-data-dir=" + os.path.join(OUT, "chromium-profile"),
             "--run-all-compositor-stages-before-draw", "--virtual-time-budget=20000", *extra, url]
