@@ -1,6 +1,7 @@
 // refdyn check / plan / track / generate / kinds: thin clients of the library's pipeline
 // (io::load_problem → io::run_problem → io::write_results).
 #include "commands.hpp"
+#include "report.hpp"
 
 #include "refdyn/error.hpp"
 #include "refdyn/io/output.hpp"
@@ -133,7 +134,8 @@ int run_check(const std::string& file, const InputOptions& in) {
 }
 
 namespace {
-int plan_or_track(const std::string& file, const std::string& out_dir, bool quiet, bool track, const InputOptions& in) {
+int plan_or_track(const std::string& file, const std::string& out_dir, bool quiet, bool track, const InputOptions& in,
+                  bool report) {
   const auto problem = io::load_problem(file, in.max_input_bytes);  // validates before anything is written
   if (track && problem->experiments.empty())
     throw Error(file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
@@ -141,7 +143,9 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   o.track = track;
   o.progress = terminal_progress(!quiet);
   const io::Results r = io::run_problem(*problem, o);
-  io::write_results(out_dir, *problem, r, io::summary_json(*problem, r));
+  const JsonValue summary = io::summary_json(*problem, r);
+  io::write_results(out_dir, *problem, r, summary);
+  if (report) write_report(out_dir, *problem, r, summary);
   if (!quiet) {
     print_plan(*problem, r.plan);
     for (const auto& run : r.runs) {
@@ -154,7 +158,7 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
                   to_string(res.summary.status), last_e, peak,
                   res.summary.ok() ? "" : (" (" + res.summary.message + ")").c_str());
     }
-    std::cout << r.feasibility.text() << "results in " << out_dir << "\n";
+    std::cout << r.feasibility.text() << "results in " << out_dir << (report ? " (report.html)" : "") << "\n";
   }
   if (!r.ok()) {
     report_stopped(r);
@@ -164,12 +168,12 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
 }
 }  // namespace
 
-int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in) {
-  return plan_or_track(file, out_dir, quiet, false, in);
+int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report) {
+  return plan_or_track(file, out_dir, quiet, false, in, report);
 }
 
-int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in) {
-  return plan_or_track(file, out_dir, quiet, true, in);
+int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report) {
+  return plan_or_track(file, out_dir, quiet, true, in, report);
 }
 
 int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,

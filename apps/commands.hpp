@@ -28,8 +28,8 @@ io::ProgressFactory terminal_progress(bool enabled);
 void report_stopped(const io::Results& results);
 
 int run_check(const std::string& file, const InputOptions& in);
-int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in);
-int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in);
+int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
+int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
 int run_plot(const std::string& dir);
 int run_kinds();
 int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,

@@ -2,6 +2,7 @@
 // line, and mapped to the documented exit codes (commands.hpp).
 #include "commands.hpp"
 #include "paper_study_output.hpp"
+#include "report.hpp"
 #include "refdyn/error.hpp"
 #include "refdyn/text.hpp"
 
@@ -38,7 +39,8 @@ int main(int argc, char** argv) {
       "Examples: examples/*/*.yaml.");
   app.require_subcommand(1);
   std::string file, out_dir = "results";
-  bool quiet = false;
+  bool quiet = false, report = false;
+  std::string scenario, report_out;
   InputOptions in;
 
   auto input_options = [&](CLI::App* c) {
@@ -55,12 +57,14 @@ int main(int argc, char** argv) {
   plan->add_option("file", file, "Scenario file (YAML)")->required();
   plan->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   plan->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  plan->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
   input_options(plan);
 
   auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   track->add_option("file", file, "Scenario file (YAML)")->required();
   track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   track->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  track->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
   input_options(track);
 
   auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
@@ -69,6 +73,16 @@ int main(int argc, char** argv) {
   auto* paper = app.add_subcommand("paper", "Run the paper's three-link manipulator study (the main job)");
   paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  paper->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
+
+  auto* rep = app.add_subcommand(
+      "report", "Write DIR/report.html: one self-contained HTML file with the summary, interactive plots and a 3D replay");
+  rep->add_option("dir", out_dir, "Results folder written by plan, track or paper")->required();
+  rep->add_option("--scenario", scenario,
+                  "Scenario file of the results (default: the one summary.json names; built in for paper results)");
+  rep->add_option("-o,--output", report_out, "Report file (default: DIR/report.html)");
+  rep->add_flag("-q,--quiet", quiet, "Print nothing on success");
+  input_options(rep);
 
   std::string formats = "c,latex,json", prefix;
   auto* generate = app.add_subcommand(
@@ -82,7 +96,7 @@ int main(int argc, char** argv) {
 
   auto* kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
 
-  const std::vector<std::string> commands{"check", "plan", "track", "plot", "paper", "generate", "kinds"};
+  const std::vector<std::string> commands{"check", "plan", "track", "plot", "report", "paper", "generate", "kinds"};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -96,10 +110,12 @@ int main(int argc, char** argv) {
   }
   try {
     if (*check) return run_check(file, in);
-    if (*plan) return run_plan(file, out_dir, quiet, in);
-    if (*track) return run_track(file, out_dir, quiet, in);
+    if (report) require_report_template();
+    if (*plan) return run_plan(file, out_dir, quiet, in, report);
+    if (*track) return run_track(file, out_dir, quiet, in, report);
     if (*plot) return run_plot(out_dir);
-    if (*paper) return run_paper_command(out_dir, quiet);
+    if (*rep) return run_report(out_dir, scenario, report_out, quiet, in);
+    if (*paper) return run_paper_command(out_dir, quiet, report);
     if (*generate) return run_generate(file, out_dir, formats, prefix, quiet, in);
     if (*kinds) return run_kinds();
   } catch (const refdyn::Error& e) {

@@ -3,6 +3,7 @@
 #include "paper_study_output.hpp"
 
 #include "commands.hpp"
+#include "report.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/text.hpp"
@@ -32,7 +33,7 @@ double sweep_value(const Experiment& e, const std::string& name) {
 
 }  // namespace
 
-int run_paper_command(const std::string& out, bool quiet) {
+int run_paper_command(const std::string& out, bool quiet, bool report) {
   const std::string source = "examples/paper/paper.yaml";
   const auto problem = io::parse_problem(kPaperScenarioYaml, source);
   const Problem& p = *problem;
@@ -54,6 +55,7 @@ int run_paper_command(const std::string& out, bool quiet) {
     runs.at(i)["plant_friction"] = !e.plant_forces.elements().empty();
   }
   io::write_results(out, p, r, summary);
+  if (report) write_report(out, p, r, summary);
 
   if (!quiet) {
     const int n = p.model.nv;
@@ -75,7 +77,7 @@ int run_paper_command(const std::string& out, bool quiet) {
         std::cout << line;
       }
     }
-    std::printf("\nstudy wall time %.3f s; results in %s\n", r.wall_time, out.c_str());
+    std::printf("\nstudy wall time %.3f s; results in %s%s\n", r.wall_time, out.c_str(), report ? " (report.html)" : "");
   }
   if (!r.ok()) {
     report_stopped(r);

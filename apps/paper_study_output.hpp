@@ -2,6 +2,7 @@
 #include <string>
 
 namespace refdyn::app {
-/// `refdyn paper`: runs the paper's study and writes CSV/JSON results into out_dir.
-int run_paper_command(const std::string& out_dir, bool quiet);
+/// `refdyn paper`: runs the paper's study and writes CSV/JSON results into out_dir (and
+/// report.html with `report`).
+int run_paper_command(const std::string& out_dir, bool quiet, bool report = false);
 }

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs every Debian package refdyn needs to build, test, benchmark, plot and fuzz
 # (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer;
-# texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX).
+# texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX;
+# libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
+# chromium + python3-pil: the report's browser test, tests/report_browser_test.py).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
 PACKAGES=(
@@ -14,6 +16,7 @@ PACKAGES=(
   clang-14 libclang-rt-14-dev llvm-14
   pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
   texlive-latex-base
+  libjs-three libjs-dygraphs chromium python3-pil
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

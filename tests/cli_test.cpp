@@ -237,7 +237,7 @@ TEST_P(BadScenario, RejectedWithOneLineAndNothingWritten) {
       "check " + quote(file),
       "plan " + quote(file) + " -o " + quote(out_empty),
       "plan " + quote(file) + " -o " + quote(out_new),
-      "track " + quote(file) + " -o " + quote(track_new),
+      "track " + quote(file) + " -o " + quote(track_new) + " --report",
   };
   // The same problem in several commands is reported once, with the first command's output.
   std::vector<std::pair<std::string, Result>> found;
@@ -487,7 +487,8 @@ TEST(CommandLine, UsageErrorsExitWithOneAndWriteNothing) {
   const std::string good = quote(kGood);
   const std::vector<std::string> usage_errors{
       "", "frobnicate", "check", "plan", "track", "plot", "plan " + good + " -o", "check " + good + " --bogus",
-      "plan " + good + " --bogus", "check " + good + " " + good, "paper --bogus"};
+      "plan " + good + " --bogus", "check " + good + " " + good, "paper --bogus", "report",
+      "report a b", "report --bogus"};
   for (const auto& args : usage_errors) {
     const Result r = run(s, args);
     EXPECT_EQ(r.code, 1) << describe(r);
@@ -503,13 +504,14 @@ TEST(CommandLine, HelpForEachSubcommand) {
     std::vector<std::string> mentions;
   };
   const std::vector<H> helps{
-      {"--help", {"check", "plan", "track", "plot", "paper", "Exit codes"}},
+      {"--help", {"check", "plan", "track", "plot", "report", "paper", "Exit codes"}},
       {"-h", {"check", "plan", "track", "plot", "paper"}},
       {"check --help", {"file", "Scenario file"}},
-      {"plan --help", {"file", "-o,--output", "-q,--quiet"}},
-      {"track --help", {"file", "-o,--output", "-q,--quiet"}},
+      {"plan --help", {"file", "-o,--output", "-q,--quiet", "--report"}},
+      {"track --help", {"file", "-o,--output", "-q,--quiet", "--report"}},
       {"plot --help", {"dir", "Results folder"}},
-      {"paper --help", {"-o,--output", "-q,--quiet"}},
+      {"report --help", {"dir", "--scenario", "-o,--output"}},
+      {"paper --help", {"-o,--output", "-q,--quiet", "--report"}},
   };
   for (const auto& h : helps) {
     const Result r = run(s, h.args);
