@@ -30,8 +30,8 @@ class EllipticCylinder final : public ImplicitSurface {
     return "((x - " + fmt(cx_) + ")/" + fmt(a_) + ")^2 + ((y - " + fmt(cy_) + ")/" + fmt(b_) + ")^2 - 1";
   }
   std::optional<SymbolicForm> symbolic(const std::string& P) const override {
-    return SymbolicForm{{"(x(" + P + ") - " + symbolic_number(cx_) + ")^2*" + symbolic_number(ia2_) + " + (y(" + P +
-                         ") - " + symbolic_number(cy_) + ")^2*" + symbolic_number(ib2_) + " - 1"}};
+    return symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" + P +
+                         ") - " + symbolic_number(cy_) + ")/" + symbolic_number(b_) + ")^2 - 1"});
   }
  private:
   double ia2_, ib2_, a_, b_, cx_, cy_;
@@ -53,7 +53,7 @@ class Sphere final : public ImplicitSurface {
     std::string s;
     for (int k = 0; k < 3; ++k)
       s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_[k]) + ")^2";
-    return SymbolicForm{{s + " - " + symbolic_number(R_ * R_)}};
+    return symbolic_rows({s + " - " + symbolic_number(R_) + "^2"});
   }
  private:
   Vec3 c_;
@@ -193,7 +193,7 @@ class JointCoupling final : public Constraint {
     return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
   }
   std::optional<SymbolicForm> symbolic() const override {
-    return SymbolicForm{{"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)}};
+    return symbolic_rows({"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)});
   }
  private:
   int j_, l_;
@@ -264,7 +264,7 @@ class KnifeEdge final : public Constraint {
                 ")*" + symbolic_number(a_[c]);
       if (!nr.empty()) s += std::string(s.empty() ? "" : " + ") + "(" + nr + ")*v" + "xyz"[r] + "(" + pn_ + ")";
     }
-    return SymbolicForm{{s.empty() ? "0" : s}};
+    return symbolic_rows({s.empty() ? "0" : s});
   }
  private:
   int p_;

@@ -197,10 +197,18 @@ auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec
 void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
   std::set<std::string> signal_names;
   for (const EntrySpec& e : entries) {
-    ForceElementPtr f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) {
-      return k.build(EntryArgs{c, e, m});
-    });
+    std::vector<std::pair<double, std::string>> recorded;
+    c.recorder = &recorded;
+    ForceElementPtr f;
+    try {
+      f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
+    } catch (...) {
+      c.recorder = nullptr;
+      throw;
+    }
+    c.recorder = nullptr;
     std::const_pointer_cast<ForceElement>(f)->label = e.name;
+    std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
     for (const auto& s : f->signal_names())
       if (!signal_names.insert(s).second)
         c.fail(e.fields, e.key, "two force elements record '" + s + "' (give each a different 'name:')");
@@ -389,12 +397,21 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (e.fields["origin"])
       origin = c.choice(e.fields["origin"], e.key + ".origin", {"material", "programmed"}) == "material"
                    ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
-    ConstraintPtr con = build_entry(c, constraint_kinds(), e, "kind", [&](const ConstraintKind& k) {
-      return k.build(EntryArgs{c, e, m}, origin);
-    });
+    std::vector<std::pair<double, std::string>> recorded;
+    c.recorder = &recorded;
+    ConstraintPtr con;
+    try {
+      con = build_entry(c, constraint_kinds(), e, "kind",
+                        [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
+    } catch (...) {
+      c.recorder = nullptr;
+      throw;
+    }
+    c.recorder = nullptr;
     check_name(c, e.fields["name"], e.key + ".name", e.name);
     auto mut = std::const_pointer_cast<Constraint>(con);
     mut->name = e.name;
+    mut->symbolic_inputs = {std::move(recorded), c.params};
     if (e.fields["record"]) {
       mut->record_as = c.string(e.fields["record"], e.key + ".record");
       if (!con->target()) c.fail(e.fields["record"], e.key + ".record", "this constraint prescribes no function of time to record");

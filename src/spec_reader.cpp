@@ -83,6 +83,7 @@ double SpecReader::number(const SpecValue& n, const std::string& key, const std:
     fail(n, key, std::string("expected a number or an expression of the parameters: ") + err.what());
   }
   if (!std::isfinite(v)) fail(n, key, "the expression '" + s + "' is not a finite number");
+  if (recorder && !extra) recorder->emplace_back(v, s);
   return v;
 }
 

@@ -88,7 +88,7 @@ class ExpressionConstraint final : public Constraint {
   bool rheonomic() const override { return rheonomic_; }
   std::vector<int> points() const override { return points_; }
   std::string describe() const override { return text_ + " = 0"; }
-  std::optional<SymbolicForm> symbolic() const override { return SymbolicForm{{text_}, params_}; }
+  std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
 
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
@@ -187,7 +187,7 @@ class ExpressionTimeFunction final : public TimeFunction {
  public:
   ExpressionTimeFunction(const std::string& text, const std::map<std::string, double>& params)
       : text_(text), params_(params), expr_(text, {"t"}, params, 2) {}
-  std::optional<SymbolicForm> symbolic() const override { return SymbolicForm{{text_}, params_}; }
+  std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
   TimeValue eval(double t) const override {
     TimeValue v;
     expr_.evaluate(&t, v.f, &v.df, &v.ddf);

@@ -20,7 +20,7 @@ class Constant final : public TimeFunction {
   explicit Constant(double c) : c_(c) {}
   TimeValue eval(double) const override { return {c_, 0, 0}; }
   std::string describe() const override { return fmt(c_); }
-  std::optional<SymbolicForm> symbolic() const override { return SymbolicForm{{symbolic_number(c_)}}; }
+  std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({symbolic_number(c_)}); }
  private:
   double c_;
 };
@@ -46,7 +46,7 @@ class Polynomial final : public TimeFunction {
     std::string s;
     for (size_t k = 0; k < c_.size(); ++k)
       s += (k ? " + " : "") + symbolic_number(c_[k]) + (k ? "*t^" + std::to_string(k) : "");
-    return SymbolicForm{{s.empty() ? "0" : s}};
+    return symbolic_rows({s.empty() ? "0" : s});
   }
  private:
   std::vector<double> c_;
@@ -63,8 +63,8 @@ class Sinusoid final : public TimeFunction {
     return fmt(o_) + " + " + fmt(a_) + "*sin(" + fmt(w_) + "*t + " + fmt(p_) + ")";
   }
   std::optional<SymbolicForm> symbolic() const override {
-    return SymbolicForm{{symbolic_number(o_) + " + " + symbolic_number(a_) + "*sin(" + symbolic_number(w_) + "*t + " +
-                         symbolic_number(p_) + ")"}};
+    return symbolic_rows({symbolic_number(o_) + " + " + symbolic_number(a_) + "*sin(" + symbolic_number(w_) + "*t + " +
+                         symbolic_number(p_) + ")"});
   }
  private:
   double a_, w_, p_, o_;
@@ -81,8 +81,8 @@ class RaisedCosine final : public TimeFunction {
     return fmt(f0_) + " + " + fmt(df_) + "*(1 - cos(2*pi*t/" + fmt(T_) + "))/2";
   }
   std::optional<SymbolicForm> symbolic() const override {
-    return SymbolicForm{{symbolic_number(f0_) + " + " + symbolic_number(df_) + "*(1 - cos(" + symbolic_number(w_) +
-                         "*t))/2"}};
+    return symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(df_) + "*(1 - cos(2*pi*t/" + symbolic_number(T_) +
+                         "))/2"});
   }
  private:
   double f0_, df_, w_, T_;
@@ -105,9 +105,8 @@ class Cycloidal final : public TimeFunction {
     // τ clamped to [0, 1]: constant before and after (clamp's derivatives are those of the
     // inside branch at the ends, where the rise has zero velocity and acceleration anyway)
     const std::string tau = "clamp((t - " + symbolic_number(t0_) + ")/" + symbolic_number(d_) + ", 0, 1)";
-    const std::string w = symbolic_number(kTwoPi);
-    return SymbolicForm{{symbolic_number(f0_) + " + " + symbolic_number(r_) + "*(" + tau + " - sin(" + w + "*" + tau +
-                         ")/" + w + ")"}};
+    return symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(r_) + "*(" + tau + " - sin(2*pi*" + tau +
+                         ")/(2*pi))"});
   }
  private:
   double r_, d_, f0_, t0_;

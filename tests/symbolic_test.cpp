@@ -177,6 +177,27 @@ TEST(GenerateSymbolic, ScenarioParametersStaySymbolic) {
   EXPECT_NE(c.find("p->R = 0.14999999999999999;"), std::string::npos);
 }
 
+TEST(GenerateSymbolic, ReadyMadeKindsKeepTheScenarioNames) {
+  // paper.yaml: point_on_ellipse {a: a, b: b}, point_coordinate with raised_cosine {base: z0,
+  // amplitude: dz, period: Tz}, DH d: h1, flexible drive rise 2*pi: the names stay in the formulas.
+  const auto problem = io::load_problem(example("paper"));
+  const std::string json = generate_symbolic(*problem).json();
+  const std::map<std::string, double> params = json_parameters(json);
+  for (const char* name : {"a", "b", "z0", "dz", "Tz", "h1"}) EXPECT_EQ(params.count(name), 1u) << name << ": " << json;
+  EXPECT_EQ(params.at("a"), 0.35355339059327373);
+  const std::size_t rows = json.find("\"constraints\"");
+  const std::string ellipse = json_string_after(json, "phi", rows);
+  EXPECT_NE(ellipse.find("/a^2"), std::string::npos) << ellipse;
+  EXPECT_NE(ellipse.find("/b^2"), std::string::npos) << ellipse;
+  const std::string height = json_string_after(json, "phi", json.find("\"phi\"", rows) + 1);
+  for (const char* name : {"h1", "dz", "Tz", "z0"}) EXPECT_NE(height.find(name), std::string::npos) << height;
+  // numbers written as literals stay numbers (no parameter is invented for them)
+  EXPECT_EQ(params.count("deg"), 0u);
+  const std::string h = generate_symbolic(*problem).c_header();
+  EXPECT_NE(h.find("double a;"), std::string::npos);
+  EXPECT_NE(h.find("double Tz;"), std::string::npos);
+}
+
 TEST(GenerateSymbolic, CommonSubexpressionEliminationShrinksTheCode) {
   const auto problem = io::load_problem(example("paper"));
   SymbolicOptions with, without;

@@ -69,6 +69,7 @@ class Constraint {
   std::string name;
   ConstraintOrigin origin = ConstraintOrigin::Programmed;
   std::string record_as;  ///< column name for target() in recorded trajectories; empty: none
+  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
 };
 using ConstraintPtr = std::shared_ptr<const Constraint>;
 

@@ -38,6 +38,7 @@ class ForceElement {
   virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
   /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
   std::string label;
+  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
 };
 using ForceElementPtr = std::shared_ptr<const ForceElement>;
 

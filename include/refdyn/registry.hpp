@@ -30,6 +30,9 @@ class SpecReader {
       : params(std::move(parameters)), file_(std::move(file)) {}
   const std::string& file() const { return file_; }
   std::map<std::string, double> params;  ///< visible parameters (deg, the scenario's, a sweep's)
+  /// When set, number() appends (value, text) for every number written as an expression
+  /// (SymbolicInputs: the generated equations keep the scenario's names).
+  mutable std::vector<std::pair<double, std::string>>* recorder = nullptr;
 
   /// Throws Error "FILE:LINE: KEY: message" (message made one line; LINE omitted if unknown).
   [[noreturn]] void fail(const SourceLocation& at, const std::string& key, const std::string& msg) const;

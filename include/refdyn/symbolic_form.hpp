@@ -29,6 +29,25 @@ struct SymbolicForm {
   std::vector<int> joints;                        ///< force elements: the joint of each row
 };
 
+/// A form of rows (and the parameters they name).
+inline SymbolicForm symbolic_rows(std::vector<std::string> rows, std::map<std::string, double> parameters = {}) {
+  SymbolicForm f;
+  f.rows = std::move(rows);
+  f.parameters = std::move(parameters);
+  return f;
+}
+
+/// The scenario texts of an object's numbers, recorded while the scenario builds it (a parameter
+/// name, `2*pi`, `0.5*cos(45*deg)`: any number not written as a plain literal), so that the
+/// generated formulas keep the names: each number token of a symbolic form that
+/// symbolic_number(v) printed for a recorded v is replaced by "(text)". A value recorded with
+/// two different texts stays a number (which name would be a guess).
+struct SymbolicInputs {
+  std::vector<std::pair<double, std::string>> recorded;  ///< (value, text) in reading order
+  std::map<std::string, double> parameters;              ///< the scenario's parameters
+  void apply(SymbolicForm& form) const;
+};
+
 /// A double as a text of the expression language that parses back to the same double
 /// (17 significant digits, parenthesised when negative).
 std::string symbolic_number(double v);

@@ -23,6 +23,52 @@ std::string symbolic_number(double v) {
   return v < 0 ? "(" + s + ")" : s;
 }
 
+namespace {
+
+/// Replaces the whole number tokens `token` of `text` by `by`.
+std::string replace_number(const std::string& text, const std::string& token, const std::string& by) {
+  auto number_char = [](char ch) { return std::isdigit(static_cast<unsigned char>(ch)) || ch == '.'; };
+  std::string out;
+  std::size_t from = 0;
+  for (std::size_t at = text.find(token); at != std::string::npos; at = text.find(token, at + 1)) {
+    const bool starts = at == 0 || !(number_char(text[at - 1]) || std::isalpha(static_cast<unsigned char>(text[at - 1])) ||
+                                     text[at - 1] == '_');
+    const std::size_t end = at + token.size();
+    const bool ends = end == text.size() || !(number_char(text[end]) || text[end] == 'e' || text[end] == 'E');
+    if (!starts || !ends) continue;
+    out += text.substr(from, at - from) + by;
+    from = end;
+  }
+  return out + text.substr(from);
+}
+
+}  // namespace
+
+void SymbolicInputs::apply(SymbolicForm& form) const {
+  std::map<double, std::string> names;
+  std::map<double, bool> ambiguous;
+  for (const auto& [v, text] : recorded) {
+    const auto it = names.find(v);
+    if (it == names.end()) names[v] = text;
+    else if (it->second != text) ambiguous[v] = true;
+  }
+  bool used = false;
+  for (const auto& [v, text] : names) {
+    if (ambiguous.count(v)) continue;
+    const std::string token = symbolic_number(v), by = "(" + text + ")";
+    auto fix = [&](std::string& s) {
+      const std::string r = replace_number(s, token, by);
+      used = used || r != s;
+      s = r;
+    };
+    for (auto& r : form.rows) fix(r);
+    for (auto& r : form.state_rates) fix(r);
+    for (auto& [name, f] : form.functions) fix(f);
+  }
+  if (used)
+    for (const auto& [name, v] : parameters) form.parameters.emplace(name, v);
+}
+
 using symbolic_detail::ex;
 using symbolic_detail::Vec3s;
 
@@ -220,8 +266,9 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   S.A.assign(static_cast<size_t>(S.m) * n, 0);
   for (int k = 0; k < cs.size(); ++k) {
     const Constraint& c = *cs.constraints()[k];
-    const std::optional<SymbolicForm> form = c.symbolic();
+    std::optional<SymbolicForm> form = c.symbolic();
     const std::string where = "generate: constraint '" + c.name + "'";
+    if (form) c.symbolic_inputs.apply(*form);
     if (!form)
       throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
     if (static_cast<int>(form->rows.size()) != c.rows())
@@ -265,8 +312,9 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
     const ForceElement& e = *problem.forces.elements()[k];
     const std::string where = "generate: force element " + e.name();
-    const std::optional<SymbolicForm> form = e.symbolic();
+    std::optional<SymbolicForm> form = e.symbolic();
     if (!form) throw Error(where + " has no symbolic form");
+    e.symbolic_inputs.apply(*form);
     const int off = problem.forces.state_offset(static_cast<int>(k));
     if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())
       throw Error(where + ": inconsistent symbolic form");
