@@ -27,9 +27,19 @@ namespace fs = std::filesystem;
 /// yaml-cpp, so a few lines (`b: [*a, *a, …]` nested) can stand for billions of values.
 constexpr long kMaxSpecValues = 1'000'000;
 
+/// Deepest nesting of lists and mappings a scenario may have (a real one has about six levels). An
+/// alias inside its own anchor (`a: &a [*a]`) makes a cycle in yaml-cpp's node graph, which
+/// would otherwise be followed until the stack overflows (found by the fuzzers).
+constexpr int kMaxSpecDepth = 64;
+
 /// YAML → SpecValue: scalar keys only, each key once (both lines named otherwise).
 SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::string& key, const SpecReader& r,
-                  long& budget) {
+                  long& budget, int depth = 0) {
+  if (depth > kMaxSpecDepth)
+    r.fail(SourceLocation{file, n.Mark().is_null() ? 0 : n.Mark().line + 1},
+           key.size() > 48 ? key.substr(0, 48) + "..." : key,
+           "lists and mappings nested deeper than " + std::to_string(kMaxSpecDepth) +
+               " levels (a YAML alias used inside its own anchor?); a scenario is far shallower");
   if (--budget < 0)
     r.fail(SourceLocation{file, n.Mark().is_null() ? 0 : n.Mark().line + 1}, key,
            "the file expands to more than " + std::to_string(kMaxSpecValues) +
@@ -48,7 +58,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
     case YAML::NodeType::Sequence:
       v.kind = SpecValue::Kind::List;
       for (size_t i = 0; i < n.size(); ++i)
-        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r, budget));
+        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r, budget, depth + 1));
       break;
     case YAML::NodeType::Map:
       v.kind = SpecValue::Kind::Map;
@@ -65,7 +75,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
             r.fail(SourceLocation{file, line}, child,
                    "key '" + k + "' is given twice (lines " + std::to_string(e.key_line) + " and " + std::to_string(line) +
                        "); keep one");
-        v.entries.push_back({k, line, to_spec(kv.second, file, child, r, budget)});
+        v.entries.push_back({k, line, to_spec(kv.second, file, child, r, budget, depth + 1)});
       }
       break;
   }
