@@ -1,5 +1,6 @@
 // The generated C (refdyn generate --format c, compiled at build time by tests/CMakeLists.txt)
-// of five examples (the last, planar_2r_circle, fully constrained: n = m) against the numeric
+// of five examples (planar_2r_circle fully constrained: n = m) and of tests/data/symbolic/every_kind.yaml
+// (the kinds and model features the examples leave out) against the numeric
 // engine at random states: M, c, g, Q, ż, Φ, Φ̇, A, γ and ẋ of the reference dynamics. Two
 // independent routes: the generator's symbolic Newton–Euler in body frames with
 // GiNaC-differentiated constraint formulas, the engine's
@@ -8,6 +9,7 @@
 #include "refdyn/recursive_dynamics.hpp"
 #include "refdyn/reference_dynamics.hpp"
 
+#include "every_kind/reference_dynamics.h"
 #include "four_bar/reference_dynamics.h"
 #include "paper/reference_dynamics.h"
 #include "planar_2r_circle/reference_dynamics.h"
@@ -64,6 +66,9 @@ struct Generated {
 #define planar_2r_circle_NQ PLANAR_2R_CIRCLE_NQ
 #define planar_2r_circle_NZ PLANAR_2R_CIRCLE_NZ
 #define planar_2r_circle_NC PLANAR_2R_CIRCLE_NC
+#define every_kind_NQ EVERY_KIND_NQ
+#define every_kind_NZ EVERY_KIND_NZ
+#define every_kind_NC EVERY_KIND_NC
 #define arm_NQ ARM_NQ
 #define arm_NZ ARM_NZ
 #define arm_NC ARM_NC
@@ -71,7 +76,7 @@ struct Generated {
 std::vector<Generated> all_generated() {
   return {REFDYN_GENERATED(paper_, "paper"), REFDYN_GENERATED(four_bar_, "four_bar"),
           REFDYN_GENERATED(unicycle_, "unicycle"), REFDYN_GENERATED(arm_, "urdf_arm_line"),
-          REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle")};
+          REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle"), REFDYN_GENERATED(every_kind_, "every_kind")};
 }
 
 /// max |a − b| / max(1, max |b|)
@@ -83,7 +88,9 @@ double rel(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 TEST(GeneratedC, EqualsTheEngineAtRandomStates) {
   for (const Generated& G : all_generated()) {
     SCOPED_TRACE(G.example);
-    const std::string file = std::string(REFDYN_SOURCE_DIR) + "/examples/" + G.example + "/" + G.example + ".yaml";
+    const std::string file = G.example == "every_kind"
+                                 ? std::string(REFDYN_SOURCE_DIR) + "/tests/data/symbolic/every_kind.yaml"
+                                 : std::string(REFDYN_SOURCE_DIR) + "/examples/" + G.example + "/" + G.example + ".yaml";
     const auto problem = io::load_problem(file);
     const Model& model = problem->model;
     const int n = model.nq, m = problem->constraints.rows(), nz = problem->forces.num_states();
