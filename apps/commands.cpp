@@ -53,7 +53,7 @@ class Progress {
 
 std::string constraint_kind(const Constraint& c) {
   std::string s = to_string(c.origin);
-  s += c.first_order() ? ", first-order" : ", holonomic";
+  s += c.order() == 2 ? ", acceleration-level" : c.first_order() ? ", first-order" : ", holonomic";
   s += c.rheonomic() ? ", rheonomic" : ", scleronomic";
   return s;
 }
@@ -95,14 +95,14 @@ int run_check(const std::string& file, const InputOptions& in) {
   rd.derivative(s.integrator.t0, x, dx);
   std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
   std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
-  int mat = 0, prog = 0, hol = 0, fo = 0;
+  int mat = 0, prog = 0, hol = 0, fo = 0, acc = 0;
   for (const auto& c : s.constraints.constraints()) {
     std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
     (c->origin == ConstraintOrigin::Material ? mat : prog) += c->rows();
-    (c->first_order() ? fo : hol) += c->rows();
+    (c->order() == 2 ? acc : c->first_order() ? fo : hol) += c->rows();
   }
   std::cout << "  rows by kind: " << mat << " material, " << prog << " programmed; " << hol << " holonomic, " << fo
-            << " first-order\n";
+            << " first-order" << (acc ? ", " + std::to_string(acc) + " acceleration-level" : std::string()) << "\n";
   std::cout << "force elements: " << s.forces.elements().size();
   for (const auto& e : s.forces.elements()) std::cout << "  " << e->name();
   std::cout << "\n";

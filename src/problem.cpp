@@ -279,6 +279,13 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
       Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(row + 1, m.nv);
       qr.setThreshold(1e-9);
       qr.compute(A.topRows(row + 1));
+      if (A.row(row).norm() == 0 && cs.row_order(row) == 2) {
+        const auto [at, key] = entry_of(row);
+        c.fail(*at, key,
+               "acceleration constraint row '" + cs.row_name(row) + "' does not act on the accelerations at t0 = " +
+                   fmt(t0) + " s (B = d/dqdd of the expression is zero there): it cannot be imposed; start where "
+                   "it involves qdd, or write it differently");
+      }
       if (A.row(row).norm() == 0 || qr.rank() < row + 1) {
         const auto [at, key] = entry_of(row);
         c.fail(*at, key,
