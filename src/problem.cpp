@@ -551,7 +551,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       s->initial_dqd = cons.dqd;
     }
     Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
-    rd.residual(t0, x);
+    try {
+      rd.residual(t0, x);  // with acceleration rows this solves the dynamics once
+    } catch (const NumericalFailure& e) {
+      c.fail(where_part, "partition", e.what());
+    }
     const ConstraintEval& ev = rd.constraints();
     for (int row = 0; row < nrows; ++row) {
       const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));

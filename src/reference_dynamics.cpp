@@ -511,6 +511,11 @@ void ReferenceDynamics::acceleration_residuals() {
 
 double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
   check_size("x", state_size(), x.size());
+  if (has_acceleration_rows_) {  // their residual B q̈ + s needs q̈: one evaluation of the dynamics
+    xdot_.resize(state_size());
+    derivative(t, x, xdot_);
+    return ev_.phi.cwiseAbs().maxCoeff();
+  }
   q_ = x.head(n_);
   qd_ = x.segment(n_, n_);
   evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);

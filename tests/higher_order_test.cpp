@@ -192,6 +192,7 @@ TEST(AccelerationConstraint, TwiceDifferentiatedPositionConstraintGivesThePositi
     const Plan plan = plan_of(*p);
     ASSERT_NEAR(plan.t.back(), 2.0, 1e-12);
     err.push_back((final_q(plan) - q_ref).cwiseAbs().maxCoeff());
+    EXPECT_LT(plan.summary.max_constraint_residual, 1e-12);  // |B q̈ + s| at the samples
     // Position residual of the acceleration-level plan, from the recorded q, at every sample.
     ConstraintSet pos;
     pos.add(expression_constraint(p->model, "height", "y(E) - (y0 + h*(1 - cos(w*t))/2)", false, p->parameters));

@@ -123,7 +123,8 @@ class ReferenceDynamics {
   Consistency make_consistent(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double tol = 1e-12,
                               int max_iterations = 50);
 
-  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order).
+  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order);
+  /// with acceleration rows, also |B q̈ + s| (then it evaluates derivative() once).
   double residual(double t, const Eigen::VectorXd& x);
 
  private:
@@ -150,6 +151,7 @@ class ReferenceDynamics {
   std::vector<char> acceleration_row_;  ///< per constraint row: acceleration level (B q̈ + s = 0)
   bool has_acceleration_rows_ = false;
   void acceleration_residuals();  // Φ = Φ̇ = B q̈ + s on acceleration rows after a solve
+  Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
   bool partition_set_ = false;
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
