@@ -25,6 +25,9 @@ ConstraintKind constraint_expression() {
       order = o == "velocity" ? ConstraintOrder::Velocity
               : o == "acceleration" ? ConstraintOrder::Acceleration : ConstraintOrder::Position;
     }
+    if (order == ConstraintOrder::Acceleration && origin == ConstraintOrigin::Material)
+      a.fail("origin", "an acceleration-level constraint (order: acceleration) is programmed: material constraints "
+                       "have order position or velocity (the paper's eq. 2.1, p = 0, 1)");
     return expression_constraint(a.model, a.entry.name, a.text("expression"), order, a.reader.params, origin);
   };
   return k;
