@@ -1,0 +1,249 @@
+// Programmed constraints of order p = 3 (jerk), jerk.hpp:
+//  - the dual-number (forward-mode AD) recursive Newton–Euler: τ equals the double RNEA, τ̇
+//    equals central differences of τ along the motion, on random trees with prismatic joints;
+//  - point motion (r, v, a, jerk at q⃛ = 0, C, Ċ) against the double kinematics and differences;
+//  - the jerk constraint's s, B, Ḃ against differences;
+//  - (c) a closed form: a particle in polar coordinates with prescribed tangential jerk moves
+//    on a straight line with s⃛ = J sin ωt; RK4's order 4 measured; reactions Q_c = Cᵀ m s̈ u;
+//  - consistent initial accelerations; bad expressions rejected by name.
+#include "refdyn/jerk.hpp"
+#include "refdyn/kinematics.hpp"
+#include "refdyn/recursive_dynamics.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace refdyn;
+
+namespace {
+
+struct Curve {  // q(τ) = q + q̇τ + q̈τ²/2 (q⃛ = 0), q̇(τ), q̈(τ)
+  Eigen::VectorXd q, qd, qdd;
+  Eigen::VectorXd at(double s) const { return q + qd * s + 0.5 * qdd * s * s; }
+  Eigen::VectorXd vel(double s) const { return qd + qdd * s; }
+};
+
+TEST(JerkAD, InverseDynamicsRateMatchesRneaAndFiniteDifferences) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 12; ++trial) {
+    test::RandomChainOptions o;
+    o.dof = 2 + trial % 5;
+    o.tree = trial % 3 == 2;
+    o.prismatic_fraction = 0.4;
+    const Model m = build_model(test::random_chain(rng, o));
+    Data data(m);
+    const int n = m.nv;
+    const Curve c{test::random_vector(rng, n, 1.0), test::random_vector(rng, n, 1.5), test::random_vector(rng, n, 2.0)};
+    Eigen::VectorXd tau, taud;
+    inverse_dynamics_rate(m, c.q, c.qd, c.qdd, tau, taud);
+    const Eigen::VectorXd ref = inverse_dynamics(m, data, c.q, c.qd, c.qdd);
+    EXPECT_TRUE(test::near(tau, ref, 1e-12, 1e-12)) << "trial " << trial;
+    const double e = 1e-6;
+    const Eigen::VectorXd tp = inverse_dynamics(m, data, c.at(e), c.vel(e), c.qdd);
+    const Eigen::VectorXd tm = inverse_dynamics(m, data, c.at(-e), c.vel(-e), c.qdd);
+    EXPECT_TRUE(test::near(taud, (tp - tm) / (2 * e), 1e-7, 1e-7)) << "trial " << trial;
+  }
+}
+
+TEST(JerkAD, PointMotionMatchesKinematicsAndFiniteDifferences) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 10; ++trial) {
+    test::RandomChainOptions o;
+    o.dof = 2 + trial % 5;
+    o.tree = trial % 4 == 3;
+    const Model m = build_model(test::random_chain(rng, o));
+    Data data(m);
+    const int n = m.nv, tip = m.point_index("tip");
+    const Curve c{test::random_vector(rng, n, 1.0), test::random_vector(rng, n, 1.5), test::random_vector(rng, n, 2.0)};
+    PointMotion pm;
+    point_motion(m, c.q, c.qd, c.qdd, tip, pm);
+    forward_kinematics(m, data, c.q);
+    EXPECT_TRUE(test::near(pm.r, point_position(m, data, tip), 1e-13, 1e-13));
+    point_jacobian(m, data, tip);
+    const Eigen::MatrixXd C = data.Jp;
+    EXPECT_TRUE(test::near(pm.C, C, 1e-12, 1e-12));
+    const PointDrift pd = point_drift(m, data, tip, c.qd);
+    EXPECT_TRUE(test::near(pm.v, pd.velocity, 1e-12, 1e-12));
+    EXPECT_TRUE(test::near(pm.a, C * c.qdd + pd.drift, 1e-11, 1e-11));
+    // Jerk at q⃛ = 0 and Ċ by central differences along the curve.
+    const double e = 1e-5;
+    PointMotion pp, pn;
+    point_motion(m, c.at(e), c.vel(e), c.qdd, tip, pp);
+    point_motion(m, c.at(-e), c.vel(-e), c.qdd, tip, pn);
+    EXPECT_TRUE(test::near(pm.j, (pp.a - pn.a) / (2 * e), 1e-7, 1e-7)) << "trial " << trial;
+    EXPECT_TRUE(test::near(pm.Cdot, (pp.C - pn.C) / (2 * e), 1e-7, 1e-7)) << "trial " << trial;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The particle of tests/higher_order_test.cpp (polar coordinates: a revolute joint th and a
+// massless radial slider r carrying a point mass m at P, no gravity in the plane).
+ModelDescription polar_particle(double mass) {
+  ModelDescription d;
+  LinkSpec arm;
+  arm.name = "arm";
+  arm.joint_name = "th";
+  arm.type = JointType::Revolute;
+  arm.axis = Vec3::UnitZ();
+  d.add_link(arm);
+  LinkSpec bead;
+  bead.name = "bead";
+  bead.joint_name = "r";
+  bead.parent = 0;
+  bead.type = JointType::Prismatic;
+  bead.axis = Vec3::UnitX();
+  bead.inertia.mass = mass;
+  d.add_link(bead);
+  d.add_point("P", "bead", Vec3::Zero());
+  d.gravity = Vec3(0, 0, -9.81);
+  return d;
+}
+
+TEST(JerkConstraint, SBAndBdotMatchFiniteDifferences) {
+  std::mt19937 rng(9);
+  test::RandomChainOptions o;
+  o.dof = 3;
+  const Model m = build_model(test::random_chain(rng, o));
+  const std::string text = "(2 + sin(q(q1)))*jx(tip) + vy(tip)*jz(tip) + t*qddd(q2) + x(tip)*ay(tip) - qdd(q3)^2 - cos(t)";
+  const JerkConstraint jc(m, "c", text);
+  const int n = m.nv, tip = m.point_index("tip");
+  std::vector<PointMotion> pts(m.point_name.size());
+  for (int trial = 0; trial < 4; ++trial) {
+    const Curve c{test::random_vector(rng, n, 1.0), test::random_vector(rng, n, 1.5), test::random_vector(rng, n, 2.0)};
+    const Eigen::VectorXd qddd = test::random_vector(rng, n, 2.0);
+    const double t = 0.3 + trial;
+    auto direct = [&](double tt, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                      const Eigen::VectorXd& jerk) {  // f evaluated with the full point jerk j + C q⃛
+      PointMotion p;
+      point_motion(m, q, qd, qdd, tip, p);
+      const Vec3 jj = p.j + p.C * jerk;
+      return (2 + std::sin(q[0])) * jj.x() + p.v.y() * jj.z() + tt * jerk[1] + p.r.x() * p.a.y() - qdd[2] * qdd[2] -
+             std::cos(tt);
+    };
+    point_motion(m, c.q, c.qd, c.qdd, tip, pts[tip]);
+    double s;
+    Eigen::RowVectorXd B(n), Bdot(n);
+    jc.evaluate(t, c.q, c.qd, c.qdd, pts, s, B, Bdot);
+    const double f = direct(t, c.q, c.qd, c.qdd, qddd);
+    EXPECT_NEAR(s + B.dot(qddd), f, 1e-11 * (1 + std::abs(f)));
+    // Ḃ by differences along the motion (t, q, q̇, q̈ all moving; q⃛ held).
+    const double e = 1e-5;
+    auto B_at = [&](double sgn) {
+      const double tt = t + sgn * e;
+      const Eigen::VectorXd q = c.q + sgn * e * c.qd + 0.5 * e * e * c.qdd, qd = c.qd + sgn * e * c.qdd;
+      std::vector<PointMotion> p2(m.point_name.size());
+      point_motion(m, q, qd, c.qdd, tip, p2[tip]);
+      double s2;
+      Eigen::RowVectorXd B2(n), Bd2(n);
+      jc.evaluate(tt, q, qd, c.qdd, p2, s2, B2, Bd2);
+      return Eigen::RowVectorXd(B2);
+    };
+    EXPECT_TRUE(test::near(Bdot, (B_at(1) - B_at(-1)) / (2 * e), 1e-7, 1e-7)) << "trial " << trial;
+  }
+  test::expect_error_mentioning([&] { JerkConstraint(m, "c", "ax(tip) - 1"); }, {"'c'", "involves no jerk"});
+  test::expect_error_mentioning([&] { JerkConstraint(m, "c", "jx(tip)^2"); }, {"'c'", "linear in the jerks"});
+  test::expect_error_mentioning([&] { JerkConstraint(m, "c", "ax(tip)*jx(tip)"); },
+                                {"'c'", "do not depend on accelerations", "ax(tip)"});
+}
+
+// (c) Tangential jerk prescribed, u·j_P = J sin ωt with u = v/|v|: the coefficient of the jerk,
+// vᵀC/|v|, is B; the reaction along Bᵀ is tangential, so with a tangential initial
+// acceleration a0 (given through the hint) the particle moves on the line of its initial
+// velocity with s⃛ = J sin ωt:
+//   s(t) = v0 t + a0 t²/2 + J (t²/(2ω) + (cos ωt − 1)/ω³),  s̈(t) = a0 + J (1 − cos ωt)/ω,
+// and Q_c = M q̈ − F = Cᵀ m s̈ u.
+TEST(JerkDynamics, ParticleWithPrescribedTangentialJerkMovesOnAStraightLine) {
+  const double mass = 1.7, J = 0.9, w = 2.0, a0 = 0.4;
+  const Model m = build_model(polar_particle(mass));
+  const Eigen::Vector2d p0(1.0, 0.0), v0(0.3, 0.8), u = v0.normalized();
+  auto s = [&](double t) {
+    return v0.norm() * t + a0 * t * t / 2 + J * (t * t / (2 * w) + (std::cos(w * t) - 1) / (w * w * w));
+  };
+  auto sdd = [&](double t) { return a0 + J * (1 - std::cos(w * t)) / w; };
+  auto q_exact = [&](double t) {
+    const Eigen::Vector2d p = p0 + u * s(t);
+    return Eigen::Vector2d(std::atan2(p.y(), p.x()), p.norm());
+  };
+  std::map<std::string, double> par{{"J", J}, {"w", w}};
+  auto jc = std::make_shared<JerkConstraint>(m, "tangential_jerk",
+                                             "(vx(P)*jx(P) + vy(P)*jy(P))/sqrt(vx(P)^2 + vy(P)^2) - J*sin(w*t)", par);
+  // Steps with κh ≤ 1 (κ = 50 /s): the gain's own discretization error then stays below RK4's
+  // leading term (at h = 0.04, κh = 2, the ratio is 24, not 16).
+  std::vector<double> err, err_qc;
+  for (double h : {0.02, 0.01, 0.005}) {
+    JerkDynamics jd(m, {jc}, JerkDynamicsOptions{50.0});
+    const Eigen::Vector2d q0(0.0, 1.0), qd0(0.8, 0.3);  // v(P) = (0.3, 0.8) at θ = 0, r = 1
+    // Hint: the initial acceleration a0 u in joint space (at θ = 0: ẍ = r̈ − r θ̇², ÿ = r θ̈ + 2ṙ θ̇).
+    const Eigen::Vector2d acc = a0 * u;
+    Eigen::VectorXd hint(2);
+    hint << (acc.y() - 2 * qd0[1] * qd0[0]) / q0[1], acc.x() + q0[1] * qd0[0] * qd0[0];
+    const Eigen::VectorXd x0 = jd.initial_state(0.0, q0, qd0, &hint);
+    EXPECT_TRUE(test::near(x0.tail(2), hint, 1e-12, 1e-12));  // one row, the hint is consistent: kept
+    IntegratorOptions io;
+    io.step = h;
+    io.t1 = 3.0;
+    const Plan plan = plan_jerk_motion(jd, x0, io, RecordOptions{{m.point_index("P")}});
+    ASSERT_TRUE(plan.summary.ok()) << plan.summary.message;
+    double worst = 0, worst_qc = 0, worst_row = 0;
+    for (size_t k = 0; k < plan.size(); ++k) {
+      const double t = plan.t[k];
+      const Eigen::Vector2d q = plan.x[k].head(2);
+      worst = std::max(worst, (q - q_exact(t)).cwiseAbs().maxCoeff());
+      Eigen::Matrix2d C;
+      C << -q[1] * std::sin(q[0]), std::cos(q[0]), q[1] * std::cos(q[0]), std::sin(q[0]);
+      worst_qc = std::max(worst_qc, (plan.Qc[k] - C.transpose() * (mass * sdd(t) * u)).cwiseAbs().maxCoeff());
+      worst_row = std::max(worst_row, std::abs(plan.phi[k][0]));
+    }
+    err.push_back(worst);
+    err_qc.push_back(worst_qc);
+    std::printf("[ order c ] h = %.3f: max |q - q_exact| = %.3e, max |Q_c - C^T m s'' u| = %.3e, max |B qddd + s| = "
+                "%.1e, max dynamics residual = %.1e\n", h, worst, worst_qc, worst_row,
+                plan.summary.max_constraint_residual);
+    EXPECT_LT(worst_row, 1e-12);
+  }
+  const double r1 = err[0] / err[1], r2 = err[1] / err[2];
+  std::printf("[ order c ] error ratios %.2f, %.2f (RK4: 16), observed orders %.2f, %.2f\n", r1, r2, std::log2(r1),
+              std::log2(r2));
+  EXPECT_GT(r1, 12);
+  EXPECT_LT(r1, 20);
+  EXPECT_GT(r2, 12);
+  EXPECT_LT(r2, 20);
+  EXPECT_LT(err[2], 1e-8);
+  // The reaction (carried by the state q̈) converges with the same order.
+  const double c1 = err_qc[0] / err_qc[1], c2 = err_qc[1] / err_qc[2];
+  std::printf("[ order c ] Q_c error ratios %.2f, %.2f\n", c1, c2);
+  EXPECT_GT(c1, 12);
+  EXPECT_GT(c2, 12);
+  EXPECT_LT(err_qc[2], 1e-6);
+}
+
+// Without a hint the initial acceleration is the free one (λ0 = 0), with one the constrained
+// components are the hint's; either way Nᵀ(M q̈0 − F) = 0, i.e. M q̈0 − F lies along Bᵀ.
+TEST(JerkDynamics, InitialAccelerationIsConsistentWithTheDynamics) {
+  std::mt19937 rng(2);
+  test::RandomChainOptions o;
+  o.dof = 4;
+  const Model m = build_model(test::random_chain(rng, o));
+  auto c1 = std::make_shared<JerkConstraint>(m, "a", "jx(tip) + q(q1)*qddd(q2) - 0.3");
+  auto c2 = std::make_shared<JerkConstraint>(m, "b", "jz(tip) - vx(tip)*sin(t)");
+  JerkDynamics jd(m, {c1, c2});
+  const Eigen::VectorXd q0 = test::random_vector(rng, 4, 1.0), qd0 = test::random_vector(rng, 4, 1.0),
+                        hint = test::random_vector(rng, 4, 2.0);
+  Data data(m);
+  for (const Eigen::VectorXd* h : {static_cast<const Eigen::VectorXd*>(nullptr), &hint}) {
+    const Eigen::VectorXd x0 = jd.initial_state(0.2, q0, qd0, h);
+    Eigen::VectorXd dx(x0.size());
+    jd.derivative(0.2, x0, dx);
+    const Eigen::VectorXd R = inverse_dynamics(m, data, q0, qd0, x0.tail(4));  // M q̈0 − F
+    EXPECT_TRUE(test::near(R, jd.B().transpose() * jd.lambda(), 1e-10, 1e-10));
+    EXPECT_LT(jd.dynamics_residual(), 1e-10);
+    if (h) EXPECT_TRUE(test::near(jd.B() * x0.tail(4), jd.B() * hint, 1e-10, 1e-10));
+    else EXPECT_TRUE(test::near(jd.lambda(), Eigen::VectorXd::Zero(2), 0, 1e-10));
+    EXPECT_LT(jd.row_residual().cwiseAbs().maxCoeff(), 1e-10);
+  }
+}
+
+}  // namespace
