@@ -457,8 +457,44 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   xdot << qd_, qdd_, qddd_;
 }
 
+namespace {
+class JerkRow final : public Constraint {
+ public:
+  explicit JerkRow(JerkConstraintPtr c) : c_(std::move(c)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  int order() const override { return 3; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {}; }
+  std::string describe() const override { return c_->text() + " = 0"; }
+  void evaluate(const ConstraintInput&, Eigen::Ref<Eigen::VectorXd>, Eigen::Ref<Eigen::VectorXd>,
+                Eigen::Ref<Eigen::MatrixXd>, Eigen::Ref<Eigen::VectorXd>) const override {
+    throw Error("constraint '" + name + "' is jerk-level (order: jerk): it is evaluated by JerkDynamics, not by "
+                "evaluate_constraints / ReferenceDynamics");
+  }
+  const JerkConstraintPtr& jerk() const { return c_; }
+
+ private:
+  JerkConstraintPtr c_;
+};
+}  // namespace
+
+ConstraintPtr jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                         const std::map<std::string, double>& parameters, ConstraintOrigin origin) {
+  if (name.empty()) throw Error("jerk_expression_constraint: expected a name, got an empty one");
+  auto c = std::make_shared<JerkRow>(std::make_shared<JerkConstraint>(model, name, text, parameters));
+  c->name = name;
+  c->origin = origin;
+  return c;
+}
+
+JerkConstraintPtr jerk_constraint_of(const Constraint& c) {
+  const auto* r = dynamic_cast<const JerkRow*>(&c);
+  return r ? r->jerk() : nullptr;
+}
+
 Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                      const RecordOptions& record) {
+                      const RecordOptions& record, const std::function<void(double)>& progress) {
   options.validate();
   check_vector("x0", x0, jd.state_size(), "x0 = [q; qd; qdd], see JerkDynamics::initial_state");
   const Model& model = jd.model();
@@ -499,6 +535,7 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
     plan.Qc.push_back(ok ? jd.constraint_force() : Eigen::VectorXd::Constant(n, nan));
     plan.actuator_effort.push_back(plan.Qc.back());
     if (ok) worst = std::max(worst, jd.dynamics_residual());
+    if (progress) progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;

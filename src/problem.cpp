@@ -413,6 +413,33 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   }
   read_forces(c, spec.forces, m, s->forces);
 
+  // Jerk-level constraints (order: jerk, p = 3): planned by JerkDynamics, which supports only
+  // jerk rows and no force elements (their time derivatives are not provided).
+  {
+    const int nmimic = s->constraints.size() - static_cast<int>(spec.constraints.size());
+    for (int k = 0; k < s->constraints.size(); ++k)
+      if (JerkConstraintPtr j = jerk_constraint_of(*s->constraints.constraints()[k])) s->jerk_constraints.push_back(j);
+    if (s->is_jerk_problem()) {
+      for (int k = 0; k < s->constraints.size(); ++k) {
+        if (s->constraints.constraints()[k]->order() == 3) continue;
+        const SpecValue& at = k < nmimic ? spec.model.value : spec.constraints[k - nmimic].fields;
+        c.fail(at, k < nmimic ? "model.urdf" : spec.constraints[k - nmimic].key,
+               "constraint '" + s->constraints.constraints()[k]->name +
+                   "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
+                   "contain only jerk rows (docs/higher_order.md)");
+      }
+      if (!spec.forces.empty())
+        c.fail(spec.forces[0].fields, spec.forces[0].key,
+               "force element '" + s->forces.elements()[0]->name() +
+                   "' in a problem with jerk constraints (order: jerk): the p = 3 reference dynamics needs the time "
+                   "derivative of every force, which force elements do not provide; remove the force elements or "
+                   "state the task at the acceleration level");
+      if (!spec.experiments.empty())
+        c.fail(spec.experiments_value, "experiments",
+               "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
+    }
+  }
+
   {
     const BaumgarteSpec& b = spec.baumgarte;
     if (b.alpha) s->options.alpha = c.number(b.alpha, "baumgarte.alpha");
@@ -461,6 +488,24 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   if (ini.tolerance) {
     s->initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
     if (!(s->initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
+  }
+  if (ini.qdd) {
+    if (!s->is_jerk_problem())
+      c.fail(ini.qdd, "initial.qdd",
+             "an initial acceleration is part of the state only in problems with jerk constraints (order: jerk); "
+             "elsewhere q̈0 follows from the dynamics (remove it)");
+    s->qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+  }
+  if (const SpecValue& k = spec.baumgarte.kappa) {
+    if (!s->is_jerk_problem())
+      c.fail(k, "baumgarte.kappa", "kappa is the gain of problems with jerk constraints (order: jerk); remove it");
+    s->kappa = c.number(k, "baumgarte.kappa");
+    if (!(std::isfinite(s->kappa) && s->kappa >= 0))
+      c.fail(k, "baumgarte.kappa", "expected a finite value >= 0 [1/s], got " + fmt(s->kappa));
+  }
+  if (s->is_jerk_problem()) {  // no partition: JerkDynamics solves a KKT system
+    s->options.independent.clear();
+    s->automatic_independent = false;
   }
 
   {
@@ -526,7 +571,31 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   // Initial consistency and partition at t0.
   s->initial_dq = Eigen::VectorXd::Zero(m.nq);
   s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
-  {
+  if (s->is_jerk_problem()) {
+    // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
+    // the jerk-level system once at t0: every row regular and finite.
+    const double t0 = s->integrator.t0;
+    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa});
+    try {
+      const Eigen::VectorXd x0 = jd.initial_state(t0, s->q0, s->qd0, s->qdd0.size() ? &s->qdd0 : nullptr);
+      Eigen::VectorXd dx(x0.size());
+      jd.derivative(t0, x0, dx);
+      if (!dx.allFinite()) throw NumericalFailure(t0, "the jerk-level equations are not finite at t0 = " + fmt(t0) + " s");
+      for (int r = 0; r < nrows; ++r)
+        if (jd.B().row(r).norm() == 0) {
+          const EntrySpec& e = spec.constraints[r];
+          c.fail(e.fields, e.key,
+                 "jerk constraint row '" + s->constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
+                     " s (B = d/dqddd of the expression is zero there)");
+        }
+    } catch (const NumericalFailure& e) {
+      c.fail(spec.constraints_value, "constraints", e.what());
+    } catch (const Error& e) {
+      const std::string w = e.what();
+      if (w.rfind(c.file(), 0) == 0) throw;
+      c.fail(spec.constraints_value, "constraints", std::string("at t0: ") + w);
+    }
+  } else {
     ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
     const double t0 = s->integrator.t0;
     const SpecValue& where_part = part.value ? part.value : spec.root;
@@ -648,6 +717,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
 }
 
 Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
+  if (p.is_jerk_problem()) {
+    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa});
+    const Eigen::VectorXd x0 = jd.initial_state(p.integrator.t0, p.q0, p.qd0, p.qdd0.size() ? &p.qdd0 : nullptr);
+    return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
+  }
   const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
   return plan_motion(rd, x0, p.integrator, p.residual_from, progress, RecordOptions{p.report_point_indices()});
 }

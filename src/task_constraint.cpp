@@ -84,8 +84,7 @@ class ExpressionConstraint final : public Constraint {
       else if (order < 1 && mentions(text, {"vx(", "vy(", "vz(", "qd("}))
         hint = " (hint: velocities vx(P), vy(P), vz(P), qd(j) are allowed only in first-order constraints)";
       else if (mentions(text, {"jx(", "jy(", "jz(", "qddd("}))
-        hint = " (hint: jerks jx(P), qddd(j) would need order: jerk, p = 3, which is not implemented; see "
-               "docs/higher_order.md)";
+        hint = " (hint: jerks jx(P), jy(P), jz(P), qddd(j) are allowed only in jerk constraints, order: jerk)";
       throw Error("constraint '" + name + "': " + e.what() + hint);
     }
     // State dependence from the variables left after the parameters are substituted; the

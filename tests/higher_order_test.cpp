@@ -7,6 +7,7 @@
 //    prescribed moves on a straight line with s̈ = a_t(t), and the reaction is m a_t along the
 //    path; RK4's order 4 measured;
 //  - the projection and the Lagrange (KKT) routes agree; bad inputs are rejected by name.
+// Order p = 3 (jerk) is tested in tests/jerk_test.cpp.
 #include "refdyn/constraints.hpp"
 #include "refdyn/control.hpp"
 #include "refdyn/io/scenario.hpp"
@@ -317,7 +318,7 @@ TEST(AccelerationConstraint, BadInputsAreRejectedWithTheirKey) {
       {"a.yaml:", key, "acceleraton", "did you mean 'acceleration'"});
   test::expect_error_mentioning(
       [&] { io::parse_problem(bad_arm("  - name: c\n    order: jerk\n    expression: ay(E)"), "a.yaml"); },
-      {"a.yaml:", key, "jerk", "not implemented"});
+      {"a.yaml:", "constraints.c", "order: jerk", "involves no jerk"});
   test::expect_error_mentioning(
       [&] { io::parse_problem(bad_arm("  - name: c\n    order: acceleration\n    expression: vy(E) - 1"), "a.yaml"); },
       {"a.yaml:", "constraints.c", "involves no acceleration"});
@@ -335,7 +336,7 @@ TEST(AccelerationConstraint, BadInputsAreRejectedWithTheirKey) {
       {"a.yaml:", "order: acceleration"});
   test::expect_error_mentioning(
       [&] { io::parse_problem(bad_arm("  - name: c\n    order: acceleration\n    expression: jx(E)"), "a.yaml"); },
-      {"a.yaml:", "jerk", "not implemented"});
+      {"a.yaml:", "jx(E)", "only in jerk constraints"});
   // B = 0 at t0 (the constraint does not act on the accelerations there): a singular row.
   test::expect_error_mentioning(
       [&] { io::parse_problem(bad_arm("  - name: c\n    order: acceleration\n    expression: t*ay(E) - 1"), "a.yaml"); },

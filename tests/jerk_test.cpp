@@ -6,7 +6,9 @@
 //  - (c) a closed form: a particle in polar coordinates with prescribed tangential jerk moves
 //    on a straight line with s⃛ = J sin ωt; RK4's order 4 measured; reactions Q_c = Cᵀ m s̈ u;
 //  - consistent initial accelerations; bad expressions rejected by name.
+#include "refdyn/io/scenario.hpp"
 #include "refdyn/jerk.hpp"
+#include "refdyn/problem.hpp"
 #include "refdyn/kinematics.hpp"
 #include "refdyn/recursive_dynamics.hpp"
 #include "test_support.hpp"
@@ -244,6 +246,88 @@ TEST(JerkDynamics, InitialAccelerationIsConsistentWithTheDynamics) {
     else EXPECT_TRUE(test::near(jd.lambda(), Eigen::VectorXd::Zero(2), 0, 1e-10));
     EXPECT_LT(jd.row_residual().cwiseAbs().maxCoeff(), 1e-10);
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The same particle as a scenario: `order: jerk`, `initial.qdd`, `baumgarte.kappa`, through
+// build_problem and plan_problem (what `refdyn plan` runs) — the same plan as the library route.
+const char* kParticleJerk = R"(
+name: particle_jerk
+parameters: {m: 1.7, J: 0.9, w: 2.0}
+model:
+  gravity: [0, 0, -9.81]
+  links:
+    - {name: arm, joint: th, parent: base, type: revolute, axis: [0, 0, 1], mass: 0, inertia: [0, 0, 0]}
+    - {name: bead, joint: r, parent: arm, type: prismatic, axis: [1, 0, 0], mass: m, inertia: [0, 0, 0]}
+  points:
+    P: {link: bead, position: [0, 0, 0]}
+constraints:
+  - name: tangential_jerk
+    order: jerk
+    expression: (vx(P)*jx(P) + vy(P)*jy(P))/sqrt(vx(P)^2 + vy(P)^2) - J*sin(w*t)
+baumgarte: {kappa: 50}
+initial:
+  q: {th: 0, r: 1}
+  qd: {th: 0.8, r: 0.3}
+  qdd: {th: -0.16, r: 0.76}      # (a0 u_y - 2 r' th')/r, a0 u_x + r th'^2 with a0 = 0.4, u = (0.3, 0.8)/0.854
+integrator: {method: rk4, step: 0.01, t0: 0, t1: 3}
+)";
+
+TEST(JerkScenario, OrderJerkPlansLikeTheLibraryRoute) {
+  const auto p = io::parse_problem(kParticleJerk, "particle_jerk.yaml");
+  ASSERT_TRUE(p->is_jerk_problem());
+  EXPECT_EQ(p->constraints.row_order(0), 3);
+  auto rd = p->make_reference_dynamics();
+  const Plan a = plan_problem(*p, *rd);
+  ASSERT_TRUE(a.summary.ok()) << a.summary.message;
+  JerkDynamics jd(p->model, p->jerk_constraints, JerkDynamicsOptions{50.0});
+  const Eigen::VectorXd x0 = jd.initial_state(0.0, p->q0, p->qd0, &p->qdd0);
+  IntegratorOptions io;
+  io.step = 0.01;
+  io.t1 = 3.0;
+  const Plan b = plan_jerk_motion(jd, x0, io, RecordOptions{{0}});
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a.x[k], b.x[k]) << "sample " << k;
+  EXPECT_EQ(a.state_names, (std::vector<std::string>{"acc_th", "acc_r"}));
+  EXPECT_LT(a.summary.max_constraint_residual, 1e-5);
+}
+
+std::string jerk_variant(const std::string& from, const std::string& to) {
+  std::string y = kParticleJerk;
+  const size_t pos = y.find(from);
+  if (pos == std::string::npos) throw std::runtime_error("no '" + from + "' in the scenario");
+  return y.replace(pos, from.size(), to);
+}
+
+TEST(JerkScenario, BadInputsAreRejectedWithTheirKey) {
+  auto bad = [](const std::string& yaml, const std::vector<std::string>& needles) {
+    test::expect_error_mentioning([&] { io::parse_problem(yaml, "j.yaml"); }, needles);
+  };
+  bad(jerk_variant("constraints:\n", "constraints:\n  - {name: ring, expression: q(r) - 1}\n"),
+      {"j.yaml:", "constraints.ring", "not of order jerk"});
+  bad(jerk_variant("baumgarte: {kappa: 50}", "forces: [{type: damping, joint: th, coefficient: 1}]"),
+      {"j.yaml:", "forces[0]", "time derivative"});
+  bad(jerk_variant("baumgarte: {kappa: 50}", "baumgarte: {kappa: -1}"), {"j.yaml:", "baumgarte.kappa", ">= 0"});
+  bad(jerk_variant("order: jerk", "order: jerck"), {"constraints.tangential_jerk.order", "did you mean 'jerk'"});
+  bad(jerk_variant("order: jerk", "order: acceleration"), {"constraints.tangential_jerk", "order: jerk"});
+  bad(jerk_variant("    expression: (vx(P)*jx(P) + vy(P)*jy(P))", "    expression: (vx(P)*ax(P) + vy(P)*ay(P))"),
+      {"constraints.tangential_jerk", "involves no jerk"});
+  bad(jerk_variant("    expression: (vx(P)*jx(P)", "    expression: (ax(P)*jx(P)"),
+      {"constraints.tangential_jerk", "do not depend on accelerations"});
+  bad(jerk_variant("    order: jerk\n", "    origin: material\n    order: jerk\n"),
+      {"constraints.tangential_jerk.origin", "programmed"});
+  // Keys of jerk problems elsewhere.
+  const std::string acc = jerk_variant("    order: jerk\n    expression: (vx(P)*jx(P) + vy(P)*jy(P))",
+                                       "    order: acceleration\n    expression: (vx(P)*ax(P) + vy(P)*ay(P))");
+  const size_t qdd_line = acc.find("  qdd:");
+  const std::string acc_no_qdd = acc.substr(0, qdd_line) + acc.substr(acc.find('\n', qdd_line) + 1);
+  auto without_baumgarte = [](const std::string& y) {
+    const size_t b = y.find("baumgarte:");
+    return y.substr(0, b) + y.substr(y.find('\n', b) + 1);
+  };
+  EXPECT_NO_THROW(io::parse_problem(without_baumgarte(acc_no_qdd), "ok.yaml"));
+  bad(acc_no_qdd, {"baumgarte.kappa", "jerk"});
+  bad(without_baumgarte(acc), {"initial.qdd", "jerk"});
 }
 
 }  // namespace

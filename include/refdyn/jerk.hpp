@@ -19,6 +19,7 @@
 /// is linear in the jerks jx(P), jy(P), jz(P), qddd(j), and their coefficients do not depend on
 /// accelerations (ax(P)…, qdd(j)) or jerks, so that B = B(t, q, q̇).
 
+#include "refdyn/constraints.hpp"
 #include "refdyn/control.hpp"
 #include "refdyn/integrators.hpp"
 #include "refdyn/model.hpp"
@@ -71,6 +72,15 @@ class JerkConstraint {
 };
 using JerkConstraintPtr = std::shared_ptr<const JerkConstraint>;
 
+/// A jerk constraint as an entry of a ConstraintSet (what a scenario's `order: jerk` builds):
+/// order() == 3, one row. Its evaluate() throws: jerk rows are evaluated by JerkDynamics, and a
+/// problem with jerk rows has only jerk rows (build_problem checks it).
+ConstraintPtr jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                         const std::map<std::string, double>& parameters = {},
+                                         ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// The JerkConstraint behind a constraint made by jerk_expression_constraint, else null.
+JerkConstraintPtr jerk_constraint_of(const Constraint& c);
+
 struct JerkDynamicsOptions {
   double kappa = 50.0;  ///< gain on the projected dynamics residual Nᵀ(M q̈ − F) [1/s]
 };
@@ -122,6 +132,6 @@ class JerkDynamics {
 /// B q⃛ + s), λ, Q_c = M q̈ − F (also the actuator effort: the rows are programmed), points.
 /// summary.max_constraint_residual: the largest dynamics residual ‖R − Bᵀλ‖∞ over the samples.
 Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                      const RecordOptions& record = {});
+                      const RecordOptions& record = {}, const std::function<void(double)>& progress = {});
 
 }  // namespace refdyn
