@@ -90,7 +90,7 @@ int run_check(const std::string& file, const InputOptions& in) {
   const Problem& s = *sp;
   const Model& m = s.model;
   if (s.is_jerk_problem()) {  // planned by JerkDynamics: state [q; q̇; q̈], no partition
-    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa});
+    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa}, &s.forces);
     const Eigen::VectorXd x = jd.initial_state(s.integrator.t0, s.q0, s.qd0, s.qdd0.size() ? &s.qdd0 : nullptr);
     Eigen::VectorXd dx(x.size());
     jd.derivative(s.integrator.t0, x, dx);

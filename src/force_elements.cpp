@@ -22,6 +22,11 @@ class JointDamping final : public ForceElement {
     Q[j_] -= b_ * qd[j_];
     if (dQ) (*dQ)(j_, j_) -= b_;
   }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= b_ * qdd[j_];
+    return true;
+  }
  private:
   int j_;
   std::string n_;
@@ -35,6 +40,11 @@ class JointSpring final : public ForceElement {
   void apply(double, const Eigen::VectorXd& q, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
     Q[j_] -= k_ * (q[j_] - r_);
+  }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= k_ * qd[j_];
+    return true;
   }
  private:
   int j_;
@@ -50,6 +60,11 @@ class JointEffort final : public ForceElement {
   void apply(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
     Q[j_] += f_->eval(t).f;
+  }
+  bool add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] += f_->eval(t).df;
+    return true;
   }
  private:
   int j_;
@@ -95,6 +110,13 @@ void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::Vec
 double FlexibleDrive::torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
   const TimeValue psi = profile_->eval(t);
   return p_.stiffness * (psi.f - q[j_]) + p_.damping * (psi.df - qd[j_]);
+}
+
+bool FlexibleDrive::add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                            Eigen::VectorXd& Qdot) const {
+  const TimeValue psi = profile_->eval(t);
+  Qdot[j_] += p_.stiffness * (psi.df - qd[j_]) + p_.damping * (psi.ddf - qdd[j_]);
+  return true;
 }
 
 void FlexibleDrive::apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,

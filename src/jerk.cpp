@@ -357,9 +357,20 @@ void JerkConstraint::evaluate(double t, const Eigen::VectorXd& q, const Eigen::V
 
 // ---- the reference dynamics of jerk constraints ----------------------------------------------
 
-JerkDynamics::JerkDynamics(const Model& model, std::vector<JerkConstraintPtr> constraints, JerkDynamicsOptions options)
-    : model_(model), constraints_(std::move(constraints)), opt_(options), n_(model.nv),
+JerkDynamics::JerkDynamics(const Model& model, std::vector<JerkConstraintPtr> constraints, JerkDynamicsOptions options,
+                           const ForceSet* forces)
+    : model_(model), forces_(forces), constraints_(std::move(constraints)), opt_(options), n_(model.nv),
       m_(static_cast<int>(constraints_.size())), data_(model) {
+  if (forces_) {
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n_);
+    Eigen::VectorXd rate = Eigen::VectorXd::Zero(n_);
+    for (const auto& e : forces_->elements())
+      if (e->num_states() > 0 || !e->add_rate(0.0, zero, zero, zero, rate))
+        throw Error("force element '" + e->name() + "' cannot be used with jerk constraints (order: jerk): " +
+                    (e->num_states() > 0 ? std::string("it has states")
+                                         : std::string("it does not provide the time derivative of its force")) +
+                    " (damping, spring, effort and flexible_drive do)");
+  }
   if (!(std::isfinite(opt_.kappa) && opt_.kappa >= 0))
     throw Error(expected_got("jerk dynamics option kappa", "a finite value >= 0 [1/s]", fmt(opt_.kappa)));
   if (m_ > n_)
@@ -392,16 +403,29 @@ bool multipliers(const Eigen::MatrixXd& M, const Eigen::MatrixXd& B, const Eigen
 }
 }  // namespace
 
+void JerkDynamics::forces_and_rates(double t) {
+  Q_.setZero(n_);
+  Qdot_.setZero(n_);
+  if (!forces_ || forces_->elements().empty()) return;
+  double z = 0, zdot = 0;  // the elements have no states (checked by the constructor)
+  forces_->evaluate(t, q_, qd_, &z, Q_, &zdot);
+  for (const auto& e : forces_->elements()) e->add_rate(t, q_, qd_, qdd_, Qdot_);
+}
+
 Eigen::VectorXd JerkDynamics::initial_state(double t0, const Eigen::VectorXd& q0, const Eigen::VectorXd& qd0,
                                             const Eigen::VectorXd* qdd_hint) {
   model_.check_q(q0);
   check_vector("qd", qd0, n_);
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n_);
   Eigen::VectorXd tau, taud;
-  inverse_dynamics_rate(model_, q0, qd0, zero, tau, taud);  // τ(q̈ = 0) = c + g = −F
+  inverse_dynamics_rate(model_, q0, qd0, zero, tau, taud);  // τ(q̈ = 0) = c + g
+  q_ = q0;
+  qd_ = qd0;
+  qdd_ = zero;
+  forces_and_rates(t0);  // Q does not depend on q̈
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q0);
   Eigen::LLT<Eigen::MatrixXd> llt(M);
-  Eigen::VectorXd qdd0 = llt.solve(-tau);  // the free acceleration M⁻¹F
+  Eigen::VectorXd qdd0 = llt.solve(Q_ - tau);  // the free acceleration M⁻¹F, F = Q − c − g
   if (qdd_hint && m_ > 0) {
     check_vector("qdd", *qdd_hint, n_);
     for (int p : points_) point_motion(model_, q0, qd0, qdd0, p, motion_[p]);
@@ -429,7 +453,9 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   for (int p : points_) point_motion(model_, q_, qd_, qdd_, p, motion_[p]);
   for (int r = 0; r < m_; ++r) constraints_[r]->evaluate(t, q_, qd_, qdd_, motion_, s_[r], B_.row(r), Bdot_.row(r));
   inverse_dynamics_rate(model_, q_, qd_, qdd_, tau_, taud_);
-  R_ = tau_;  // M q̈ − F with F = −(c + g): no force elements
+  forces_and_rates(t);
+  R_ = tau_ - Q_;       // M q̈ − F, F = Q − c − g
+  taud_ -= Qdot_;       // Ṙ at q⃛ = 0
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q_);
   Eigen::LLT<Eigen::MatrixXd> llt;
   if (m_ > 0) {
@@ -498,6 +524,7 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
   options.validate();
   check_vector("x0", x0, jd.state_size(), "x0 = [q; qd; qdd], see JerkDynamics::initial_state");
   const Model& model = jd.model();
+  const ForceSet* forces = jd.forces();
   const int n = jd.nq(), m = jd.num_constraints();
   Plan plan;
   plan.joints = model.joint_name;
@@ -533,7 +560,11 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
     plan.phid.push_back(plan.phi.back());
     plan.lambda.push_back(ok ? jd.lambda() : Eigen::VectorXd::Constant(m, nan));
     plan.Qc.push_back(ok ? jd.constraint_force() : Eigen::VectorXd::Constant(n, nan));
-    plan.actuator_effort.push_back(plan.Qc.back());
+    Eigen::VectorXd act = plan.Qc.back();
+    if (forces)
+      for (int k = 0; k < static_cast<int>(forces->elements().size()); ++k)
+        if (forces->elements()[k]->actuator()) act += forces->element_force(k, t, q, x.segment(n, n), nullptr);
+    plan.actuator_effort.push_back(std::move(act));
     if (ok) worst = std::max(worst, jd.dynamics_residual());
     if (progress) progress(t);
     return true;

@@ -428,12 +428,18 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
                    "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
                    "contain only jerk rows (docs/higher_order.md)");
       }
-      if (!spec.forces.empty())
-        c.fail(spec.forces[0].fields, spec.forces[0].key,
-               "force element '" + s->forces.elements()[0]->name() +
-                   "' in a problem with jerk constraints (order: jerk): the p = 3 reference dynamics needs the time "
-                   "derivative of every force, which force elements do not provide; remove the force elements or "
-                   "state the task at the acceleration level");
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
+      Eigen::VectorXd rate = zero;
+      for (size_t k = 0; k < spec.forces.size(); ++k) {
+        const ForceElement& f = *s->forces.elements()[k];
+        if (f.num_states() > 0 || !f.add_rate(0.0, zero, zero, zero, rate))
+          c.fail(spec.forces[k].fields, spec.forces[k].key,
+                 "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
+                 "reference dynamics needs the time derivative of every force, which this element " +
+                     (f.num_states() > 0 ? std::string("(it has states) ") : std::string()) +
+                     "does not provide (damping, spring, effort and flexible_drive do); remove it or state the task "
+                     "at the acceleration level");
+      }
       if (!spec.experiments.empty())
         c.fail(spec.experiments_value, "experiments",
                "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
@@ -575,7 +581,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
     // the jerk-level system once at t0: every row regular and finite.
     const double t0 = s->integrator.t0;
-    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa});
+    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa}, &s->forces);
     try {
       const Eigen::VectorXd x0 = jd.initial_state(t0, s->q0, s->qd0, s->qdd0.size() ? &s->qdd0 : nullptr);
       Eigen::VectorXd dx(x0.size());
@@ -718,7 +724,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
 
 Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
   if (p.is_jerk_problem()) {
-    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa});
+    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa}, &p.forces);
     const Eigen::VectorXd x0 = jd.initial_state(p.integrator.t0, p.q0, p.qd0, p.qdd0.size() ? &p.qdd0 : nullptr);
     return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
   }

@@ -14,13 +14,15 @@
 /// scalar-templated recursive Newton–Euler, the point jerks and Ċ from the same AD of the point
 /// kinematics, Ḃ from the exact Hessian of the constraint expression: no finite differences.
 ///
-/// Scope (checked, with errors naming the constraint): only expression constraints of order 3,
-/// no other constraint rows in the same system, no force elements (F = −c − g); the expression
+/// Scope (checked, with errors naming the constraint or element): only expression constraints of
+/// order 3, no other constraint rows in the same system, force elements only if they provide
+/// their rate (ForceElement::add_rate) and have no states; the expression
 /// is linear in the jerks jx(P), jy(P), jz(P), qddd(j), and their coefficients do not depend on
 /// accelerations (ax(P)…, qdd(j)) or jerks, so that B = B(t, q, q̇).
 
 #include "refdyn/constraints.hpp"
 #include "refdyn/control.hpp"
+#include "refdyn/force_elements.hpp"
 #include "refdyn/integrators.hpp"
 #include "refdyn/model.hpp"
 
@@ -87,12 +89,16 @@ struct JerkDynamicsOptions {
 
 class JerkDynamics {
  public:
-  JerkDynamics(const Model& model, std::vector<JerkConstraintPtr> constraints, JerkDynamicsOptions options = {});
+  /// `forces` (optional, kept by reference): elements with states or without add_rate() are
+  /// rejected with an Error naming the element.
+  JerkDynamics(const Model& model, std::vector<JerkConstraintPtr> constraints, JerkDynamicsOptions options = {},
+               const ForceSet* forces = nullptr);
   int nq() const { return n_; }
   int num_constraints() const { return m_; }
   int state_size() const { return 3 * n_; }
   const Model& model() const { return model_; }
   const std::vector<JerkConstraintPtr>& constraints() const { return constraints_; }
+  const ForceSet* forces() const { return forces_; }
 
   /// x0 = [q0; q̇0; q̈0] with q̈0 consistent with the dynamics, Nᵀ(M q̈0 − F) = 0:
   /// q̈0 = M⁻¹(F + Bᵀλ0). Without qdd_hint λ0 = 0 (q̈0 is the free acceleration); with it,
@@ -115,21 +121,24 @@ class JerkDynamics {
   double dynamics_residual() const { return dyn_res_; }
 
  private:
+  void forces_and_rates(double t);  // Q_, Qdot_ at q_, qd_, qdd_
   const Model& model_;
+  const ForceSet* forces_;
   std::vector<JerkConstraintPtr> constraints_;
   JerkDynamicsOptions opt_;
   int n_, m_;
   Data data_;
   std::vector<int> points_;
   std::vector<PointMotion> motion_;
-  Eigen::VectorXd q_, qd_, qdd_, tau_, taud_, R_, lambda_, qddd_, s_, row_res_;
+  Eigen::VectorXd q_, qd_, qdd_, tau_, taud_, R_, lambda_, qddd_, s_, row_res_, Q_, Qdot_;
   Eigen::MatrixXd B_, Bdot_;
   double dyn_res_ = 0;
 };
 
 /// Integrates a JerkDynamics from x0 = [q; q̇; q̈] and records it like plan_motion: x (with
 /// state_names "acc_<joint>" for the q̈ part), q̈, Φ and Φ̇ (both: the jerk rows' residual
-/// B q⃛ + s), λ, Q_c = M q̈ − F (also the actuator effort: the rows are programmed), points.
+/// B q⃛ + s), λ, Q_c = M q̈ − F, the actuator effort (Q_c, the rows being programmed, plus the
+/// actuator force elements), points.
 /// summary.max_constraint_residual: the largest dynamics residual ‖R − Bᵀλ‖∞ over the samples.
 Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
                       const RecordOptions& record = {}, const std::function<void(double)>& progress = {});

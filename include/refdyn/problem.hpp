@@ -70,7 +70,8 @@ struct Problem {
   Limits limits;
   /// Jerk-level problems (constraints of `order: jerk`, docs/higher_order.md): their rows (then
   /// every row of `constraints` is one), the gain κ and the initial-acceleration hint. They are
-  /// planned by JerkDynamics (state [q; q̇; q̈]); `options` and the partition are not used.
+  /// planned by JerkDynamics (state [q; q̇; q̈]) with `forces` (stateless elements with a rate);
+  /// `options` and the partition are not used.
   std::vector<JerkConstraintPtr> jerk_constraints;
   double kappa = 50.0;
   Eigen::VectorXd qdd0;                     ///< the hint (initial.qdd); empty: the free acceleration

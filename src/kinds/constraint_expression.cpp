@@ -15,7 +15,7 @@ ConstraintKind constraint_expression() {
             {"order", "position | velocity | acceleration | jerk", false, "position",
              "holonomic Φ(q, t) = 0, first-order c(q, q̇, t) = 0, acceleration-level B(t, q, q̇) q̈ + s = 0 "
              "(programmed, p = 2) or jerk-level B(t, q, q̇) q⃛ + s = 0 (programmed, p = 3, only jerk rows and no "
-             "force elements in the problem); docs/higher_order.md"}};
+             "force elements with states in the problem); docs/higher_order.md"}};
   k.build = [](const EntryArgs& a, ConstraintOrigin origin) {
     ConstraintOrder order = ConstraintOrder::Position;
     if (a.has("order")) {
