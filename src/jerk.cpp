@@ -459,14 +459,14 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q_);
   Eigen::LLT<Eigen::MatrixXd> llt;
   if (m_ > 0) {
-    if (!multipliers(M, B_, R_, lambda_, llt))
+    if (!multipliers(M, B_, R_, lambda_, llt))  // R = Bᵀλ + ρ here; stored below with the sign of
       throw NumericalFailure(t, "at t = " + fmt(t) + " s the jerk constraint rows are linearly dependent (B M⁻¹ Bᵀ is "
                                 "singular)");
   } else {
     llt.compute(M);
   }
   dyn_res_ = m_ ? (R_ - B_.transpose() * lambda_).cwiseAbs().maxCoeff() : R_.cwiseAbs().maxCoeff();
-  // KKT: [M, −Bᵀ; B, 0] [q⃛; ν] = [Ḃᵀλ − τ̇ − κR; −s]
+  // KKT: [M, −Bᵀ; B, 0] [q⃛; ν] = [Ḃᵀλ − τ̇ − κR; −s]  (λ with R = Bᵀλ + ρ)
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n_ + m_, n_ + m_);
   K.topLeftCorner(n_, n_) = M;
   K.topRightCorner(n_, m_) = -B_.transpose();
@@ -479,6 +479,7 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   if (!sol.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the jerk-level system is singular");
   qddd_ = sol.head(n_);
   row_res_ = B_ * qddd_ + s_;
+  lambda_ = -lambda_;  // ReferenceDynamics' sign: Q_c = M q̈ − F = −Bᵀλ
   xdot.resize(3 * n_);
   xdot << qd_, qdd_, qddd_;
 }

@@ -240,7 +240,7 @@ TEST(JerkDynamics, InitialAccelerationIsConsistentWithTheDynamics) {
     Eigen::VectorXd dx(x0.size());
     jd.derivative(0.2, x0, dx);
     const Eigen::VectorXd R = inverse_dynamics(m, data, q0, qd0, x0.tail(4));  // M q̈0 − F
-    EXPECT_TRUE(test::near(R, jd.B().transpose() * jd.lambda(), 1e-10, 1e-10));
+    EXPECT_TRUE(test::near(R, -jd.B().transpose() * jd.lambda(), 1e-10, 1e-10));  // Q_c = −Bᵀλ
     EXPECT_LT(jd.dynamics_residual(), 1e-10);
     if (h) EXPECT_TRUE(test::near(jd.B() * x0.tail(4), jd.B() * hint, 1e-10, 1e-10));
     else EXPECT_TRUE(test::near(jd.lambda(), Eigen::VectorXd::Zero(2), 0, 1e-10));

@@ -7,7 +7,8 @@
 /// null space of B — the reactions act along Bᵀ: M q̈ = F + Bᵀλ. With the jerk row this is an
 /// ODE of order 3 in q; the state is x = [q; q̇; q̈], and q⃛ solves, with R = M q̈ − F,
 ///     M q⃛ − Bᵀν = Ḃᵀλ − Ṙ|_{q⃛=0} − κ R,      B q⃛ = −s,
-/// where λ = (B M⁻¹ Bᵀ)⁻¹ B M⁻¹ R is the reaction carried by the state and κ ≥ 0 a user-set
+/// where λ = (B M⁻¹ Bᵀ)⁻¹ B M⁻¹ R is the reaction carried by the state (lambda() reports −λ, the
+/// sign of ReferenceDynamics: Q_c = −Bᵀλ) and κ ≥ 0 a user-set
 /// Baumgarte-type gain on the projected dynamics residual Nᵀ(M q̈ − F) (it obeys
 /// d/dt(NᵀR) = −κ NᵀR + Ṅᵀ(R − Bᵀλ); along a consistent solution R = Bᵀλ and the equation is
 /// exact). Ṙ|_{q⃛=0} = Ṁ q̈ + ċ + ġ comes from forward-mode AD (dual numbers) of a
@@ -111,7 +112,8 @@ class JerkDynamics {
 
   // ---- results of the last derivative() call ----
   const Eigen::VectorXd& qddd() const { return qddd_; }
-  const Eigen::VectorXd& lambda() const { return lambda_; }         ///< M q̈ − F ≈ Bᵀλ
+  /// The multipliers, with ReferenceDynamics' sign: M q̈ − F = −Bᵀλ (+ the residual ρ).
+  const Eigen::VectorXd& lambda() const { return lambda_; }
   const Eigen::VectorXd& constraint_force() const { return R_; }    ///< R = M q̈ − F
   const Eigen::MatrixXd& B() const { return B_; }
   const Eigen::VectorXd& s() const { return s_; }
