@@ -26,12 +26,9 @@ struct Dual {
 };
 inline Dual operator+(Dual a, Dual b) { return {a.v + b.v, a.d + b.d}; }
 inline Dual operator-(Dual a, Dual b) { return {a.v - b.v, a.d - b.d}; }
-inline Dual operator-(Dual a) { return {-a.v, -a.d}; }
 inline Dual operator*(Dual a, Dual b) { return {a.v * b.v, a.d * b.v + a.v * b.d}; }
-inline Dual& operator+=(Dual& a, Dual b) { return a = a + b; }
 inline Dual sin(Dual a) { return {std::sin(a.v), std::cos(a.v) * a.d}; }
 inline Dual cos(Dual a) { return {std::cos(a.v), -std::sin(a.v) * a.d}; }
-inline double value(double a) { return a; }
 inline double value(Dual a) { return a.v; }
 inline double deriv(Dual a) { return a.d; }
 using std::cos;

@@ -26,8 +26,8 @@ class ForceElement {
   /// (exact), to Qdot and returns true; the default provides none and returns false. Needed by
   /// jerk-level problems (p = 3, jerk.hpp), which reject elements without it (and elements with
   /// states). Damping, spring, effort and the flexible drive provide it.
-  virtual bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
-                        Eigen::VectorXd& Qdot) const {
+  virtual bool add_rate(double /*t*/, const Eigen::VectorXd& /*q*/, const Eigen::VectorXd& /*qd*/,
+                        const Eigen::VectorXd& /*qdd*/, Eigen::VectorXd& /*Qdot*/) const {
     return false;
   }
   /// Name of each state (for CSV headers).
