@@ -422,6 +422,9 @@ Eigen::VectorXd JerkDynamics::initial_state(double t0, const Eigen::VectorXd& q0
   forces_and_rates(t0);  // Q does not depend on q̈
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q0);
   Eigen::LLT<Eigen::MatrixXd> llt(M);
+  if (llt.info() != Eigen::Success)
+    throw NumericalFailure(t0, "at t0 = " + fmt(t0) + " s the mass matrix is not positive definite (a joint that "
+                               "moves no mass or inertia?)");
   Eigen::VectorXd qdd0 = llt.solve(Q_ - tau);  // the free acceleration M⁻¹F, F = Q − c − g
   if (qdd_hint && m_ > 0) {
     check_vector("qdd", *qdd_hint, n_);
@@ -454,7 +457,10 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   R_ = tau_ - Q_;       // M q̈ − F, F = Q − c − g
   taud_ -= Qdot_;       // Ṙ at q⃛ = 0
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q_);
-  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::LLT<Eigen::MatrixXd> llt(M);
+  if (llt.info() != Eigen::Success)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite (a joint that moves "
+                              "no mass or inertia?)");
   if (m_ > 0) {
     if (!multipliers(M, B_, R_, lambda_, llt))  // R = Bᵀλ + ρ here; stored below with the sign of
       throw NumericalFailure(t, "at t = " + fmt(t) + " s the jerk constraint rows are linearly dependent (B M⁻¹ Bᵀ is "
