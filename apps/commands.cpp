@@ -56,7 +56,7 @@ class Progress {
 
 std::string constraint_kind(const Constraint& c) {
   std::string s = to_string(c.origin);
-  s += c.first_order() ? ", first-order" : ", holonomic";
+  s += c.order() == 3 ? ", jerk-level" : c.order() == 2 ? ", acceleration-level" : c.first_order() ? ", first-order" : ", holonomic";
   s += c.rheonomic() ? ", rheonomic" : ", scleronomic";
   return s;
 }
@@ -92,20 +92,40 @@ int run_check(const std::string& file, const InputOptions& in) {
   const auto sp = io::load_problem(file, in.max_input_bytes);
   const Problem& s = *sp;
   const Model& m = s.model;
+  if (s.is_jerk_problem()) {  // planned by JerkDynamics: state [q; q̇; q̈], no partition
+    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa}, &s.forces);
+    const Eigen::VectorXd x = jd.initial_state(s.integrator.t0, s.q0, s.qd0, s.qdd0.size() ? &s.qdd0 : nullptr);
+    Eigen::VectorXd dx(x.size());
+    jd.derivative(s.integrator.t0, x, dx);
+    std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
+    std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
+    for (const auto& c : s.constraints.constraints())
+      std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
+    std::cout << "jerk-level problem (p = 3): state [q; qd; qdd], kappa = " << s.kappa << " 1/s\n";
+    std::cout << "initial acceleration at t0 = " << s.integrator.t0 << " s" << (s.qdd0.size() ? " (from initial.qdd)" : " (free)")
+              << ":";
+    for (int j = 0; j < m.nq; ++j) std::cout << " " << m.joint_name[j] << " " << x[2 * m.nq + j];
+    std::cout << "\n";
+    for (int r = 0; r < s.constraints.rows(); ++r)
+      std::printf("  %-20s |B qddd + s| = %.3e\n", s.constraints.row_name(r).c_str(), std::abs(jd.row_residual()[r]));
+    std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
+              << s.integrator.t0 << ", " << s.integrator.t1 << "] s\n";
+    return kOk;
+  }
   // Everything is evaluated before anything is printed: "valid" is never followed by an error.
   ReferenceDynamics rd(m, s.forces, s.constraints, s.options);
   Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
   rd.derivative(s.integrator.t0, x, dx);
   std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
   std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
-  int mat = 0, prog = 0, hol = 0, fo = 0;
+  int mat = 0, prog = 0, hol = 0, fo = 0, acc = 0;
   for (const auto& c : s.constraints.constraints()) {
     std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
     (c->origin == ConstraintOrigin::Material ? mat : prog) += c->rows();
-    (c->first_order() ? fo : hol) += c->rows();
+    (c->order() == 2 ? acc : c->first_order() ? fo : hol) += c->rows();  // (order 3: jerk problems, above)
   }
   std::cout << "  rows by kind: " << mat << " material, " << prog << " programmed; " << hol << " holonomic, " << fo
-            << " first-order\n";
+            << " first-order" << (acc ? ", " + std::to_string(acc) + " acceleration-level" : std::string()) << "\n";
   std::cout << "force elements: " << s.forces.elements().size();
   for (const auto& e : s.forces.elements()) std::cout << "  " << e->name();
   std::cout << "\n";

@@ -28,6 +28,11 @@ class JointDamping final : public ForceElement {
     f.joints = {j_};
     return f;
   }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= b_ * qdd[j_];
+    return true;
+  }
  private:
   int j_;
   std::string n_;
@@ -47,6 +52,11 @@ class JointSpring final : public ForceElement {
     f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
     f.joints = {j_};
     return f;
+  }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= k_ * qd[j_];
+    return true;
   }
  private:
   int j_;
@@ -70,6 +80,11 @@ class JointEffort final : public ForceElement {
     f->rows = {"effort"};
     f->joints = {j_};
     return f;
+  }
+  bool add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] += f_->eval(t).df;
+    return true;
   }
  private:
   int j_;
@@ -115,6 +130,13 @@ void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::Vec
 double FlexibleDrive::torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
   const TimeValue psi = profile_->eval(t);
   return p_.stiffness * (psi.f - q[j_]) + p_.damping * (psi.df - qd[j_]);
+}
+
+bool FlexibleDrive::add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                            Eigen::VectorXd& Qdot) const {
+  const TimeValue psi = profile_->eval(t);
+  Qdot[j_] += p_.stiffness * (psi.df - qd[j_]) + p_.damping * (psi.ddf - qdd[j_]);
+  return true;
 }
 
 void FlexibleDrive::apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,

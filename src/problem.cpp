@@ -287,6 +287,13 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
       Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(row + 1, m.nv);
       qr.setThreshold(1e-9);
       qr.compute(A.topRows(row + 1));
+      if (A.row(row).norm() == 0 && cs.row_order(row) == 2) {
+        const auto [at, key] = entry_of(row);
+        c.fail(*at, key,
+               "acceleration constraint row '" + cs.row_name(row) + "' does not act on the accelerations at t0 = " +
+                   fmt(t0) + " s (B = d/dqdd of the expression is zero there): it cannot be imposed; start where "
+                   "it involves qdd, or write it differently");
+      }
       if (A.row(row).norm() == 0 || qr.rank() < row + 1) {
         const auto [at, key] = entry_of(row);
         c.fail(*at, key,
@@ -424,6 +431,39 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   }
   read_forces(c, spec.forces, m, s->forces);
 
+  // Jerk-level constraints (order: jerk, p = 3): planned by JerkDynamics, which supports only
+  // jerk rows and no force elements (their time derivatives are not provided).
+  {
+    const int nmimic = s->constraints.size() - static_cast<int>(spec.constraints.size());
+    for (int k = 0; k < s->constraints.size(); ++k)
+      if (JerkConstraintPtr j = jerk_constraint_of(*s->constraints.constraints()[k])) s->jerk_constraints.push_back(j);
+    if (s->is_jerk_problem()) {
+      for (int k = 0; k < s->constraints.size(); ++k) {
+        if (s->constraints.constraints()[k]->order() == 3) continue;
+        const SpecValue& at = k < nmimic ? spec.model.value : spec.constraints[k - nmimic].fields;
+        c.fail(at, k < nmimic ? "model.urdf" : spec.constraints[k - nmimic].key,
+               "constraint '" + s->constraints.constraints()[k]->name +
+                   "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
+                   "contain only jerk rows (docs/higher_order.md)");
+      }
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
+      Eigen::VectorXd rate = zero;
+      for (size_t k = 0; k < spec.forces.size(); ++k) {
+        const ForceElement& f = *s->forces.elements()[k];
+        if (f.num_states() > 0 || !f.add_rate(0.0, zero, zero, zero, rate))
+          c.fail(spec.forces[k].fields, spec.forces[k].key,
+                 "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
+                 "reference dynamics needs the time derivative of every force, which this element " +
+                     (f.num_states() > 0 ? std::string("(it has states) ") : std::string()) +
+                     "does not provide (damping, spring, effort and flexible_drive do); remove it or state the task "
+                     "at the acceleration level");
+      }
+      if (!spec.experiments.empty())
+        c.fail(spec.experiments_value, "experiments",
+               "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
+    }
+  }
+
   {
     const BaumgarteSpec& b = spec.baumgarte;
     if (b.alpha) s->options.alpha = c.number(b.alpha, "baumgarte.alpha");
@@ -472,6 +512,24 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   if (ini.tolerance) {
     s->initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
     if (!(s->initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
+  }
+  if (ini.qdd) {
+    if (!s->is_jerk_problem())
+      c.fail(ini.qdd, "initial.qdd",
+             "an initial acceleration is part of the state only in problems with jerk constraints (order: jerk); "
+             "elsewhere q̈0 follows from the dynamics (remove it)");
+    s->qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+  }
+  if (const SpecValue& k = spec.baumgarte.kappa) {
+    if (!s->is_jerk_problem())
+      c.fail(k, "baumgarte.kappa", "kappa is the gain of problems with jerk constraints (order: jerk); remove it");
+    s->kappa = c.number(k, "baumgarte.kappa");
+    if (!(std::isfinite(s->kappa) && s->kappa >= 0))
+      c.fail(k, "baumgarte.kappa", "expected a finite value >= 0 [1/s], got " + fmt(s->kappa));
+  }
+  if (s->is_jerk_problem()) {  // no partition: JerkDynamics solves a KKT system
+    s->options.independent.clear();
+    s->automatic_independent = false;
   }
 
   {
@@ -537,7 +595,31 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   // Initial consistency and partition at t0.
   s->initial_dq = Eigen::VectorXd::Zero(m.nq);
   s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
-  {
+  if (s->is_jerk_problem()) {
+    // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
+    // the jerk-level system once at t0: every row regular and finite.
+    const double t0 = s->integrator.t0;
+    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa}, &s->forces);
+    try {
+      const Eigen::VectorXd x0 = jd.initial_state(t0, s->q0, s->qd0, s->qdd0.size() ? &s->qdd0 : nullptr);
+      Eigen::VectorXd dx(x0.size());
+      jd.derivative(t0, x0, dx);
+      if (!dx.allFinite()) throw NumericalFailure(t0, "the jerk-level equations are not finite at t0 = " + fmt(t0) + " s");
+      for (int r = 0; r < nrows; ++r)
+        if (jd.B().row(r).norm() == 0) {
+          const EntrySpec& e = spec.constraints[r];
+          c.fail(e.fields, e.key,
+                 "jerk constraint row '" + s->constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
+                     " s (B = d/dqddd of the expression is zero there)");
+        }
+    } catch (const NumericalFailure& e) {
+      c.fail(spec.constraints_value, "constraints", e.what());
+    } catch (const Error& e) {
+      const std::string w = e.what();
+      if (w.rfind(c.file(), 0) == 0) throw;
+      c.fail(spec.constraints_value, "constraints", std::string("at t0: ") + w);
+    }
+  } else {
     ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
     const double t0 = s->integrator.t0;
     const SpecValue& where_part = part.value ? part.value : spec.root;
@@ -562,7 +644,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       s->initial_dqd = cons.dqd;
     }
     Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
-    rd.residual(t0, x);
+    try {
+      rd.residual(t0, x);  // with acceleration rows this solves the dynamics once
+    } catch (const NumericalFailure& e) {
+      c.fail(where_part, "partition", e.what());
+    }
     const ConstraintEval& ev = rd.constraints();
     for (int row = 0; row < nrows; ++row) {
       const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
@@ -655,6 +741,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
 }
 
 Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
+  if (p.is_jerk_problem()) {
+    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa}, &p.forces);
+    const Eigen::VectorXd x0 = jd.initial_state(p.integrator.t0, p.q0, p.qd0, p.qdd0.size() ? &p.qdd0 : nullptr);
+    return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
+  }
   const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
   return plan_motion(rd, x0, p.integrator, p.residual_from, progress, RecordOptions{p.report_point_indices()});
 }

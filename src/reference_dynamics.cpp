@@ -43,7 +43,11 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
     : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
       m_(constraints.rows()), data_(model), ev_(model, constraints) {
   opt_.validate();
-  for (int r = 0; r < constraints.rows(); ++r) first_order_row_.push_back(constraints.row_first_order(r));
+  for (int r = 0; r < constraints.rows(); ++r) {
+    first_order_row_.push_back(constraints.row_first_order(r));
+    acceleration_row_.push_back(constraints.row_order(r) == 2);
+    has_acceleration_rows_ = has_acceleration_rows_ || acceleration_row_.back();
+  }
   if (m_ > n_)
     throw Error(expected_got("number of constraint rows", "at most the number of coordinates (" + std::to_string(n_) + ")",
                              std::to_string(m_), "remove redundant constraints"));
@@ -303,7 +307,13 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
     const char* __restrict first = first_order_row_.data();
     const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
     double* __restrict rhs = rhs_.data();
-    for (int r = 0; r < m; ++r) rhs[r] = first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
+    if (!has_acceleration_rows_) {
+      for (int r = 0; r < m; ++r) rhs[r] = first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
+    } else {  // acceleration rows B q̈ + s = 0 (order p = 2): imposed as they are, A = B, γ = s
+      const char* __restrict acc = acceleration_row_.data();
+      for (int r = 0; r < m; ++r)
+        rhs[r] = acc[r] ? -gamma[r] : first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
+    }
   }
 
   if (opt_.solver == ReferenceSolver::Projection)
@@ -334,6 +344,7 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
       lambda[c] = sum;
     }
   }
+  if (has_acceleration_rows_) acceleration_residuals();
   double* __restrict out = xdot.data();
   const double* __restrict qd = qd_.data();
   for (int i = 0; i < n; ++i) out[i] = qd[i];
@@ -487,8 +498,24 @@ void ReferenceDynamics::solve_lagrange_sized(double t) {
                                   "hint: remove redundant constraints");
 }
 
+void ReferenceDynamics::acceleration_residuals() {
+  // The residual of an acceleration row is B q̈ + s, known only after the solve: it is written
+  // where a holonomic row has Φ and Φ̇ (recorded, reported), so that plans show it.
+  for (int r = 0; r < m_; ++r)
+    if (acceleration_row_[r]) {
+      const double res = ev_.A.row(r).dot(qdd_) + ev_.gamma[r];
+      ev_.phi[r] = res;
+      ev_.phid[r] = res;
+    }
+}
+
 double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
   check_size("x", state_size(), x.size());
+  if (has_acceleration_rows_) {  // their residual B q̈ + s needs q̈: one evaluation of the dynamics
+    xdot_.resize(state_size());
+    derivative(t, x, xdot_);
+    return ev_.phi.cwiseAbs().maxCoeff();
+  }
   q_ = x.head(n_);
   qd_ = x.segment(n_, n_);
   evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
@@ -511,9 +538,11 @@ ReferenceDynamics::Consistency ReferenceDynamics::make_consistent(double t, cons
     return r;
   };
   out.residual_before = residuals(out.q, out.qd);
-  std::vector<int> hol;
-  for (int r = 0; r < m_; ++r)
-    if (!constraints_.row_first_order(r)) hol.push_back(r);
+  std::vector<int> hol, state_rows;  // acceleration rows do not restrict (q, q̇)
+  for (int r = 0; r < m_; ++r) {
+    if (constraints_.row_order(r) == 0) hol.push_back(r);
+    if (constraints_.row_order(r) <= 1) state_rows.push_back(r);
+  }
   // Position level: minimum-norm Newton steps on the dependent coordinates, holonomic rows.
   for (int it = 0; it < max_iterations && !hol.empty(); ++it) {
     evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
@@ -529,13 +558,28 @@ ReferenceDynamics::Consistency ReferenceDynamics::make_consistent(double t, cons
     for (size_t c = 0; c < dep_.size(); ++c) out.q[dep_[c]] -= step[c];
   }
   // Velocity level: Φ̇ = 0 and c = 0 are both A q̇ + b = 0 in q̇; Newton on the dependent q̇.
-  for (int it = 0; it < max_iterations && m_ > 0; ++it) {
-    evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
-    if (ev_.phid.cwiseAbs().maxCoeff() <= tol) break;
-    Eigen::MatrixXd K(m_, dep_.size());
-    for (size_t c = 0; c < dep_.size(); ++c) K.col(c) = ev_.A.col(dep_[c]);
-    const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(ev_.phid);
-    for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
+  if (static_cast<int>(state_rows.size()) == m_) {
+    for (int it = 0; it < max_iterations && m_ > 0; ++it) {
+      evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
+      if (ev_.phid.cwiseAbs().maxCoeff() <= tol) break;
+      Eigen::MatrixXd K(m_, dep_.size());
+      for (size_t c = 0; c < dep_.size(); ++c) K.col(c) = ev_.A.col(dep_[c]);
+      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(ev_.phid);
+      for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
+    }
+  } else {  // the same over the position and velocity rows only (minimum-norm steps)
+    for (int it = 0; it < max_iterations && !state_rows.empty(); ++it) {
+      evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
+      Eigen::VectorXd phid(state_rows.size());
+      Eigen::MatrixXd K(state_rows.size(), dep_.size());
+      for (size_t i = 0; i < state_rows.size(); ++i) {
+        phid[i] = ev_.phid[state_rows[i]];
+        for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(state_rows[i], dep_[c]);
+      }
+      if (phid.cwiseAbs().maxCoeff() <= tol) break;
+      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(phid);
+      for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
+    }
   }
   out.residual_after = residuals(out.q, out.qd);
   out.converged = out.residual_after <= std::max(tol, 1e3 * tol * (1 + out.residual_before)) ||

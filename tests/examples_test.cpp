@@ -369,6 +369,48 @@ TEST(Examples, UrdfArmKeepsTheToolOnTheLine) {
     }
 }
 
+// An acceleration-level (p = 2) programmed constraint: a cup on a tray at E must not slide,
+// (a_E − g)·u(θ) = 0, u = (cos θ, sin θ), θ = q1 + q2 + φ. Checked from the recorded motion
+// alone: a_E by central differences of the forward kinematics of the recorded q (error
+// ~h²/12 |d⁴r/dt⁴|), against the tangential specific force a level tray would have felt; and
+// the ideal reaction acts as a force along the tray at E: Q_c ∥ C_Eᵀ u.
+TEST(Examples, WaiterTrayKeepsTheCupFromSliding) {
+  Planned p = plan_file("examples/waiter_tray/waiter_tray.yaml");
+  ASSERT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
+  const Model& m = p.sc->model;
+  ASSERT_EQ(p.sc->constraints.row_order(0), 2);
+  const double g = p.param("g"), phi = p.param("phi"), h = p.sc->integrator.step;
+  const int E = m.point_index("E");
+  Data data(m);
+  auto tip = [&](size_t k) {
+    forward_kinematics(m, data, p.q(k));
+    return point_position(m, data, E);
+  };
+  double err_slide = 0, level_tray = 0, err_reaction = 0, peak_qc = 0;
+  Eigen::VectorXd dx(p.rd->state_size());
+  for (size_t k = 1; k + 1 < p.plan.t.size(); ++k) {
+    const Vec3 a = (tip(k + 1) - 2 * tip(k) + tip(k - 1)) / (h * h);
+    const double th = p.q(k)[0] + p.q(k)[1] + phi;
+    err_slide = std::max(err_slide, std::abs(a.x() * std::cos(th) + (a.y() + g) * std::sin(th)));
+    level_tray = std::max(level_tray, std::abs(a.x()));
+    if (k % 50) continue;
+    p.rd->derivative(p.plan.t[k], p.plan.x[k], dx);
+    forward_kinematics(m, data, p.q(k));
+    point_jacobian(m, data, E);
+    const Eigen::Vector2d b = data.Jp.topRows(2).transpose() * Eigen::Vector2d(std::cos(th), std::sin(th));
+    const Eigen::VectorXd& Qc = p.rd->constraint_force();
+    err_reaction = std::max(err_reaction, std::abs(Qc[0] * b[1] - Qc[1] * b[0]) / (b.norm() * std::max(1.0, Qc.norm())));
+    peak_qc = std::max(peak_qc, Qc.norm());
+  }
+  report("waiter_tray", "max |(a_E - g).u| from the recorded motion [m/s^2]", err_slide);
+  report("waiter_tray", "max |a_E,x|: what a level tray would feel [m/s^2]", level_tray);
+  report("waiter_tray", "max |Q_c off C_E^T u| / |Q_c|", err_reaction);
+  EXPECT_LT(err_slide, 1e-3);
+  EXPECT_GT(level_tray, 1.0);
+  EXPECT_LT(err_reaction, 1e-9);
+  EXPECT_GT(peak_qc, 0.1);  // the forearm is no point mass: the elbow must act
+}
+
 // A URDF <mimic> joint becomes the material constraint mimic_<joint> (joint_coupling). A
 // three-link arm swinging under gravity with its third joint geared to the second: the
 // coupling holds along the plan, and since the coupling is ideal and scleronomic and there is
@@ -490,7 +532,7 @@ TEST(Examples, RunThroughTheCommandLine) {
   const fs::path tmp(tmpl);
   const std::vector<std::string> files{"examples/planar_2r_circle/planar_2r_circle.yaml", "examples/unicycle/unicycle.yaml",
                                        "examples/four_bar/four_bar.yaml", "examples/urdf_arm_line/urdf_arm_line.yaml",
-                                       "examples/paper/paper.yaml"};
+                                       "examples/waiter_tray/waiter_tray.yaml", "examples/paper/paper.yaml"};
   for (const auto& rel : files) {
     const std::string file = source_path(rel), name = fs::path(rel).stem().string();
     const fs::path out = tmp / name;

@@ -4,6 +4,9 @@
 ///        Φ̇ = A q̇ + Φ_t,      Φ̈ = A q̈ + γ,      A = ∂Φ/∂q
 ///  - first-order (velocity, nonholonomic or programmed speed) c(q, q̇, t) = 0:
 ///        ċ = A q̈ + γ,        A = ∂c/∂q̇        (c linear in q̇ for the classical B q̇ + s)
+///  - acceleration-level (programmed, order p = 2; expression constraints only)
+///    B(t, q, q̇) q̈ + s(t, q, q̇) = 0:  A = B, γ = s, Φ = Φ̇ = 0 (no residual at the state level;
+///    the reference dynamics writes B q̈ + s there after each solve). See docs/higher_order.md.
 /// γ carries every velocity-product and time-derivative term (Φ_tt, ∂Φ_t/∂q q̇ included).
 /// Everything is exact: analytic kinematics (C, d of kinematics.hpp) chained with exact
 /// derivatives of the task functions.
@@ -19,6 +22,10 @@
 namespace refdyn {
 
 enum class ConstraintOrigin { Material, Programmed };
+
+/// The order p of a constraint B q^(p) + s = 0 (paper eq. 2.1): 0 position (holonomic),
+/// 1 velocity (first order), 2 acceleration. (Jerk, p = 3, is not implemented.)
+enum class ConstraintOrder { Position = 0, Velocity = 1, Acceleration = 2 };
 const char* to_string(ConstraintOrigin o);
 
 /// World-frame kinematics of a point, computed once per evaluation and shared by constraints.
@@ -50,6 +57,9 @@ class Constraint {
   virtual ~Constraint() = default;
   virtual int rows() const = 0;
   virtual bool first_order() const = 0;       ///< velocity-level constraint
+  /// 0 holonomic, 1 first order (velocity), 2 acceleration level (B q̈ + s = 0: the row's A is
+  /// B, γ is s, and Φ, Φ̇ are written as 0). Kinds that are not acceleration-level keep the default.
+  virtual int order() const { return first_order() ? 1 : 0; }
   virtual bool rheonomic() const = 0;         ///< depends explicitly on time
   virtual std::vector<int> points() const { return {}; }  ///< model points it reads
   /// phi: Φ or c; phid: Φ̇ (holonomic; equals phi for first-order rows); A; gamma.
@@ -140,6 +150,14 @@ ConstraintPtr expression_constraint(const Model& model, const std::string& name,
                                     bool first_order = false,
                                     const std::map<std::string, double>& parameters = {},
                                     ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// The same with the order given explicitly. ConstraintOrder::Acceleration (p = 2) adds
+/// ax(P), ay(P), az(P) (point accelerations) and qdd(j) to the variables; the expression
+/// must involve at least one of them and be linear in them (the form B(t, q, q̇) q̈ + s = 0
+/// of the paper's eq. 2.1; checked symbolically). Then B = Σ f_w ∂w/∂q̈ over the acceleration
+/// variables w and s = f evaluated with q̈ = 0 (point accelerations = their drifts d).
+ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                    ConstraintOrder order, const std::map<std::string, double>& parameters = {},
+                                    ConstraintOrigin origin = ConstraintOrigin::Programmed);
 
 /// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
 class ConstraintSet {
@@ -151,6 +169,7 @@ class ConstraintSet {
   int row_offset(int k) const { return offsets_[k]; }
   int row_owner(int row) const;
   bool row_first_order(int row) const { return constraints_[row_owner(row)]->first_order(); }
+  int row_order(int row) const { return constraints_[row_owner(row)]->order(); }  ///< see Constraint::order
   const std::vector<int>& points() const { return points_; }  ///< union of points read
   std::string row_name(int row) const;                         ///< "name[i]" or "name"
  private:

@@ -22,6 +22,14 @@ class ForceElement {
   /// derivatives (written). dQ_dqd (nq×nq, optional): adds ∂Q/∂q̇ (exact).
   virtual void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                      Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const = 0;
+  /// Adds the rate of the element's force along the motion, Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈
+  /// (exact), to Qdot and returns true; the default provides none and returns false. Needed by
+  /// jerk-level problems (p = 3, jerk.hpp), which reject elements without it (and elements with
+  /// states). Damping, spring, effort and the flexible drive provide it.
+  virtual bool add_rate(double /*t*/, const Eigen::VectorXd& /*q*/, const Eigen::VectorXd& /*qd*/,
+                        const Eigen::VectorXd& /*qdd*/, Eigen::VectorXd& /*Qdot*/) const {
+    return false;
+  }
   /// Name of each state (for CSV headers).
   virtual std::vector<std::string> state_names() const { return {}; }
   /// True for actuators (drives, prescribed efforts): their force is delivered by the joint's
@@ -62,6 +70,8 @@ class FlexibleDrive final : public ForceElement {
   bool actuator() const override { return true; }
   void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const override;
   /// The drive torque alone.
   double torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
   /// psi_dr (the drive displacement ψ_dr(t)) and tau_drive (its torque), suffixed "_<label>".

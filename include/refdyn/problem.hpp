@@ -12,6 +12,7 @@
 #include "refdyn/control.hpp"
 #include "refdyn/force_elements.hpp"
 #include "refdyn/integrators.hpp"
+#include "refdyn/jerk.hpp"
 #include "refdyn/model.hpp"
 #include "refdyn/reference_dynamics.hpp"
 #include "refdyn/registry.hpp"
@@ -70,6 +71,14 @@ struct Problem {
   /// generate_symbolic, which keeps the parameters symbolic; null for a Problem built in C++.
   SpecValue model_spec;
   Limits limits;
+  /// Jerk-level problems (constraints of `order: jerk`, docs/higher_order.md): their rows (then
+  /// every row of `constraints` is one), the gain κ and the initial-acceleration hint. They are
+  /// planned by JerkDynamics (state [q; q̇; q̈]) with `forces` (stateless elements with a rate);
+  /// `options` and the partition are not used.
+  std::vector<JerkConstraintPtr> jerk_constraints;
+  double kappa = 50.0;
+  Eigen::VectorXd qdd0;                     ///< the hint (initial.qdd); empty: the free acceleration
+  bool is_jerk_problem() const { return !jerk_constraints.empty(); }
 
   std::vector<int> report_point_indices() const;
   /// A reference dynamics of this problem (refers to its members).
@@ -80,7 +89,8 @@ struct Problem {
 std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec);
 
 /// Plans the problem's reference motion (plan_motion with the problem's integrator, residual
-/// window and recorded points). `rd` must be made by problem.make_reference_dynamics().
+/// window and recorded points). `rd` must be made by problem.make_reference_dynamics(). A jerk
+/// problem is planned by plan_jerk_motion instead (`rd` is not used).
 Plan plan_problem(const Problem& problem, ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
 
 /// Runs one experiment on the unconstrained plant tracking `plan`.

@@ -18,6 +18,13 @@
 /// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
 /// programmed motion. Both give the same q̈ (to rounding) for any valid partition.
 ///
+/// Acceleration-level rows (programmed constraints of order p = 2, B(t, q, q̇) q̈ + s = 0, see
+/// docs/higher_order.md): the paper's GPME (2.4) for p = 2 reduce, by Tsenov's identity, to the
+/// same projection Nᵀ(M q̈ − F) = 0 with N spanning the null space of the stacked rows, so such
+/// a row enters the stack as it is: A = B, rhs = −s (no Baumgarte term: nothing to stabilize,
+/// the row is satisfied algebraically at every evaluation). After each solve its Φ and Φ̇ in
+/// constraints() hold the residual B q̈ + s.
+///
 /// Paper-literal forces (option): (2.5) adds Σ_k q̇_k ∂Q_k/∂q̇_i to the projected forces,
 /// i.e. uses Nᵀ(Q + (∂Q/∂q̇)ᵀ q̇). That is not what Lagrange's equations give when Q depends
 /// on q̇ (damping, friction, drives); it is available for comparison with the paper only.
@@ -116,7 +123,8 @@ class ReferenceDynamics {
   Consistency make_consistent(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double tol = 1e-12,
                               int max_iterations = 50);
 
-  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order).
+  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order);
+  /// with acceleration rows, also |B q̈ + s| (then it evaluates derivative() once).
   double residual(double t, const Eigen::VectorXd& x);
 
  private:
@@ -140,6 +148,10 @@ class ReferenceDynamics {
   ConstraintEval ev_;
   std::vector<int> ind_, dep_;
   std::vector<char> first_order_row_;  ///< per constraint row: velocity-level (ċ + β₁c) or not
+  std::vector<char> acceleration_row_;  ///< per constraint row: acceleration level (B q̈ + s = 0)
+  bool has_acceleration_rows_ = false;
+  void acceleration_residuals();  // Φ = Φ̇ = B q̈ + s on acceleration rows after a solve
+  Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
   bool partition_set_ = false;
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;

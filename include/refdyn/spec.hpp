@@ -96,6 +96,7 @@ struct PartitionSpec {
 struct BaumgarteSpec {
   SpecValue alpha, beta, beta_first_order;
   SpecValue value;
+  SpecValue kappa;  ///< jerk problems: gain on the projected dynamics residual
 };
 
 struct InitialSpec {
@@ -103,6 +104,7 @@ struct InitialSpec {
   bool project = false;                    ///< consistency: project (else check)
   SpecValue tolerance;
   SpecValue value;
+  SpecValue qdd;                           ///< jerk problems: initial acceleration (hint)
 };
 
 struct IntegratorSpec {

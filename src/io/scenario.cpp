@@ -268,8 +268,9 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (root["plant_forces"]) s.plant_forces = rd.forces(root["plant_forces"], "plant_forces");
 
   if (const SpecValue& b = root["baumgarte"]) {
-    c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order"});
+    c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order", "kappa"});
     s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b};
+    s.baumgarte.kappa = b["kappa"];
   }
   if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange"});
   if (root["paper_literal_forces"]) s.paper_literal_forces = c.boolean(root["paper_literal_forces"], "paper_literal_forces");
@@ -291,9 +292,10 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   }
 
   const SpecValue& ini = c.need(root, "initial", "");
-  c.keys(ini, "initial", {"q", "qd", "consistency", "tolerance"});
+  c.keys(ini, "initial", {"q", "qd", "qdd", "consistency", "tolerance"});
   c.need(ini, "q", "initial");
   s.initial = {ini["q"], ini["qd"], false, ini["tolerance"], ini};
+  s.initial.qdd = ini["qdd"];
   if (ini["consistency"]) s.initial.project = c.choice(ini["consistency"], "initial.consistency", {"check", "project"}) == "project";
 
   if (const SpecValue& in = root["integrator"]) {

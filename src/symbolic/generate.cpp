@@ -266,8 +266,11 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   S.A.assign(static_cast<size_t>(S.m) * n, 0);
   for (int k = 0; k < cs.size(); ++k) {
     const Constraint& c = *cs.constraints()[k];
-    std::optional<SymbolicForm> form = c.symbolic();
     const std::string where = "generate: constraint '" + c.name + "'";
+    if (c.order() >= 2)
+      throw Error(where + " is of order " + (c.order() == 2 ? "acceleration" : "jerk") +
+                  ": the generated equations cover position and velocity constraints (docs/generate.md)");
+    std::optional<SymbolicForm> form = c.symbolic();
     if (form) c.symbolic_inputs.apply(*form);
     if (!form)
       throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
