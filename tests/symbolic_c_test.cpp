@@ -1,5 +1,6 @@
 // The generated C (refdyn generate --format c, compiled at build time by tests/CMakeLists.txt)
-// of five examples (planar_2r_circle fully constrained: n = m) and of tests/data/symbolic/every_kind.yaml
+// of six examples (planar_2r_circle fully constrained: n = m; waiter_tray with an acceleration
+// row, p = 2) and of tests/data/symbolic/every_kind.yaml
 // (the kinds and model features the examples leave out) against the numeric
 // engine at random states: M, c, g, Q, ż, Φ, Φ̇, A, γ and ẋ of the reference dynamics. Two
 // independent routes: the generator's symbolic Newton–Euler in body frames with
@@ -15,6 +16,7 @@
 #include "planar_2r_circle/reference_dynamics.h"
 #include "unicycle/reference_dynamics.h"
 #include "urdf_arm_line/reference_dynamics.h"
+#include "waiter_tray/reference_dynamics.h"
 
 #include <gtest/gtest.h>
 
@@ -69,6 +71,9 @@ struct Generated {
 #define every_kind_NQ EVERY_KIND_NQ
 #define every_kind_NZ EVERY_KIND_NZ
 #define every_kind_NC EVERY_KIND_NC
+#define waiter_tray_NQ WAITER_TRAY_NQ
+#define waiter_tray_NZ WAITER_TRAY_NZ
+#define waiter_tray_NC WAITER_TRAY_NC
 #define arm_NQ ARM_NQ
 #define arm_NZ ARM_NZ
 #define arm_NC ARM_NC
@@ -76,7 +81,8 @@ struct Generated {
 std::vector<Generated> all_generated() {
   return {REFDYN_GENERATED(paper_, "paper"), REFDYN_GENERATED(four_bar_, "four_bar"),
           REFDYN_GENERATED(unicycle_, "unicycle"), REFDYN_GENERATED(arm_, "urdf_arm_line"),
-          REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle"), REFDYN_GENERATED(every_kind_, "every_kind")};
+          REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle"), REFDYN_GENERATED(every_kind_, "every_kind"),
+          REFDYN_GENERATED(waiter_tray_, "waiter_tray")};
 }
 
 /// max |a − b| / max(1, max |b|)

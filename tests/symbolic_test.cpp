@@ -261,6 +261,26 @@ TEST(GenerateSymbolic, RejectsWhatItCannotGenerate) {
   yaml += "\npaper_literal_forces: true\n";
   const auto problem = io::parse_problem(yaml, example("planar_2r_circle"));
   test::expect_error_mentioning([&] { generate_symbolic(*problem); }, {"paper-literal"});
+  // a jerk row (p = 3): its reference dynamics has the state [q, q̇, q̈], not generated
+  const char* jerk = R"(
+name: particle_jerk
+model:
+  links:
+    - {name: arm, joint: th, parent: base, type: revolute, axis: [0, 0, 1], mass: 0, inertia: [0, 0, 0]}
+    - {name: bead, joint: r, parent: arm, type: prismatic, axis: [1, 0, 0], mass: 1.7, inertia: [0, 0, 0]}
+  points:
+    P: {link: bead, position: [0, 0, 0]}
+constraints:
+  - name: tangential_jerk
+    order: jerk
+    expression: (vx(P)*jx(P) + vy(P)*jy(P))/sqrt(vx(P)^2 + vy(P)^2) - 0.9*sin(2*t)
+initial:
+  q: {th: 0, r: 1}
+  qd: {th: 0.8, r: 0.3}
+integrator: {method: rk4, step: 0.01, t0: 0, t1: 3}
+)";
+  const auto jp = io::parse_problem(jerk, "jerk.yaml");
+  test::expect_error_mentioning([&] { generate_symbolic(*jp); }, {"tangential_jerk", "order jerk"});
   const auto ok = io::load_problem(example("planar_2r_circle"));
   SymbolicOptions o;
   o.prefix = "9bad prefix";

@@ -356,7 +356,8 @@ std::string SymbolicReferenceDynamics::c_header() const {
     << "/* Q(t, q, qd, z) of the force elements (NQ) and the rates of their states (NZ). */\n"
     << "void " << P << "forces(double t, const double* x, const " << P << "params* p, double* Q, double* zdot);\n"
     << "/* Constraint rows (NC): phi (holonomic: Phi; first order: c), phid (Phi dot; c), A (NC x NQ), gamma:\n"
-    << " * d2Phi/dt2 = A qdd + gamma (holonomic), dc/dt = A qdd + gamma (first order). */\n"
+    << " * d2Phi/dt2 = A qdd + gamma (holonomic), dc/dt = A qdd + gamma (first order), A qdd + gamma = 0\n"
+    << " * (acceleration rows, whose phi and phid are 0). */\n"
     << "void " << P << "constraints(double t, const double* x, const " << P
     << "params* p, double* phi, double* phid, double* A, double* gamma);\n"
     << "/* xdot = f(t, x) of the reference dynamics (projection, null-space method). Returns 0, or 1 if the\n"
@@ -459,13 +460,13 @@ std::string SymbolicReferenceDynamics::c_source() const {
     << "  enum { n = " << n << ", m = " << m << ", k = " << k << ", nz = " << S.nz << " };\n"
     << "  static const int ind[" << K << "] = {" << list(S.independent) << "};\n"
     << "  static const int dep[" << Mr << "] = {" << list(S.dependent) << "};\n"
-    << "  static const int first_order[" << Mr << "] = {";
+    << "  static const int order[" << Mr << "] = {";
   {
     std::string s;
-    for (int r = 0; r < m; ++r) s += (r ? ", " : "") + std::to_string(static_cast<int>(S.first_order_row[r]));
+    for (int r = 0; r < m; ++r) s += (r ? ", " : "") + std::to_string(static_cast<int>(S.row_order[r]));
     o << (s.empty() ? "0" : s);
   }
-  o << "};\n"
+  o << "};  /* per row: 0 position, 1 velocity, 2 acceleration */\n"
     << "  double M[" << n * n << "], c[" << N << "], g[" << N << "], Q[" << N << "], zdot[" << std::max(S.nz, 1)
     << "], F[" << N << "];\n"
     << "  double phi[" << Mr << "], phid[" << Mr << "], A[" << std::max(m, 1) * n << "], gamma[" << Mr << "];\n"
@@ -473,15 +474,16 @@ std::string SymbolicReferenceDynamics::c_source() const {
     << Mr << "];\n"
     << "  double Nm[" << n * std::max(k, 1) << "], qddp[" << N << "], NMN[" << std::max(k, 1) * std::max(k, 1)
     << "], u[" << K << "], MN[" << n * std::max(k, 1) << "], r[" << N << "];\n"
-    << "  (void)ind; (void)dep; (void)first_order; (void)Kdc; (void)G; (void)rhs; (void)phi; (void)phid; (void)A;\n"
+    << "  (void)ind; (void)dep; (void)order; (void)Kdc; (void)G; (void)rhs; (void)phi; (void)phid; (void)A;\n"
     << "  (void)gamma;\n"
     << "  " << P << "mass(x, p, M);\n  " << P << "bias(x, p, c, g);\n  " << P << "forces(t, x, p, Q, zdot);\n"
     << "  for (int i = 0; i < n; ++i) F[i] = Q[i] - c[i] - g[i];\n";
   if (m > 0) {
     o << "  " << P << "constraints(t, x, p, phi, phid, A, gamma);\n"
       << "  for (int i = 0; i < m; ++i)\n"
-      << "    rhs[i] = first_order[i] ? -gamma[i] - p->rd_beta1 * phi[i]\n"
-      << "                            : -gamma[i] - 2.0 * p->rd_alpha * phid[i] - p->rd_beta * p->rd_beta * phi[i];\n"
+      << "    rhs[i] = order[i] == 2   ? -gamma[i]\n"
+      << "             : order[i] == 1 ? -gamma[i] - p->rd_beta1 * phi[i]\n"
+      << "                             : -gamma[i] - 2.0 * p->rd_alpha * phid[i] - p->rd_beta * p->rd_beta * phi[i];\n"
       << "  /* G = K_dc^-1 [K_ic, rhs] */\n"
       << "  double KR[" << std::max(m, 1) * (std::max(k, 0) + 1) << "];\n"
       << "  for (int i = 0; i < m; ++i) {\n"
@@ -686,7 +688,8 @@ std::string SymbolicReferenceDynamics::latex() const {
   o << "\\section*{Equations}\nThe unconstrained dynamics and the constraints,\n"
     << "\\begin{align*}\n  M(q)\\,\\ddot q + c(q,\\dot q) + g(q) &= Q(t,q,\\dot q,z) + A^{\\mathsf T}\\lambda, \\\\\n"
     << "  A\\,\\ddot q &= -\\gamma - 2\\alpha\\dot\\Phi - \\beta^2\\Phi \\quad\\text{(position rows)}, \\qquad "
-    << "A\\,\\ddot q = -\\gamma - \\beta_1 c \\quad\\text{(velocity rows)},\n\\end{align*}\n"
+    << "A\\,\\ddot q = -\\gamma - \\beta_1 c \\quad\\text{(velocity rows)}, \\qquad "
+    << "A\\,\\ddot q = -\\gamma \\quad\\text{(acceleration rows)},\n\\end{align*}\n"
     << "with $\\alpha = " << double_text(S.alpha, 6) << "$, $\\beta = " << double_text(S.beta, 6) << "$, $\\beta_1 = "
     << double_text(S.beta1, 6) << "$ (Baumgarte), are merged into the reference dynamics\n";
   if (m > 0) {
@@ -721,9 +724,11 @@ std::string SymbolicReferenceDynamics::latex() const {
     for (int r = 0; r < m; ++r) {
       const std::string R = std::to_string(r + 1);
       o << "\\paragraph{Row " << R << ": \\texttt{" << latex_text(S.row_names[r]) << "}} (" << S.row_origin[r] << ", "
-        << (S.first_order_row[r] ? "velocity level" : "position level") << ")\n\\begin{align*}\n";
-      o << w.equation(S.first_order_row[r] ? "c_{" + R + "}" : "\\Phi_{" + R + "}", S.phi[r]);
-      if (!S.first_order_row[r]) o << w.equation("\\dot\\Phi_{" + R + "}", S.phid[r]);
+        << (S.row_order[r] == 2 ? "acceleration level: $A\\ddot q + \\gamma = 0$, imposed exactly"
+                                : S.row_order[r] == 1 ? "velocity level" : "position level")
+        << ")\n\\begin{align*}\n";
+      if (S.row_order[r] < 2) o << w.equation(S.row_order[r] ? "c_{" + R + "}" : "\\Phi_{" + R + "}", S.phi[r]);
+      if (S.row_order[r] == 0) o << w.equation("\\dot\\Phi_{" + R + "}", S.phid[r]);
       for (int i = 0; i < n; ++i)
         if (!S.A[r * n + i].is_zero()) o << w.equation("A_{" + R + "," + std::to_string(i + 1) + "}", S.A[r * n + i]);
       o << w.equation("\\gamma_{" + R + "}", S.gamma[r]) << "\\end{align*}\n";
@@ -781,7 +786,8 @@ std::string SymbolicReferenceDynamics::json() const {
   o << "],\n  \"constraints\": [";
   for (int r = 0; r < m; ++r) {
     o << (r ? ",\n" : "\n") << "    {\"name\": " << json_quote(S.row_names[r]) << ", \"origin\": " << json_quote(S.row_origin[r])
-      << ", \"order\": " << (S.first_order_row[r] ? "\"velocity\"" : "\"position\"") << ",\n     \"phi\": " << str(S.phi[r])
+      << ", \"order\": " << (S.row_order[r] == 2 ? "\"acceleration\"" : S.row_order[r] ? "\"velocity\"" : "\"position\"")
+      << ",\n     \"phi\": " << str(S.phi[r])
       << ",\n     \"phid\": " << str(S.phid[r]) << ",\n     \"A\": [";
     for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.A[r * n + i]);
     o << "],\n     \"gamma\": " << str(S.gamma[r]) << "}";

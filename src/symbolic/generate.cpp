@@ -211,6 +211,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     S.q.emplace_back("q(" + model.joint_name[i] + ")", "q_{" + k + "}");
     S.qd.emplace_back("qd(" + model.joint_name[i] + ")", "\\dot{q}_{" + k + "}");
   }
+  for (int i = 0; i < n; ++i)
+    S.qdd.emplace_back("qdd(" + model.joint_name[i] + ")", "\\ddot{q}_{" + std::to_string(i + 1) + "}");
   for (int k = 0; k < S.nz; ++k) S.z.emplace_back("state(" + std::to_string(k) + ")", "z_{" + std::to_string(k + 1) + "}");
 
   std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
@@ -233,6 +235,7 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (int i = 0; i < n; ++i) {
     B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
     B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
+    B.bind("qdd(" + model.joint_name[i] + ")", S.qdd[i]);
   }
   for (size_t p = 0; p < model.point_name.size(); ++p) {
     const int b = sm.bodies.points[p].body;
@@ -249,10 +252,12 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     const std::string& P = model.point_name[p];
     static const char* axes[] = {"x", "y", "z"};
     for (int k = 0; k < 3; ++k) {
-      ex v = 0;
+      ex v = 0, a = 0;
       for (int i = 0; i < n; ++i) v += r[k].diff(S.q[i]) * S.qd[i];
+      for (int i = 0; i < n; ++i) a += v.diff(S.q[i]) * S.qd[i] + r[k].diff(S.q[i]) * S.qdd[i];
       B.bind(std::string(axes[k]) + "(" + P + ")", r[k]);
       B.bind(std::string("v") + axes[k] + "(" + P + ")", v);
+      B.bind(std::string("a") + axes[k] + "(" + P + ")", a);
     }
     for (int a = 0; a < 3; ++a)
       for (int c = 0; c < 3; ++c) B.bind("R" + std::to_string(a + 1) + std::to_string(c + 1) + "(" + P + ")", R[3 * a + c]);
@@ -267,9 +272,9 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (int k = 0; k < cs.size(); ++k) {
     const Constraint& c = *cs.constraints()[k];
     const std::string where = "generate: constraint '" + c.name + "'";
-    if (c.order() >= 2)
-      throw Error(where + " is of order " + (c.order() == 2 ? "acceleration" : "jerk") +
-                  ": the generated equations cover position and velocity constraints (docs/generate.md)");
+    if (c.order() >= 3)
+      throw Error(where + " is of order jerk: the generated equations cover position, velocity and acceleration "
+                  "constraints (docs/generate.md)");
     std::optional<SymbolicForm> form = c.symbolic();
     if (form) c.symbolic_inputs.apply(*form);
     if (!form)
@@ -282,9 +287,21 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
       const ex f = B.parse(form->rows[r], form->parameters, where);
       S.row_names.push_back(cs.row_name(row));
       S.row_origin.push_back(to_string(c.origin));
-      S.first_order_row.push_back(c.first_order() ? 1 : 0);
+      S.row_order.push_back(static_cast<char>(c.order()));
       S.phi[row] = f;
-      if (!c.first_order()) {
+      for (int i = 0; i < n; ++i)
+        if (c.order() < 2 && f.has(S.qdd[i]))
+          throw Error(where + ": a position or velocity constraint depends on the acceleration of " + model.joint_name[i]);
+      if (c.order() == 2) {
+        // B q̈ + s = 0, linear in q̈ (checked by the kind): A = B = ∂f/∂q̈, γ = s = f at q̈ = 0,
+        // imposed exactly (A q̈ = −γ, no stabilisation); Φ and Φ̇ are reported as 0, as the engine does.
+        GiNaC::exmap zero;
+        for (int i = 0; i < n; ++i) zero[S.qdd[i]] = 0;
+        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qdd[i]);
+        S.gamma[row] = f.subs(zero, GiNaC::subs_options::no_pattern);
+        S.phi[row] = 0;
+        S.phid[row] = 0;
+      } else if (!c.first_order()) {
         for (int i = 0; i < n; ++i)
           if (f.has(S.qd[i]))
             throw Error(where + ": a position constraint depends on the velocity " + model.joint_name[i]);

@@ -85,7 +85,7 @@ struct SymbolicReferenceDynamics::Impl {
   int n = 0, nz = 0, m = 0;
   std::vector<std::string> joints, states;
   std::vector<std::string> row_names, row_origin;
-  std::vector<char> first_order_row;
+  std::vector<char> row_order;  ///< per row its order: 0 position, 1 velocity, 2 acceleration
   std::vector<int> independent, dependent;
   std::vector<std::string> param_names;
   std::vector<double> param_values;
@@ -93,7 +93,7 @@ struct SymbolicReferenceDynamics::Impl {
   bool cse = true;
 
   GiNaC::realsymbol t;
-  std::vector<GiNaC::realsymbol> q, qd, z, params;
+  std::vector<GiNaC::realsymbol> q, qd, qdd, z, params;  ///< qdd: only inside acceleration rows
   std::vector<GiNaC::ex> M;                 ///< n×n row-major
   std::vector<GiNaC::ex> c, g, Q, zdot;     ///< n, n, n, nz
   std::vector<GiNaC::ex> phi, phid, A, gamma;  ///< m, m, m×n, m
