@@ -237,6 +237,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
     B.bind("qdd(" + model.joint_name[i] + ")", S.qdd[i]);
   }
+  bool acceleration_rows = false;
+  for (const auto& c : problem.constraints.constraints()) acceleration_rows = acceleration_rows || c->order() == 2;
   for (size_t p = 0; p < model.point_name.size(); ++p) {
     const int b = sm.bodies.points[p].body;
     const Vec3s& pc = sm.bodies.points[p].position;
@@ -252,12 +254,15 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     const std::string& P = model.point_name[p];
     static const char* axes[] = {"x", "y", "z"};
     for (int k = 0; k < 3; ++k) {
-      ex v = 0, a = 0;
+      ex v = 0;
       for (int i = 0; i < n; ++i) v += r[k].diff(S.q[i]) * S.qd[i];
-      for (int i = 0; i < n; ++i) a += v.diff(S.q[i]) * S.qd[i] + r[k].diff(S.q[i]) * S.qdd[i];
       B.bind(std::string(axes[k]) + "(" + P + ")", r[k]);
       B.bind(std::string("v") + axes[k] + "(" + P + ")", v);
-      B.bind(std::string("a") + axes[k] + "(" + P + ")", a);
+      if (acceleration_rows) {  // point accelerations only where an acceleration row may use them
+        ex a = 0;
+        for (int i = 0; i < n; ++i) a += v.diff(S.q[i]) * S.qd[i] + r[k].diff(S.q[i]) * S.qdd[i];
+        B.bind(std::string("a") + axes[k] + "(" + P + ")", a);
+      }
     }
     for (int a = 0; a < 3; ++a)
       for (int c = 0; c < 3; ++c) B.bind("R" + std::to_string(a + 1) + std::to_string(c + 1) + "(" + P + ")", R[3 * a + c]);
