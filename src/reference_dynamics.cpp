@@ -543,44 +543,25 @@ ReferenceDynamics::Consistency ReferenceDynamics::make_consistent(double t, cons
     if (constraints_.row_order(r) == 0) hol.push_back(r);
     if (constraints_.row_order(r) <= 1) state_rows.push_back(r);
   }
-  // Position level: minimum-norm Newton steps on the dependent coordinates, holonomic rows.
-  for (int it = 0; it < max_iterations && !hol.empty(); ++it) {
-    evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
-    Eigen::VectorXd phi(hol.size());
-    Eigen::MatrixXd K(hol.size(), dep_.size());
-    for (size_t i = 0; i < hol.size(); ++i) {
-      phi[i] = ev_.phi[hol[i]];
-      for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(hol[i], dep_[c]);
-    }
-    out.iterations = it + 1;
-    if (phi.cwiseAbs().maxCoeff() <= tol) break;
-    const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(phi);
-    for (size_t c = 0; c < dep_.size(); ++c) out.q[dep_[c]] -= step[c];
-  }
-  // Velocity level: Φ̇ = 0 and c = 0 are both A q̇ + b = 0 in q̇; Newton on the dependent q̇.
-  if (static_cast<int>(state_rows.size()) == m_) {
-    for (int it = 0; it < max_iterations && m_ > 0; ++it) {
+  // Minimum-norm Newton steps on the dependent coordinates of x (q or q̇) until the residuals
+  // `value` (Φ, or Φ̇ and c, which are A q̇ + b = 0 in q̇) of the given rows are below tol.
+  auto newton = [&](const std::vector<int>& rows, const Eigen::VectorXd& value, Eigen::VectorXd& x, bool count) {
+    for (int it = 0; it < max_iterations && !rows.empty(); ++it) {
       evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
-      if (ev_.phid.cwiseAbs().maxCoeff() <= tol) break;
-      Eigen::MatrixXd K(m_, dep_.size());
-      for (size_t c = 0; c < dep_.size(); ++c) K.col(c) = ev_.A.col(dep_[c]);
-      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(ev_.phid);
-      for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
-    }
-  } else {  // the same over the position and velocity rows only (minimum-norm steps)
-    for (int it = 0; it < max_iterations && !state_rows.empty(); ++it) {
-      evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
-      Eigen::VectorXd phid(state_rows.size());
-      Eigen::MatrixXd K(state_rows.size(), dep_.size());
-      for (size_t i = 0; i < state_rows.size(); ++i) {
-        phid[i] = ev_.phid[state_rows[i]];
-        for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(state_rows[i], dep_[c]);
+      Eigen::VectorXd r(rows.size());
+      Eigen::MatrixXd K(rows.size(), dep_.size());
+      for (size_t i = 0; i < rows.size(); ++i) {
+        r[i] = value[rows[i]];
+        for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(rows[i], dep_[c]);
       }
-      if (phid.cwiseAbs().maxCoeff() <= tol) break;
-      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(phid);
-      for (size_t c = 0; c < dep_.size(); ++c) out.qd[dep_[c]] -= step[c];
+      if (count) out.iterations = it + 1;
+      if (r.cwiseAbs().maxCoeff() <= tol) break;
+      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(r);
+      for (size_t c = 0; c < dep_.size(); ++c) x[dep_[c]] -= step[c];
     }
-  }
+  };
+  newton(hol, ev_.phi, out.q, true);          // position level: holonomic rows
+  newton(state_rows, ev_.phid, out.qd, false);  // velocity level: position and velocity rows
   out.residual_after = residuals(out.q, out.qd);
   out.converged = out.residual_after <= std::max(tol, 1e3 * tol * (1 + out.residual_before)) ||
                   out.residual_after <= 1e-10;
