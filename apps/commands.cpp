@@ -1,6 +1,7 @@
 // refdyn check / plan / track / generate / kinds: thin clients of the library's pipeline
 // (io::load_problem → io::run_problem → io::write_results).
 #include "commands.hpp"
+#include "mpi_run.hpp"
 #include "report.hpp"
 
 #include "refdyn/error.hpp"
@@ -11,6 +12,7 @@
 #include "refdyn/text.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -70,14 +72,23 @@ void print_plan(const Problem& p, const Plan& plan) {
 
 }  // namespace
 
+namespace {
+std::atomic<bool> g_error_output{true};
+}  // namespace
+void set_error_output(bool on) { g_error_output = on; }
+bool error_output() { return g_error_output; }
+
 /// The one-line report of a run that stopped early (printed even with -q).
 void report_stopped(const io::Results& r) {
   if (!r.plan.summary.ok())
     std::fprintf(stderr, "refdyn: error: the plan stopped early: %s\n", r.plan.summary.message.c_str());
+  size_t stopped = 0;
   for (const auto& run : r.runs)
-    if (!run.result.summary.ok())
+    if (!run.summary.ok() && ++stopped <= kPrintedRuns)
       std::fprintf(stderr, "refdyn: error: experiment '%s' stopped early: %s\n", run.experiment->name.c_str(),
-                   run.result.summary.message.c_str());
+                   run.summary.message.c_str());
+  if (stopped > kPrintedRuns)
+    std::fprintf(stderr, "refdyn: error: %zu runs stopped early in all (each one's message: summary.json)\n", stopped);
 }
 
 io::ProgressFactory terminal_progress(bool enabled) {
@@ -154,46 +165,146 @@ int run_check(const std::string& file, const InputOptions& in) {
 }
 
 namespace {
+
+/// Sweep progress on stderr (terminal only, after one second): runs ended, rate, ETA.
+class SweepProgress {
+ public:
+  explicit SweepProgress(bool enabled) : tty_(enabled && ::isatty(STDERR_FILENO)), start_(clock::now()) {}
+  void update(size_t done, size_t total) {
+    if (!tty_) return;
+    const auto now = clock::now();
+    const double el = std::chrono::duration<double>(now - start_).count();
+    if (el < 1.0 || (done < total && std::chrono::duration<double>(now - last_).count() < 0.2)) return;
+    last_ = now;
+    const double f = static_cast<double>(done) / static_cast<double>(total), rate = static_cast<double>(done) / el;
+    const int w = 30, k = static_cast<int>(f * w);
+    const double eta = rate > 0 ? static_cast<double>(total - done) / rate : 0;
+    std::fprintf(stderr, "\rruns %zu/%zu [%s%s] %3.0f%%  %.3g runs/s  ETA %s   ", done, total,
+                 std::string(k, '#').c_str(), std::string(w - k, ' ').c_str(), 100 * f, rate, duration_text(eta).c_str());
+    shown_ = true;
+  }
+  ~SweepProgress() {
+    if (shown_) std::fprintf(stderr, "\r%s\r", std::string(90, ' ').c_str());
+  }
+
+ private:
+  static std::string duration_text(double s) {
+    char b[32];
+    if (s < 60) std::snprintf(b, sizeof b, "%.0f s", s);
+    else if (s < 3600) std::snprintf(b, sizeof b, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
+    else std::snprintf(b, sizeof b, "%dh%02dm", static_cast<int>(s / 3600), static_cast<int>(s / 60) % 60);
+    return b;
+  }
+  using clock = std::chrono::steady_clock;
+  bool tty_, shown_ = false;
+  clock::time_point start_, last_;
+};
+
+void print_runs(const Problem& p, const io::Results& r, const std::string& out_dir, bool report) {
+  print_plan(p, r.plan);
+  const size_t shown = r.runs.size() <= 2 * kPrintedRuns ? r.runs.size() : kPrintedRuns;
+  for (size_t i = 0; i < shown; ++i) {
+    const io::RunSummary& s = r.runs[i].summary;
+    std::printf("  %-24s %s, final max |e| = %.3g, peak |tau| = %.4g%s\n", r.runs[i].experiment->name.c_str(),
+                to_string(s.status), s.final_max_abs_error, s.peak_abs_tau, s.ok() ? "" : (" (" + s.message + ")").c_str());
+  }
+  if (shown < r.runs.size()) {
+    long ok = 0;
+    for (const auto& run : r.runs) ok += run.summary.ok();
+    std::printf("  ... %zu runs in all, %ld reached the end (every run: sweep.csv; statistics: summary.json)\n",
+                r.runs.size(), ok);
+  }
+  std::cout << r.feasibility.text() << "results in " << out_dir << (report ? " (report.html)" : "") << "\n";
+}
+
 int plan_or_track(const std::string& file, const std::string& out_dir, bool quiet, bool track, const InputOptions& in,
-                  bool report) {
-  const auto problem = io::load_problem(file, in.max_input_bytes);  // validates before anything is written
-  if (track && problem->experiments.empty())
-    throw Error(file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+                  const RunConfig& cfg) {
+  std::unique_ptr<MpiSession> mpi;
+  if (cfg.mpi) {
+    mpi = std::make_unique<MpiSession>();
+    if (mpi->rank() != 0) quiet = true, set_error_output(false);  // rank 0 speaks for all
+  }
+  auto agree = [&](const std::function<void()>& step) {  // with MPI: every rank or none goes on
+    if (!mpi) return step();
+    std::string error;
+    try {
+      step();
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    mpi->agree(error);
+  };
+  std::unique_ptr<Problem> problem;
+  agree([&] {
+    problem = io::load_problem(file, in.max_input_bytes);  // validates before anything is written
+    if (track && problem->experiments.empty())
+      throw Error(file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+  });
+  const size_t runs = track ? problem->experiments.size() : 0;
+  bool run_csv = cfg.run_csv == "all" || (cfg.run_csv == "auto" && runs <= kRunCsvAutoLimit);
+  if (cfg.run_csv != "all" && cfg.run_csv != "auto" && cfg.run_csv != "none")
+    throw Error("--run-csv: expected auto, all or none, got '" + cfg.run_csv + "'");
+  agree([&] {
+    if (!mpi || mpi->rank() == 0) io::prepare_output_dir(out_dir);
+  });
   io::RunOptions o;
   o.track = track;
   o.progress = terminal_progress(!quiet);
-  const io::Results r = io::run_problem(*problem, o);
-  const JsonValue summary = io::summary_json(*problem, r);
-  io::write_results(out_dir, *problem, r, summary);
-  if (report) write_report(out_dir, *problem, r, summary);
-  if (!quiet) {
-    print_plan(*problem, r.plan);
-    for (const auto& run : r.runs) {
-      const auto& res = run.result;
-      const int n = res.nq();
-      const double last_e = res.t.empty() ? 0.0 : (res.x.back().head(n) - res.q_ref.back()).cwiseAbs().maxCoeff();
-      double peak = 0;
-      for (const auto& tau : res.tau) peak = std::max(peak, tau.cwiseAbs().maxCoeff());
-      std::printf("  %-24s %s, final max |e| = %.3g, peak |tau| = %.4g%s\n", run.experiment->name.c_str(),
-                  to_string(res.summary.status), last_e, peak,
-                  res.summary.ok() ? "" : (" (" + res.summary.message + ")").c_str());
+  o.jobs = cfg.jobs < 0 ? (mpi ? 1 : 0) : cfg.jobs;
+  o.keep_trajectories = cfg.report && run_csv ? kReportMaxRuns : 0;  // `refdyn report DIR` draws the same runs
+  if (run_csv) o.run_csv_dir = out_dir;
+  if (mpi) o.shard = mpi->rank(), o.num_shards = mpi->size();
+  SweepProgress bar(!quiet && runs > 1);
+  if (runs > 1) o.on_run_done = [&bar](size_t done, size_t total, const std::string&) { bar.update(done, total); };
+  io::Results r;
+  agree([&] { r = io::run_problem(*problem, o); });
+  if (mpi) {
+    mpi->gather_runs(r);
+    int code = kOk;
+    if (mpi->rank() == 0) {
+      std::string error;
+      try {
+        code = finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
+      } catch (const Error& e) {
+        error = e.what();
+      }
+      code = mpi->broadcast(error.empty() ? code : -1);
+      if (code == -1) throw Error(error);
+    } else {
+      code = mpi->broadcast(0);
+      if (code == -1) throw Error("rank 0 failed to write the results");
     }
-    std::cout << r.feasibility.text() << "results in " << out_dir << (report ? " (report.html)" : "") << "\n";
+    return code;
   }
+  return finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
+}
+
+}  // namespace
+
+/// Writes the results (summary.json last) and the report, prints the summary; the exit code.
+int finish_results(const Problem& problem, const io::Results& r, const std::string& out_dir, bool quiet, bool report,
+                   bool run_csv) {
+  JsonValue summary = io::summary_json(problem, r);
+  if (!r.runs.empty()) summary["track_csv"] = run_csv;
+  io::write_results(out_dir, problem, r, summary);
+  if (report) write_report(out_dir, problem, r, summary);
+  if (!quiet) print_runs(problem, r, out_dir, report);
   if (!r.ok()) {
     report_stopped(r);
     return kNumerical;
   }
   return kOk;
 }
-}  // namespace
 
 int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report) {
-  return plan_or_track(file, out_dir, quiet, false, in, report);
+  RunConfig cfg;
+  cfg.report = report;
+  return plan_or_track(file, out_dir, quiet, false, in, cfg);
 }
 
-int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report) {
-  return plan_or_track(file, out_dir, quiet, true, in, report);
+int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
+              const RunConfig& cfg) {
+  return plan_or_track(file, out_dir, quiet, true, in, cfg);
 }
 
 int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,

@@ -21,6 +21,21 @@ struct InputOptions {
   std::size_t max_input_bytes = io::kDefaultMaxInputBytes;
 };
 
+/// How `track` (and `plan`) run: threads, per-run CSVs, MPI, report.
+struct RunConfig {
+  int jobs = -1;                 ///< threads for the experiments; 0: every core; -1: default (every core; 1 per rank with MPI)
+  std::string run_csv = "auto";  ///< track_<name>.csv per run: all, none, auto (all up to kRunCsvAutoLimit runs)
+  bool mpi = false;              ///< spread the runs over the MPI ranks (apps/mpi_run.hpp)
+  bool report = false;           ///< also write report.html
+};
+inline constexpr std::size_t kRunCsvAutoLimit = 100;
+/// Runs listed one by one on the terminal (and stopped runs on stderr); the rest are in the files.
+inline constexpr std::size_t kPrintedRuns = 20;
+
+/// main() prints a caught error only when this is on (MPI ranks other than 0 stay silent).
+void set_error_output(bool on);
+bool error_output();
+
 /// A progress bar on stderr (terminal only, after one second) for runs of the pipeline.
 io::ProgressFactory terminal_progress(bool enabled);
 
@@ -29,7 +44,12 @@ void report_stopped(const io::Results& results);
 
 int run_check(const std::string& file, const InputOptions& in);
 int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
-int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
+int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
+              const RunConfig& config);
+/// Writes the results of a run (summary.json last) and the report, prints the summary (unless
+/// quiet); returns kOk, or kNumerical when the plan or a run stopped early.
+int finish_results(const Problem& problem, const io::Results& results, const std::string& out_dir, bool quiet,
+                   bool report, bool run_csv_written);
 int run_plot(const std::string& dir);
 int run_kinds();
 int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,

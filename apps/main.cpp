@@ -60,11 +60,24 @@ int main(int argc, char** argv) {
   plan->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
   input_options(plan);
 
+  RunConfig run;
   auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   track->add_option("file", file, "Scenario file (YAML)")->required();
   track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   track->add_flag("-q,--quiet", quiet, "Print nothing on success");
   track->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
+  track->add_option("-j,--jobs", run.jobs,
+                    "Threads running experiments (0: every core; default: every core, 1 per rank with --mpi); "
+                    "results do not depend on it")
+      ->check(CLI::NonNegativeNumber);
+  track->add_option("--run-csv", run.run_csv,
+                    "track_<name>.csv of each run: all, none, or auto (all up to 100 runs); sweep.csv and summary.json "
+                    "always")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "all", "none"}));
+  track->add_flag("--mpi", run.mpi,
+                  "Spread the runs over MPI ranks (mpirun -np N refdyn track FILE -o DIR --mpi; DIR on a shared file "
+                  "system); the files are those of one process");
   input_options(track);
 
   auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
@@ -74,6 +87,8 @@ int main(int argc, char** argv) {
   paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
   paper->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
+  paper->add_option("-j,--jobs", run.jobs, "Threads running the four tracking runs (0 or default: every core)")
+      ->check(CLI::NonNegativeNumber);
 
   auto* rep = app.add_subcommand(
       "report", "Write DIR/report.html: one self-contained HTML file with the summary, interactive plots and a 3D replay");
@@ -112,17 +127,18 @@ int main(int argc, char** argv) {
     if (*check) return run_check(file, in);
     if (report) require_report_template();
     if (*plan) return run_plan(file, out_dir, quiet, in, report);
-    if (*track) return run_track(file, out_dir, quiet, in, report);
+    run.report = report;
+    if (*track) return run_track(file, out_dir, quiet, in, run);
     if (*plot) return run_plot(out_dir);
     if (*rep) return run_report(out_dir, scenario, report_out, quiet, in);
-    if (*paper) return run_paper_command(out_dir, quiet, report);
+    if (*paper) return run_paper_command(out_dir, quiet, report, run.jobs < 0 ? 0 : run.jobs);
     if (*generate) return run_generate(file, out_dir, formats, prefix, quiet, in);
     if (*kinds) return run_kinds();
   } catch (const refdyn::Error& e) {
     std::string msg = e.what();
     for (char& ch : msg)
       if (ch == '\n') ch = ' ';
-    std::fprintf(stderr, "refdyn: error: %s\n", msg.c_str());
+    if (error_output()) std::fprintf(stderr, "refdyn: error: %s\n", msg.c_str());
     return kBadInput;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "refdyn: error: out of memory (hint: reduce the time span, the output rate or the sweep)\n");

@@ -421,7 +421,9 @@ void write_report(const fs::path& dir, const Problem& problem, const io::Results
   in.summary_json = summary.dump(2, 2);
   in.feasibility_json = r.feasibility.to_json().dump(0);
   in.plan = io::trajectory_table(r.plan);
-  for (const auto& run : r.runs) in.runs.emplace_back(run.experiment->name, io::trajectory_table(run.result));
+  for (const auto& run : r.runs)  // the runs whose trajectories were kept (RunOptions::keep_trajectories)
+    if (in.runs.size() < kReportMaxRuns && !run.result.joints.empty())
+      in.runs.emplace_back(run.experiment->name, io::trajectory_table(run.result));
   const std::string html = report_html(in);
   io::write_text_atomic(dir / "report.html", html);
 }
@@ -461,9 +463,11 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
   in.problem = problem.get();
   in.plan = read_csv(dir / "plan.csv");
   // The runs summary.json lists, in its order (not whatever track_*.csv an older run left).
+  // The first kReportMaxRuns of them; none when the run CSVs were not written (--run-csv none).
   static const std::regex label_re("\\{\"label\": \"([A-Za-z0-9._+=-]+)\"");
+  const bool run_csv = in.summary_json.find("\"track_csv\": false") == std::string::npos;
   for (auto it = std::sregex_iterator(in.summary_json.begin(), in.summary_json.end(), label_re);
-       it != std::sregex_iterator(); ++it) {
+       run_csv && in.runs.size() < kReportMaxRuns && it != std::sregex_iterator(); ++it) {
     const std::string name = (*it)[1].str();
     const fs::path f = dir / ("track_" + name + ".csv");
     if (!fs::exists(f))

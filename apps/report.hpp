@@ -12,6 +12,7 @@
 #include "refdyn/json.hpp"
 #include "refdyn/problem.hpp"
 
+#include <cstddef>
 #include <filesystem>
 #include <string>
 #include <utility>
@@ -31,6 +32,9 @@ struct ReportInput {
 /// Largest number of samples per series in the plots and of frames in the 3D replay.
 inline constexpr int kReportPlotPoints = 1000;
 inline constexpr int kReportReplayFrames = 1000;
+/// Runs drawn in a report (the first ones, in experiment order); the sweep statistics in it
+/// cover every run (summary.json).
+inline constexpr std::size_t kReportMaxRuns = 24;
 
 /// Throws refdyn::Error when refdyn was built without the report's JavaScript libraries
 /// (checked before a run with --report, so that nothing is written then).

@@ -3,7 +3,8 @@
 # (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer;
 # texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX;
 # libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
-# chromium + python3-pil: the report's browser test, tests/report_browser_test.py).
+# chromium + python3-pil: the report's browser test, tests/report_browser_test.py;
+# libopenmpi-dev + openmpi-bin: `refdyn track --mpi` and its test, tests/mpi_test.sh).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
 PACKAGES=(
@@ -17,6 +18,7 @@ PACKAGES=(
   pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
   texlive-latex-base
   libjs-three libjs-dygraphs chromium python3-pil
+  libopenmpi-dev openmpi-bin
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

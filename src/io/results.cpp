@@ -3,8 +3,13 @@
 #include "refdyn/error.hpp"
 #include "refdyn/text.hpp"
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <mutex>
+#include <thread>
 
 namespace refdyn::io {
 
@@ -13,18 +18,76 @@ namespace fs = std::filesystem;
 bool Results::ok() const {
   if (!plan.summary.ok()) return false;
   for (const auto& r : runs)
-    if (!r.result.summary.ok()) return false;
+    if (!r.summary.ok()) return false;
   return true;
 }
 
+namespace {
+
+/// Runs the experiments with index i % num_shards == shard on `jobs` threads. Each run gets its
+/// own ReferenceDynamics (an automatic partition is state that a shared one would carry from
+/// run to run) and its own controller, so a run's numbers depend on its experiment only.
+void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
+  std::vector<size_t> mine;
+  for (size_t i = 0; i < p.experiments.size(); ++i)
+    if (static_cast<int>(i % static_cast<size_t>(o.num_shards)) == o.shard) mine.push_back(i);
+  if (mine.empty()) return;
+  int jobs = o.jobs > 0 ? o.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  jobs = static_cast<int>(std::min<size_t>(static_cast<size_t>(jobs), mine.size()));
+  const bool one_run = p.experiments.size() == 1;
+  std::atomic<size_t> next{0};
+  std::atomic<bool> stop{false};
+  std::mutex done_mutex;
+  size_t done = 0;
+  std::vector<std::exception_ptr> errors(mine.size());
+  auto work = [&] {
+    while (!stop) {
+      const size_t k = next++;
+      if (k >= mine.size()) break;
+      const size_t i = mine[k];
+      const Experiment& ex = *p.experiments[i];
+      RunRecord& rec = res.runs[i];
+      try {
+        const auto rd = p.make_reference_dynamics();
+        std::function<void(double)> progress;
+        if (one_run && o.progress) progress = o.progress("experiment " + ex.name, p.integrator.t0, res.plan.summary.t_end);
+        ClosedLoopResult r = track_experiment(p, ex, res.plan, *rd, progress);
+        rec.summary = summarize_run(p, r);
+        if (!o.run_csv_dir.empty()) write_csv_atomic(o.run_csv_dir / ("track_" + ex.name + ".csv"), trajectory_table(r));
+        if (i < o.keep_trajectories) rec.result = std::move(r);
+        rec.done = true;
+        if (o.on_run_done) {
+          std::lock_guard<std::mutex> lock(done_mutex);
+          o.on_run_done(++done, mine.size(), ex.name);
+        }
+      } catch (...) {
+        errors[k] = std::current_exception();
+        stop = true;
+      }
+    }
+  };
+  if (jobs == 1) {
+    work();
+  } else {
+    std::vector<std::thread> pool;
+    pool.reserve(static_cast<size_t>(jobs));
+    for (int j = 0; j < jobs; ++j) pool.emplace_back(work);
+    for (auto& t : pool) t.join();
+  }
+  for (const auto& e : errors)  // the first failed run in experiment order, whatever the threads
+    if (e) std::rethrow_exception(e);
+}
+
+}  // namespace
+
 Results run_problem(const Problem& p, const RunOptions& o) {
+  if (o.num_shards < 1 || o.shard < 0 || o.shard >= o.num_shards)
+    throw Error("run_problem: shard " + std::to_string(o.shard) + " of " + std::to_string(o.num_shards) + " shards");
   const auto start = std::chrono::steady_clock::now();
   Results res;
   res.rd = p.make_reference_dynamics();
-  auto progress = [&](const std::string& what, double t0, double t1) {
-    return o.progress ? o.progress(what, t0, t1) : std::function<void(double)>();
-  };
-  res.plan = plan_problem(p, *res.rd, progress("planning", p.integrator.t0, p.integrator.t1));
+  res.plan = plan_problem(p, *res.rd, o.progress ? o.progress("planning", p.integrator.t0, p.integrator.t1)
+                                                 : std::function<void(double)>());
   const int n = p.model.nv;
   std::vector<Eigen::VectorXd> q, qd;
   for (const auto& x : res.plan.x) q.push_back(x.head(n)), qd.push_back(x.segment(n, n));
@@ -35,14 +98,12 @@ Results run_problem(const Problem& p, const RunOptions& o) {
   }
   // Experiments track the plan up to where it ended; a plan that stopped at t0 leaves nothing
   // to track (the stopped plan is reported).
-  if (o.track && res.plan.summary.t_end > p.integrator.t0)
-    for (const auto& ex : p.experiments) {
-      RunRecord r;
-      r.experiment = ex.get();
-      r.result = track_experiment(p, *ex, res.plan, *res.rd,
-                                  progress("experiment " + ex->name, p.integrator.t0, res.plan.summary.t_end));
-      res.runs.push_back(std::move(r));
-    }
+  if (o.track && res.plan.summary.t_end > p.integrator.t0) {
+    res.runs.resize(p.experiments.size());
+    for (size_t i = 0; i < p.experiments.size(); ++i) res.runs[i].experiment = p.experiments[i].get();
+    run_experiments(p, res, o);
+    res.runs_written = !o.run_csv_dir.empty();
+  }
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return res;
 }
@@ -134,6 +195,110 @@ std::vector<JointTracking> tracking_metrics(const ClosedLoopResult& r, double fr
   return out;
 }
 
+RunSummary summarize_run(const Problem& p, const ClosedLoopResult& r) {
+  RunSummary s;
+  s.status = r.summary.status;
+  s.message = r.summary.message;
+  s.t_end = r.summary.t_end;
+  s.steps = r.summary.steps;
+  s.saturated_samples = r.saturated_samples;
+  s.wall_time = r.summary.wall_time;
+  const int n = r.nq();
+  if (!r.t.empty()) s.final_max_abs_error = (r.x.back().head(n) - r.q_ref.back()).cwiseAbs().maxCoeff();
+  s.joints = tracking_metrics(r, 1e-3, 0.5 * (p.integrator.t0 + p.integrator.t1));
+  for (const auto& m : s.joints) s.peak_abs_tau = std::max(s.peak_abs_tau, m.peak_tau);
+  return s;
+}
+
+Distribution distribution_of(std::vector<double> v) {
+  Distribution d;
+  const auto finite_end = std::partition(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+  d.missing = static_cast<long>(v.end() - finite_end);
+  v.erase(finite_end, v.end());
+  d.count = static_cast<long>(v.size());
+  if (v.empty()) {
+    d.min = d.p5 = d.p25 = d.p50 = d.p75 = d.p95 = d.p99 = d.max = d.mean = std::nan("");
+    return d;
+  }
+  std::sort(v.begin(), v.end());
+  auto at = [&](double f) {  // linear between order statistics (numpy's default, "type 7")
+    const double h = f * static_cast<double>(v.size() - 1);
+    const size_t lo = static_cast<size_t>(std::floor(h));
+    const size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (h - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  d.min = v.front();
+  d.max = v.back();
+  d.p5 = at(0.05), d.p25 = at(0.25), d.p50 = at(0.5), d.p75 = at(0.75), d.p95 = at(0.95), d.p99 = at(0.99);
+  double sum = 0;  // in sorted order: the same bits whatever order the runs ended in
+  for (double x : v) sum += x;
+  d.mean = sum / static_cast<double>(v.size());
+  return d;
+}
+
+namespace {
+
+JsonValue number_or_null(double x) { return std::isfinite(x) ? JsonValue(x) : JsonValue(); }
+
+JsonValue distribution_json(const Distribution& d) {
+  JsonValue o = JsonValue::object();
+  o["count"] = d.count;
+  o["missing"] = d.missing;
+  for (const auto& [k, x] : {std::pair<const char*, double>{"min", d.min}, {"p5", d.p5}, {"p25", d.p25}, {"p50", d.p50},
+                             {"p75", d.p75}, {"p95", d.p95}, {"p99", d.p99}, {"max", d.max}, {"mean", d.mean}})
+    o[k] = number_or_null(x);
+  return o;
+}
+
+/// The largest finite value (NaN when none): a run's settle time is that of its slowest joint.
+double max_finite(const std::vector<JointTracking>& js, double JointTracking::*field) {
+  double m = std::nan("");
+  for (const auto& j : js)
+    if (std::isfinite(j.*field) && !(m >= j.*field)) m = j.*field;
+  return m;
+}
+
+/// The sweep parameters over all runs, in order of first appearance.
+std::vector<std::string> sweep_names(const Results& res) {
+  std::vector<std::string> names;
+  for (const RunRecord& r : res.runs)
+    for (const auto& kv : r.experiment->sweep)
+      if (std::find(names.begin(), names.end(), kv.first) == names.end()) names.push_back(kv.first);
+  return names;
+}
+
+}  // namespace
+
+std::string sweep_csv(const Problem& p, const Results& res) {
+  const std::vector<std::string> params = sweep_names(res);
+  const std::vector<std::string>& joints = p.model.joint_name;
+  std::string s = "index,name,status";
+  for (const auto& k : params) s += "," + k;
+  s += ",t_end,final_max_abs_error,peak_abs_tau,max_e0,max_settle_time,max_late_error,saturated_samples";
+  for (const char* f : {"e0_", "settle_", "late_", "peak_tau_"})
+    for (const auto& j : joints) s += "," + std::string(f) + j;
+  s += "\n";
+  auto num = [](double x) { return std::isfinite(x) ? fmt(x) : std::string("nan"); };
+  for (size_t i = 0; i < res.runs.size(); ++i) {
+    const RunRecord& r = res.runs[i];
+    const RunSummary& m = r.summary;
+    s += std::to_string(i) + "," + r.experiment->name + "," + (r.done ? to_string(m.status) : "not_run");
+    for (const auto& k : params) {
+      s += ",";
+      for (const auto& [name, v] : r.experiment->sweep)
+        if (name == k) s += num(v);
+    }
+    s += "," + num(m.t_end) + "," + num(m.final_max_abs_error) + "," + num(m.peak_abs_tau) + "," +
+         num(max_finite(m.joints, &JointTracking::e0)) + "," + num(max_finite(m.joints, &JointTracking::settle_time)) +
+         "," + num(max_finite(m.joints, &JointTracking::late_error)) + "," + std::to_string(m.saturated_samples);
+    for (double JointTracking::*f : {&JointTracking::e0, &JointTracking::settle_time, &JointTracking::late_error,
+                                     &JointTracking::peak_tau})
+      for (size_t j = 0; j < joints.size(); ++j) s += "," + (j < m.joints.size() ? num(m.joints[j].*f) : std::string("nan"));
+    s += "\n";
+  }
+  return s;
+}
+
 JsonValue summary_json(const Problem& p, const Results& res) {
   JsonValue s = JsonValue::object();
   s["scenario"] = p.name;
@@ -152,40 +317,70 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = ps.max_constraint_residual;
   plan["wall_time_s"] = ps.wall_time;
   s["feasibility"] = res.feasibility.to_json();
-  if (!res.runs.empty()) {
-    const double late = 0.5 * (p.integrator.t0 + p.integrator.t1);
-    const std::string late_key = "max_abs_error_after_" + fmt(late) + "s";
-    JsonValue& runs = s["runs"] = JsonValue::array();
-    for (const RunRecord& rr : res.runs) {
-      const ClosedLoopResult& r = rr.result;
-      JsonValue& o = runs.push_back(JsonValue::object());
-      o["label"] = rr.experiment->name;
-      if (!rr.experiment->sweep.empty()) {
-        JsonValue& sw = o["sweep"] = JsonValue::object();
-        for (const auto& [k, v] : rr.experiment->sweep) sw[k] = v;
-      }
-      o["controller"] = rr.experiment->controller_type;
-      o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());
-      o["status"] = to_string(r.summary.status);
-      o["message"] = r.summary.message;
-      o["saturated_samples"] = r.saturated_samples;
-      double last_e = 0, peak = 0;
-      const int n = r.nq();
-      if (!r.t.empty()) last_e = (r.x.back().head(n) - r.q_ref.back()).cwiseAbs().maxCoeff();
-      const auto metrics = tracking_metrics(r, 1e-3, late);
-      for (const auto& m : metrics) peak = std::max(peak, m.peak_tau);
-      o["final_max_abs_error"] = last_e;
-      o["peak_abs_tau"] = peak;
-      JsonValue& js = o["joints"] = JsonValue::array();
-      for (int j = 0; j < n; ++j) {
-        JsonValue& e = js.push_back(JsonValue::object());
-        e["joint"] = r.joints[j];
-        e["e0"] = metrics[j].e0;
-        e["settle_time_rel_1e-3"] = metrics[j].settle_time;
-        e[late_key] = metrics[j].late_error;
-        e["peak_abs_tau"] = metrics[j].peak_tau;
-      }
-      o["wall_time_s"] = r.summary.wall_time;
+  if (res.runs.empty()) return s;
+  const double late = 0.5 * (p.integrator.t0 + p.integrator.t1);
+  const std::string late_key = "max_abs_error_after_" + fmt(late) + "s";
+  JsonValue& runs = s["runs"] = JsonValue::array();
+  for (const RunRecord& rr : res.runs) {
+    const RunSummary& r = rr.summary;
+    JsonValue& o = runs.push_back(JsonValue::object());
+    o["label"] = rr.experiment->name;
+    if (!rr.experiment->sweep.empty()) {
+      JsonValue& sw = o["sweep"] = JsonValue::object();
+      for (const auto& [k, v] : rr.experiment->sweep) sw[k] = v;
+    }
+    o["controller"] = rr.experiment->controller_type;
+    o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());
+    o["status"] = rr.done ? to_string(r.status) : "not_run";
+    o["message"] = r.message;
+    o["saturated_samples"] = r.saturated_samples;
+    o["final_max_abs_error"] = r.final_max_abs_error;
+    o["peak_abs_tau"] = r.peak_abs_tau;
+    JsonValue& js = o["joints"] = JsonValue::array();
+    for (size_t j = 0; j < r.joints.size(); ++j) {
+      JsonValue& e = js.push_back(JsonValue::object());
+      e["joint"] = p.model.joint_name[j];
+      e["e0"] = r.joints[j].e0;
+      e["settle_time_rel_1e-3"] = r.joints[j].settle_time;
+      e[late_key] = r.joints[j].late_error;
+      e["peak_abs_tau"] = r.joints[j].peak_tau;
+    }
+    o["wall_time_s"] = r.wall_time;
+  }
+  // Statistics over the runs (the aggregate of a sweep or Monte Carlo study).
+  JsonValue& st = s["statistics"] = JsonValue::object();
+  long ok = 0;
+  std::vector<double> fin, peak, e0, settle, lateE;
+  for (const RunRecord& rr : res.runs) {
+    const RunSummary& r = rr.summary;
+    ok += rr.done && r.ok();
+    fin.push_back(r.final_max_abs_error);
+    peak.push_back(r.peak_abs_tau);
+    e0.push_back(max_finite(r.joints, &JointTracking::e0));
+    settle.push_back(max_finite(r.joints, &JointTracking::settle_time));
+    lateE.push_back(max_finite(r.joints, &JointTracking::late_error));
+  }
+  st["runs"] = static_cast<long>(res.runs.size());
+  st["completed"] = ok;
+  st["stopped_early"] = static_cast<long>(res.runs.size()) - ok;
+  st["percentiles"] = "linear between order statistics (numpy default); NaN values counted as missing";
+  st["final_max_abs_error"] = distribution_json(distribution_of(fin));
+  st["peak_abs_tau"] = distribution_json(distribution_of(peak));
+  st["max_e0"] = distribution_json(distribution_of(e0));
+  st["max_settle_time_rel_1e-3"] = distribution_json(distribution_of(settle));
+  st["max_" + late_key] = distribution_json(distribution_of(lateE));
+  JsonValue& sj = st["joints"] = JsonValue::array();
+  for (int j = 0; j < p.model.nv; ++j) {
+    JsonValue& o = sj.push_back(JsonValue::object());
+    o["joint"] = p.model.joint_name[j];
+    for (const auto& [key, f] : {std::pair<std::string, double JointTracking::*>{"e0", &JointTracking::e0},
+                                 {"settle_time_rel_1e-3", &JointTracking::settle_time},
+                                 {late_key, &JointTracking::late_error},
+                                 {"peak_abs_tau", &JointTracking::peak_tau}}) {
+      std::vector<double> v;
+      for (const RunRecord& rr : res.runs)
+        v.push_back(static_cast<size_t>(j) < rr.summary.joints.size() ? rr.summary.joints[j].*f : std::nan(""));
+      o[key] = distribution_json(distribution_of(std::move(v)));
     }
   }
   return s;
@@ -195,8 +390,10 @@ void write_results(const fs::path& dir, const Problem& p, const Results& res, co
   prepare_output_dir(dir);
   write_csv_atomic(dir / "plan.csv", trajectory_table(res.plan));
   for (const RunRecord& r : res.runs)
-    write_csv_atomic(dir / ("track_" + r.experiment->name + ".csv"), trajectory_table(r.result));
+    if (!res.runs_written && r.done && !r.result.joints.empty())
+      write_csv_atomic(dir / ("track_" + r.experiment->name + ".csv"), trajectory_table(r.result));
   write_text_atomic(dir / "feasibility.json", res.feasibility.to_json().dump(0) + "\n");
+  if (!res.runs.empty()) write_text_atomic(dir / "sweep.csv", sweep_csv(p, res));
   write_text_atomic(dir / "summary.json", summary.dump(2, 2) + "\n");
 }
 

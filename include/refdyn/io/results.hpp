@@ -4,7 +4,10 @@
 ///
 ///   Problem ──run_problem──▶ Results (Plan + feasibility + closed-loop runs, all Trajectories)
 ///           ──trajectory_table / summary_json──▶ write_results: plan.csv, track_<name>.csv,
-///                                                feasibility.json, summary.json
+///                                                feasibility.json, sweep.csv, summary.json
+/// Experiments run on a pool of RunOptions::jobs threads (each run with its own reference
+/// dynamics and controller, results bit-identical to one thread), or spread over MPI ranks
+/// (RunOptions::shard, apps/mpi_run.cpp).
 
 #include "refdyn/feasibility.hpp"
 #include "refdyn/io/output.hpp"
@@ -13,6 +16,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -22,22 +26,60 @@ namespace refdyn::io {
 /// Makes a progress callback for a run named `what` over [t0, t1] (or none).
 using ProgressFactory = std::function<std::function<void(double)>(const std::string& what, double t0, double t1)>;
 
+/// Per-run summary of a closed-loop run: what summary.json and sweep.csv report of it. Computed
+/// right after the run (so that the run's trajectory need not be kept) and, being numbers and
+/// short strings only, cheap to keep for 10,000 runs and to send between MPI ranks.
+struct JointTracking {
+  double e0 = 0, settle_time = 0, late_error = 0, peak_tau = 0;
+};
+struct RunSummary {
+  IntegrationStatus status = IntegrationStatus::Success;
+  std::string message;             ///< empty on success; else when and why the run stopped
+  double t_end = 0;                ///< [s] last valid time
+  long steps = 0;
+  long saturated_samples = 0;
+  double final_max_abs_error = 0;  ///< max_j |e_j| at t_end
+  double peak_abs_tau = 0;         ///< max over joints and samples of |τ|
+  std::vector<JointTracking> joints;  ///< tracking_metrics(·, 1e-3, late_from)
+  double wall_time = 0;            ///< [s] (not in sweep.csv: it differs between executions)
+  bool ok() const { return status == IntegrationStatus::Success; }
+};
+
 struct RunOptions {
   bool track = false;          ///< also run the experiments
-  ProgressFactory progress;    ///< optional
+  ProgressFactory progress;    ///< optional; the plan, and the run when there is just one
+  /// Threads running experiments: 0 = every core (std::thread::hardware_concurrency). Each run
+  /// has its own ReferenceDynamics and controller; results do not depend on this number.
+  int jobs = 1;
+  /// Keep the trajectories of the first `keep_trajectories` runs (experiment order) in
+  /// Results::runs[i].result: the report, the paper table and the Python bindings use them. The
+  /// other runs keep only their RunSummary (bounded memory for sweeps of thousands of runs).
+  size_t keep_trajectories = std::numeric_limits<size_t>::max();
+  /// Non-empty: each run's table is written to <run_csv_dir>/track_<name>.csv as soon as the run
+  /// ends (the folder must exist: io::prepare_output_dir).
+  std::filesystem::path run_csv_dir;
+  /// Distributed runs (MPI, apps/mpi_run.cpp): this process runs the experiments i with
+  /// i % num_shards == shard; the others' RunRecord::done stays false.
+  int shard = 0, num_shards = 1;
+  /// Called after each run of this process ends (serialized: never two at once), with the number
+  /// of runs ended so far and this process's total.
+  std::function<void(size_t done, size_t total, const std::string& name)> on_run_done;
 };
 
 struct RunRecord {
   const Experiment* experiment = nullptr;
-  ClosedLoopResult result;
+  bool done = false;           ///< run here (or filled in from another MPI rank)
+  RunSummary summary;
+  ClosedLoopResult result;     ///< empty (no joints) unless kept (RunOptions::keep_trajectories)
 };
 
 struct Results {
   std::unique_ptr<ReferenceDynamics> rd;
   Plan plan;
   FeasibilityReport feasibility;
-  std::vector<RunRecord> runs;
+  std::vector<RunRecord> runs;  ///< one per experiment of the Problem, in its order (if tracked)
   double wall_time = 0;        ///< [s], plan and runs
+  bool runs_written = false;   ///< the runs' track_<name>.csv were streamed (RunOptions::run_csv_dir)
   /// The plan and every run reached their end.
   bool ok() const;
 };
@@ -54,16 +96,32 @@ CsvTable trajectory_table(const Trajectory& trajectory);
 
 /// Per joint of a closed-loop run: e0 = |e(t0)|, the time after which |e| stays below
 /// settle_fraction·e0, the largest |e| for t >= late_from, and the peak |τ|.
-struct JointTracking {
-  double e0 = 0, settle_time = 0, late_error = 0, peak_tau = 0;
-};
 std::vector<JointTracking> tracking_metrics(const ClosedLoopResult& r, double settle_fraction, double late_from);
 
-/// summary.json: scenario, plan summary, feasibility, and per run its status and metrics.
+/// The RunSummary of a run of `problem` (metrics with settle fraction 1e-3, late error after the
+/// middle of the integration span).
+RunSummary summarize_run(const Problem& problem, const ClosedLoopResult& run);
+
+/// Percentiles (linear interpolation between order statistics, numpy's default) and mean of
+/// the finite values of `v`; count = number of finite values, missing = the others.
+struct Distribution {
+  long count = 0, missing = 0;
+  double min = 0, p5 = 0, p25 = 0, p50 = 0, p75 = 0, p95 = 0, p99 = 0, max = 0, mean = 0;
+};
+Distribution distribution_of(std::vector<double> v);
+
+/// sweep.csv: one row per run (index, name, status, the sweep/grid/Monte Carlo values, t_end,
+/// the summary metrics, per joint e0, settle time, late error, peak |τ|), no wall times, so that
+/// it is the same file whatever the number of threads or ranks.
+std::string sweep_csv(const Problem& problem, const Results& results);
+
+/// summary.json: scenario, plan summary, feasibility, per run its status and metrics, and the
+/// statistics over the runs ("statistics": Distribution of each metric, overall and per joint).
 JsonValue summary_json(const Problem& problem, const Results& results);
 
-/// Writes plan.csv, feasibility.json, summary.json and track_<name>.csv into `dir` (created if
-/// needed), each file atomically.
+/// Writes plan.csv, feasibility.json, sweep.csv (when runs were tracked), summary.json (last) and
+/// track_<name>.csv of every run with a kept trajectory into `dir` (created if needed), each file
+/// atomically.
 void write_results(const std::filesystem::path& dir, const Problem& problem, const Results& results,
                    const JsonValue& summary);
 

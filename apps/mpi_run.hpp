@@ -1,0 +1,41 @@
+#pragma once
+/// `refdyn track FILE -o DIR --mpi` under mpirun: every rank loads the scenario and plans (the
+/// plan is deterministic, so every rank has the same one), runs the experiments i with
+/// i % size == rank on its own threads and writes their track_<name>.csv (DIR on a file system
+/// all ranks see); rank 0 gathers the runs' summaries and writes plan.csv, feasibility.json,
+/// sweep.csv and summary.json — the same files as one process writes (tests/mpi_test.sh).
+/// Built only when CMake finds MPI (Debian: libopenmpi-dev, openmpi-bin); otherwise every call
+/// but mpi_available() throws an Error saying how to get it.
+
+#include "refdyn/io/results.hpp"
+
+#include <string>
+
+namespace refdyn::app {
+
+/// refdyn was built with MPI.
+bool mpi_available();
+
+/// MPI_Init_thread (funneled: only the main thread calls MPI) … MPI_Finalize.
+class MpiSession {
+ public:
+  MpiSession();
+  ~MpiSession();
+  MpiSession(const MpiSession&) = delete;
+  MpiSession& operator=(const MpiSession&) = delete;
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  /// Collective: throws refdyn::Error on every rank when `error` is non-empty on any (the
+  /// message of the lowest such rank), so that no rank waits for one that gave up.
+  void agree(const std::string& error) const;
+  /// Collective: the summaries of every rank's finished runs reach rank 0's `results` (there
+  /// RunRecord::done becomes true for all of them).
+  void gather_runs(io::Results& results) const;
+  /// Collective: rank 0's value on every rank.
+  int broadcast(int value) const;
+
+ private:
+  int rank_ = 0, size_ = 1;
+};
+
+}  // namespace refdyn::app
