@@ -160,12 +160,15 @@ struct PyResults {
   io::Results results;
 };
 
-std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bool track, const py::object& progress) {
+std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bool track, const py::object& progress,
+                               int jobs) {
   if (track && problem->experiments.empty())
     throw Error(problem->file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
   io::RunOptions o;
   o.track = track;
   o.progress = progress_factory(progress);
+  if (jobs < 0) throw Error("jobs: expected 0 (every core) or a number of threads >= 1, got " + std::to_string(jobs));
+  o.jobs = jobs;
   auto r = std::make_shared<PyResults>();
   r->problem = problem;
   {
@@ -355,10 +358,11 @@ PYBIND11_MODULE(_refdyn, m) {
       })
       .def("write", [](const PyResults& r, const std::string& dir) {
         io::write_results(dir, *r.problem, r.results, io::summary_json(*r.problem, r.results));
-      }, py::arg("dir"), "Writes plan.csv, feasibility.json, summary.json, track_<name>.csv as the CLI does.");
+      }, py::arg("dir"), "Writes plan.csv, feasibility.json, sweep.csv, summary.json, track_<name>.csv as the CLI does.");
 
-  m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress) {
-        return run(p, track, progress);
-      }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(),
-      "io::run_problem without the GIL. progress: None or callable(what, t, t0, t1).");
+  m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress, int jobs) {
+        return run(p, track, progress, jobs);
+      }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(), py::arg("jobs") = 1,
+      "io::run_problem without the GIL. progress: None or callable(what, t, t0, t1); jobs: threads for the "
+      "experiments (0: every core; the results do not depend on it).");
 }

@@ -275,11 +275,13 @@ def _progress(progress):
     return bar
 
 
-def run(scenario, track: bool = False, progress: Union[bool, Callable, None] = False) -> Results:
+def run(scenario, track: bool = False, progress: Union[bool, Callable, None] = False, jobs: int = 1) -> Results:
     """Plans the scenario (and with track=True runs its experiments); the GIL is released
-    during the run. progress: False (default), True (a bar on stderr) or callable(what, t, t0, t1)."""
+    during the run. progress: False (default), True (a bar on stderr) or callable(what, t, t0, t1)
+    (for the plan, and for the run when there is one). jobs: threads running the experiments
+    (0: every core); the results are the same bits for any number (docs/sweeps.md)."""
     problem = load(scenario)
-    r = _refdyn.run(problem, track, _progress(progress))
+    r = _refdyn.run(problem, track, _progress(progress), jobs)
     plan_ = Trajectory._make("plan", r.plan_table, r.plan_summary, r.plan_layout)
     runs = {name: Trajectory._make(name, r.run_table(i), r.run_summary(i), r.run_layout(i))
             for i, name in enumerate(r.run_names)}
@@ -292,9 +294,10 @@ def plan(scenario, progress: Union[bool, Callable, None] = False) -> Trajectory:
     return run(scenario, track=False, progress=progress).plan
 
 
-def track(scenario, progress: Union[bool, Callable, None] = False) -> Results:
-    """Plan + every closed-loop experiment: Results with .plan, .runs[name], .feasibility."""
-    return run(scenario, track=True, progress=progress)
+def track(scenario, progress: Union[bool, Callable, None] = False, jobs: int = 1) -> Results:
+    """Plan + every closed-loop experiment (on `jobs` threads, 0: every core): Results with
+    .plan, .runs[name], .feasibility, .summary (with "statistics" over the runs)."""
+    return run(scenario, track=True, progress=progress, jobs=jobs)
 
 
 def feasibility(scenario) -> Dict[str, Any]:

@@ -112,6 +112,22 @@ def test_track_returns_runs_per_experiment():
     assert abs(run.q[-1, 1] - run.q_ref[-1, 1]) < 0.02          # the error decays
 
 
+def test_track_on_threads_gives_the_bits_of_one_thread():
+    d = minimal_dict(t1=0.2)
+    d["controller"] = {"type": "computed_torque_pd", "delta": {"j1": 20, "j2": 20}}
+    d["experiments"] = [{"name": "e{off}", "sweep": {"off": [0.01, 0.02, 0.03, 0.04]},
+                         "initial": {"q": {"j2": "90*deg + off"}}}]
+    one, two = refdyn.track(d, jobs=1), refdyn.track(d, jobs=2)
+    assert list(two.runs) == list(one.runs)
+    for name in one.runs:
+        np.testing.assert_array_equal(two.runs[name].data, one.runs[name].data)
+    st = two.summary["statistics"]
+    assert st["runs"] == 4 and st["completed"] == 4
+    assert st["peak_abs_tau"]["max"] == max(r["peak_abs_tau"] for r in two.summary["runs"])
+    with pytest.raises(refdyn.Error, match="jobs"):
+        refdyn.track(d, jobs=-1)
+
+
 def test_stopped_plan_is_a_status_not_an_exception():
     d = minimal_dict(t1=1.0)
     d["constraints"][0]["expression"] = "x(E) - (L1 + 0.5*t)"   # out of reach near t = 0.8 s
