@@ -251,7 +251,9 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   o.track = track;
   o.progress = terminal_progress(!quiet);
   o.jobs = cfg.jobs < 0 ? (mpi ? 1 : 0) : cfg.jobs;
-  o.keep_trajectories = cfg.report && run_csv ? kReportMaxRuns : 0;  // `refdyn report DIR` draws the same runs
+  // The report draws the first runs, as `refdyn report DIR` would from their tables; under MPI
+  // those runs are on several ranks, so rank 0 makes the report from the folder, as that does.
+  o.keep_trajectories = cfg.report && run_csv && !mpi ? kReportMaxRuns : 0;
   if (run_csv) o.run_csv_dir = out_dir;
   if (mpi) o.shard = mpi->rank(), o.num_shards = mpi->size();
   SweepProgress bar(!quiet && runs > 1);
@@ -264,7 +266,8 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
     if (mpi->rank() == 0) {
       std::string error;
       try {
-        code = finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
+        code = finish_results(*problem, r, out_dir, quiet, false, run_csv);
+        if (cfg.report) run_report(out_dir, file, "", quiet, in);
       } catch (const Error& e) {
         error = e.what();
       }

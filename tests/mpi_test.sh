@@ -35,6 +35,18 @@ done
 # Two ranks with two threads each.
 "${MPI[@]}" -np 2 "$refdyn" track "$scenario" -o "$work/mpi2j2" -q --mpi --jobs 2
 same_files "$work/serial" "$work/mpi2j2"
+# --report: rank 0 writes the report from the folder; it equals one process's report (which
+# is made from memory) up to the wall times embedded with summary.json.
+if "$refdyn" track "$scenario" -o "$work/serial_report" -q -j 1 --report 2> /dev/null; then
+  "${MPI[@]}" -np 2 "$refdyn" track "$scenario" -o "$work/mpi_report" -q --mpi --report
+  if ! diff <(no_wall "$work/serial_report/report.html") <(no_wall "$work/mpi_report/report.html") > /dev/null; then
+    echo "FAIL: report.html under mpirun differs from one process's"; fail=1
+  else
+    echo "report.html: the same under mpirun -np 2"
+  fi
+else
+  echo "(no report: refdyn built without the report's JavaScript libraries)"
+fi
 # A scenario that does not load: exit 2, one line, nothing written.
 set +e
 err=$("${MPI[@]}" -np 2 "$refdyn" track "$work/missing.yaml" -o "$work/bad" -q --mpi 2>&1 >/dev/null)
