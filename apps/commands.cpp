@@ -7,6 +7,7 @@
 #include "refdyn/error.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/io/variants.hpp"
 #include "refdyn/symbolic.hpp"
 #include "refdyn/registry.hpp"
 #include "refdyn/text.hpp"
@@ -100,7 +101,9 @@ io::ProgressFactory terminal_progress(bool enabled) {
 }
 
 int run_check(const std::string& file, const InputOptions& in) {
-  const auto sp = io::load_problem(file, in.max_input_bytes);
+  const ScenarioSpec spec = io::load_scenario(file, in.max_input_bytes);
+  const auto sp = build_problem(spec);
+  const std::vector<io::Variant> variants = io::expand_variants(spec);  // checked before "valid"
   const Problem& s = *sp;
   const Model& m = s.model;
   if (s.is_jerk_problem()) {  // planned by JerkDynamics: state [q; q̇; q̈], no partition
@@ -160,7 +163,12 @@ int run_check(const std::string& file, const InputOptions& in) {
                 std::abs(rd.constraints().phi[r]), std::abs(rd.constraints().phid[r]));
   std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
             << s.integrator.t0 << ", " << s.integrator.t1 << "] s\n";
-  std::cout << "experiments: " << s.experiments.size() << "\n";
+  std::cout << "experiments: " << s.experiments.size() << " runs\n";
+  if (!variants.empty()) {
+    std::cout << "variants: " << variants.size() << " (";
+    for (size_t i = 0; i < variants.size() && i < 3; ++i) std::cout << (i ? ", " : "") << variants[i].name;
+    std::cout << (variants.size() > 3 ? ", …" : "") << "; each is checked when it is planned)\n";
+  }
   return kOk;
 }
 
@@ -169,7 +177,8 @@ namespace {
 /// Sweep progress on stderr (terminal only, after one second): runs ended, rate, ETA.
 class SweepProgress {
  public:
-  explicit SweepProgress(bool enabled) : tty_(enabled && ::isatty(STDERR_FILENO)), start_(clock::now()) {}
+  explicit SweepProgress(bool enabled, std::string noun = "runs")
+      : tty_(enabled && ::isatty(STDERR_FILENO)), noun_(std::move(noun)), start_(clock::now()) {}
   void update(size_t done, size_t total) {
     if (!tty_) return;
     const auto now = clock::now();
@@ -179,7 +188,7 @@ class SweepProgress {
     const double f = static_cast<double>(done) / static_cast<double>(total), rate = static_cast<double>(done) / el;
     const int w = 30, k = static_cast<int>(f * w);
     const double eta = rate > 0 ? static_cast<double>(total - done) / rate : 0;
-    std::fprintf(stderr, "\rruns %zu/%zu [%s%s] %3.0f%%  %.3g runs/s  ETA %s   ", done, total,
+    std::fprintf(stderr, "\r%s %zu/%zu [%s%s] %3.0f%%  %.3g/s  ETA %s   ", noun_.c_str(), done, total,
                  std::string(k, '#').c_str(), std::string(w - k, ' ').c_str(), 100 * f, rate, duration_text(eta).c_str());
     shown_ = true;
   }
@@ -197,6 +206,7 @@ class SweepProgress {
   }
   using clock = std::chrono::steady_clock;
   bool tty_, shown_ = false;
+  std::string noun_;
   clock::time_point start_, last_;
 };
 
@@ -235,15 +245,58 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
     mpi->agree(error);
   };
   std::unique_ptr<Problem> problem;
+  ScenarioSpec spec;
+  std::vector<io::Variant> variants;
   agree([&] {
-    problem = io::load_problem(file, in.max_input_bytes);  // validates before anything is written
+    spec = io::load_scenario(file, in.max_input_bytes);
+    problem = build_problem(spec);  // validates before anything is written
+    variants = io::expand_variants(spec);
     if (track && problem->experiments.empty())
       throw Error(file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+    if (!variants.empty() && cfg.report)
+      throw Error("--report: not for a family of variants (hint: refdyn report DIR/<variant> --scenario FILE draws one)");
   });
-  const size_t runs = track ? problem->experiments.size() : 0;
-  bool run_csv = cfg.run_csv == "all" || (cfg.run_csv == "auto" && runs <= kRunCsvAutoLimit);
   if (cfg.run_csv != "all" && cfg.run_csv != "auto" && cfg.run_csv != "none")
     throw Error("--run-csv: expected auto, all or none, got '" + cfg.run_csv + "'");
+  // Rank 0 writes the aggregate and returns the exit code, which every rank returns.
+  auto finish = [&](const std::function<int()>& write) {
+    if (!mpi) return write();
+    int code = kOk;
+    std::string error;
+    if (mpi->rank() == 0) try {
+        code = write();
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    code = mpi->broadcast(error.empty() ? code : -1);
+    if (code == -1) throw Error(mpi->rank() == 0 ? error : "rank 0 failed to write the results");
+    return code;
+  };
+  if (!variants.empty()) {
+    // A family of tasks: each variant planned (and tracked) into DIR/<variant>/ (up to
+    // kRunCsvAutoLimit variants, or --run-csv all), the aggregate into DIR.
+    const bool folders = cfg.run_csv == "all" || (cfg.run_csv == "auto" && variants.size() <= kRunCsvAutoLimit);
+    agree([&] {
+      if (!mpi || mpi->rank() == 0) io::prepare_output_dir(out_dir);
+    });
+    io::VariantOptions vo;
+    vo.track = track;
+    vo.jobs = cfg.jobs < 0 ? (mpi ? 1 : 0) : cfg.jobs;
+    if (mpi) vo.shard = mpi->rank(), vo.num_shards = mpi->size();
+    if (folders) vo.dir = out_dir;
+    SweepProgress bar(!quiet, "variants");
+    vo.on_done = [&bar](size_t done, size_t total, const std::string&) { bar.update(done, total); };
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<io::VariantSummary> summaries;
+    agree([&] { summaries = io::run_variants(spec, variants, vo); });
+    if (mpi) mpi->gather_variants(summaries);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return finish([&] {
+      return finish_family(*problem, variants, summaries, out_dir, quiet, track, folders, wall);
+    });
+  }
+  const size_t runs = track ? problem->experiments.size() : 0;
+  const bool run_csv = cfg.run_csv == "all" || (cfg.run_csv == "auto" && runs <= kRunCsvAutoLimit);
   agree([&] {
     if (!mpi || mpi->rank() == 0) io::prepare_output_dir(out_dir);
   });
@@ -260,29 +313,53 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   if (runs > 1) o.on_run_done = [&bar](size_t done, size_t total, const std::string&) { bar.update(done, total); };
   io::Results r;
   agree([&] { r = io::run_problem(*problem, o); });
-  if (mpi) {
-    mpi->gather_runs(r);
-    int code = kOk;
-    if (mpi->rank() == 0) {
-      std::string error;
-      try {
-        code = finish_results(*problem, r, out_dir, quiet, false, run_csv);
-        if (cfg.report) run_report(out_dir, file, "", quiet, in);
-      } catch (const Error& e) {
-        error = e.what();
-      }
-      code = mpi->broadcast(error.empty() ? code : -1);
-      if (code == -1) throw Error(error);
-    } else {
-      code = mpi->broadcast(0);
-      if (code == -1) throw Error("rank 0 failed to write the results");
-    }
+  if (mpi) mpi->gather_runs(r);
+  return finish([&] {
+    if (!mpi) return finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
+    const int code = finish_results(*problem, r, out_dir, quiet, false, run_csv);
+    if (cfg.report) run_report(out_dir, file, "", quiet, in);
     return code;
-  }
-  return finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
+  });
 }
 
 }  // namespace
+
+int finish_family(const Problem& base, const std::vector<io::Variant>& variants,
+                  const std::vector<io::VariantSummary>& summaries, const std::string& out_dir, bool quiet, bool track,
+                  bool folders, double wall_time) {
+  const bool tracked = track && !base.experiments.empty();
+  io::write_text_atomic(fs::path(out_dir) / "variants.csv",
+                        io::variants_csv(base.model.joint_name, variants, summaries, tracked));
+  JsonValue summary =
+      io::variants_summary_json(base.name, base.file, base.model.joint_name, variants, summaries, tracked, wall_time);
+  summary["variant_folders"] = folders;
+  io::write_text_atomic(fs::path(out_dir) / "summary.json", summary.dump(2, 2) + "\n");
+  size_t bad = 0, feasible = 0;
+  for (size_t i = 0; i < summaries.size(); ++i) {
+    const io::VariantSummary& s = summaries[i];
+    feasible += s.ok() && s.feasible;
+    if (s.ok()) continue;
+    if (++bad <= kPrintedRuns)
+      std::fprintf(stderr, "refdyn: error: variant '%s': %s\n", variants[i].name.c_str(),
+                   (!s.error.empty() ? s.error : !s.message.empty() ? s.message : std::string("a tracking run stopped early")).c_str());
+  }
+  if (bad > kPrintedRuns) std::fprintf(stderr, "refdyn: error: %zu variants in all did not complete (summary.json)\n", bad);
+  if (!quiet) {
+    std::printf("scenario '%s': %zu variants, %zu complete, %zu feasible and complete; wall time %.3f s\n", base.name.c_str(),
+                variants.size(), variants.size() - bad, feasible, wall_time);
+    const size_t shown = variants.size() <= 2 * kPrintedRuns ? variants.size() : kPrintedRuns;
+    for (size_t i = 0; i < shown; ++i) {
+      const io::VariantSummary& s = summaries[i];
+      double peak = 0;
+      for (double x : s.peak_effort) peak = std::max(peak, x);
+      std::printf("  %-24s %-10s %s, peak |effort| = %.4g\n", variants[i].name.c_str(),
+                  s.error.empty() ? to_string(s.status) : "invalid", s.feasible ? "feasible" : "not feasible", peak);
+    }
+    if (shown < variants.size()) std::printf("  ... (every variant: variants.csv; statistics: summary.json)\n");
+    std::printf("results in %s (variants.csv, summary.json%s)\n", out_dir.c_str(), folders ? ", one folder per variant" : "");
+  }
+  return bad ? kNumerical : kOk;
+}
 
 /// Writes the results (summary.json last) and the report, prints the summary; the exit code.
 int finish_results(const Problem& problem, const io::Results& r, const std::string& out_dir, bool quiet, bool report,

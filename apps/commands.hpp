@@ -1,6 +1,7 @@
 #pragma once
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/io/variants.hpp"
 
 #include <cstddef>
 #include <string>
@@ -46,6 +47,11 @@ int run_check(const std::string& file, const InputOptions& in);
 int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
               const RunConfig& config);
+/// A family of variants: writes variants.csv and summary.json (last) into out_dir, prints the
+/// summary; kOk, or kNumerical when a variant is invalid or stopped early.
+int finish_family(const Problem& base, const std::vector<io::Variant>& variants,
+                  const std::vector<io::VariantSummary>& summaries, const std::string& out_dir, bool quiet, bool track,
+                  bool folders, double wall_time);
 /// Writes the results of a run (summary.json last) and the report, prints the summary (unless
 /// quiet); returns kOk, or kNumerical when the plan or a run stopped early.
 int finish_results(const Problem& problem, const io::Results& results, const std::string& out_dir, bool quiet,

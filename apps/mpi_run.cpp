@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #ifdef REFDYN_WITH_MPI
@@ -27,6 +28,8 @@ MpiSession::MpiSession() { no_mpi(); }
 MpiSession::~MpiSession() = default;
 void MpiSession::agree(const std::string&) const { no_mpi(); }
 void MpiSession::gather_runs(io::Results&) const { no_mpi(); }
+void MpiSession::gather_variants(std::vector<io::VariantSummary>&) const { no_mpi(); }
+std::vector<char> MpiSession::gather_bytes(const std::vector<char>&) const { no_mpi(); }
 int MpiSession::broadcast(int) const { no_mpi(); }
 
 #else
@@ -113,6 +116,22 @@ int MpiSession::broadcast(int value) const {
   return value;
 }
 
+std::vector<char> MpiSession::gather_bytes(const std::vector<char>& mine) const {
+  int n = static_cast<int>(mine.size());
+  std::vector<int> counts(rank_ == 0 ? size_ : 0), offsets(rank_ == 0 ? size_ : 0);
+  check(MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
+  std::vector<char> all;
+  if (rank_ == 0) {
+    long total = 0;
+    for (int r = 0; r < size_; ++r) offsets[r] = static_cast<int>(total), total += counts[r];
+    if (total > std::numeric_limits<int>::max()) throw Error("--mpi: more than 2 GB of summaries to gather");
+    all.resize(static_cast<size_t>(total));
+  }
+  check(MPI_Gatherv(mine.data(), n, MPI_CHAR, all.data(), counts.data(), offsets.data(), MPI_CHAR, 0, MPI_COMM_WORLD),
+        "MPI_Gatherv");
+  return all;
+}
+
 void MpiSession::gather_runs(io::Results& res) const {
   Writer w;
   if (rank_ != 0)
@@ -128,17 +147,7 @@ void MpiSession::gather_runs(io::Results& res) const {
       w.put(static_cast<std::uint64_t>(s.joints.size()));
       for (const auto& j : s.joints) w.put(j.e0), w.put(j.settle_time), w.put(j.late_error), w.put(j.peak_tau);
     }
-  int n = static_cast<int>(w.bytes.size());
-  std::vector<int> counts(rank_ == 0 ? size_ : 0), offsets(rank_ == 0 ? size_ : 0);
-  check(MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
-  std::vector<char> all;
-  if (rank_ == 0) {
-    long total = 0;
-    for (int r = 0; r < size_; ++r) offsets[r] = static_cast<int>(total), total += counts[r];
-    all.resize(static_cast<size_t>(total));
-  }
-  check(MPI_Gatherv(w.bytes.data(), n, MPI_CHAR, all.data(), counts.data(), offsets.data(), MPI_CHAR, 0, MPI_COMM_WORLD),
-        "MPI_Gatherv");
+  const std::vector<char> all = gather_bytes(w.bytes);
   if (rank_ != 0) return;
   Reader in(all.data(), all.size());
   while (!in.done()) {
@@ -154,6 +163,50 @@ void MpiSession::gather_runs(io::Results& res) const {
     for (auto& j : s.joints)
       j.e0 = in.get<double>(), j.settle_time = in.get<double>(), j.late_error = in.get<double>(), j.peak_tau = in.get<double>();
     r.done = true;
+  }
+}
+
+void MpiSession::gather_variants(std::vector<io::VariantSummary>& summaries) const {
+  Writer w;
+  auto put_vector = [&w](const std::vector<double>& v) {
+    w.put(static_cast<std::uint64_t>(v.size()));
+    for (double x : v) w.put(x);
+  };
+  if (rank_ != 0)
+    for (size_t i = 0; i < summaries.size(); ++i) {
+      const io::VariantSummary& s = summaries[i];
+      if (!s.done) continue;
+      w.put(static_cast<std::uint64_t>(i));
+      w.put(s.error);
+      w.put(static_cast<std::int32_t>(s.status));
+      w.put(s.message);
+      w.put(s.t_end), w.put(s.max_constraint_residual), w.put(static_cast<std::int32_t>(s.feasible)), w.put(s.violations);
+      put_vector(s.peak_speed);
+      put_vector(s.peak_effort);
+      w.put(s.runs), w.put(s.runs_completed), w.put(s.worst_final_error), w.put(s.worst_peak_tau), w.put(s.wall_time);
+    }
+  const std::vector<char> all = gather_bytes(w.bytes);
+  if (rank_ != 0) return;
+  Reader in(all.data(), all.size());
+  auto get_vector = [&in] {
+    std::vector<double> v(in.get<std::uint64_t>());
+    for (double& x : v) x = in.get<double>();
+    return v;
+  };
+  while (!in.done()) {
+    const auto i = in.get<std::uint64_t>();
+    if (i >= summaries.size()) throw Error("--mpi: a variant index from another rank is out of range (internal error)");
+    io::VariantSummary& s = summaries[i];
+    s.error = in.get_string();
+    s.status = static_cast<IntegrationStatus>(in.get<std::int32_t>());
+    s.message = in.get_string();
+    s.t_end = in.get<double>(), s.max_constraint_residual = in.get<double>();
+    s.feasible = in.get<std::int32_t>() != 0, s.violations = in.get<long>();
+    s.peak_speed = get_vector();
+    s.peak_effort = get_vector();
+    s.runs = in.get<long>(), s.runs_completed = in.get<long>();
+    s.worst_final_error = in.get<double>(), s.worst_peak_tau = in.get<double>(), s.wall_time = in.get<double>();
+    s.done = true;
   }
 }
 

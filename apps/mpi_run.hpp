@@ -8,8 +8,10 @@
 /// but mpi_available() throws an Error saying how to get it.
 
 #include "refdyn/io/results.hpp"
+#include "refdyn/io/variants.hpp"
 
 #include <string>
+#include <vector>
 
 namespace refdyn::app {
 
@@ -31,10 +33,14 @@ class MpiSession {
   /// Collective: the summaries of every rank's finished runs reach rank 0's `results` (there
   /// RunRecord::done becomes true for all of them).
   void gather_runs(io::Results& results) const;
+  /// Collective: the same for a family's variants (VariantSummary::done).
+  void gather_variants(std::vector<io::VariantSummary>& summaries) const;
   /// Collective: rank 0's value on every rank.
   int broadcast(int value) const;
 
  private:
+  /// Every rank's bytes, concatenated in rank order, on rank 0 (empty elsewhere).
+  std::vector<char> gather_bytes(const std::vector<char>& mine) const;
   int rank_ = 0, size_ = 1;
 };
 

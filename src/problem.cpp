@@ -239,13 +239,7 @@ void check_name(const SpecReader& c, const SpecValue& at, const std::string& key
 /// An experiment's name is part of a file name (track_<name>.csv): letters, digits and . _ - + =
 /// only, not starting with a dot.
 void check_file_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
-  check_name(c, at, key, name);
-  for (unsigned char ch : name)
-    if (!(std::isalnum(ch) || ch == '.' || ch == '_' || ch == '-' || ch == '+' || ch == '='))
-      c.fail(at, key,
-             "the experiment name '" + name + "' is used in a file name and may contain only letters, digits and . _ - + "
-             "= (got '" + std::string(1, static_cast<char>(ch)) + "')");
-  if (name[0] == '.' || name[0] == '-') c.fail(at, key, "the experiment name '" + name + "' may not start with '.' or '-'");
+  check_output_name(c, at, key, name, "experiment");
 }
 
 /// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
@@ -343,15 +337,35 @@ std::unique_ptr<ReferenceDynamics> Problem::make_reference_dynamics() const {
   return std::make_unique<ReferenceDynamics>(model, forces, constraints, options);
 }
 
-std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
-  const std::string& source = spec.file;
-  SpecReader c(source, {});
+void check_output_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name,
+                       const std::string& what) {
+  check_name(c, at, key, name);
+  for (unsigned char ch : name)
+    if (!(std::isalnum(ch) || ch == '.' || ch == '_' || ch == '-' || ch == '+' || ch == '='))
+      c.fail(at, key,
+             "the " + what + " name '" + name + "' is used in a file name and may contain only letters, digits and . _ - + "
+             "= (got '" + std::string(1, static_cast<char>(ch)) + "')");
+  if (name[0] == '.' || name[0] == '-') c.fail(at, key, "the " + what + " name '" + name + "' may not start with '.' or '-'");
+}
+
+std::string substitute_value(std::string name_template, const std::string& parameter, double value) {
+  return substitute(std::move(name_template), parameter, value);
+}
+
+SpecReader parameter_reader(const ScenarioSpec& spec) {
+  SpecReader c(spec.file, {});
   c.params["deg"] = std::numbers::pi / 180.0;
   for (const auto& [name, value] : spec.parameters) {
     if (name == "pi" || name == "e" || name == "deg" || name == "t")
       c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
     c.params[name] = c.number(value, "parameters." + name);
   }
+  return c;
+}
+
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
+  const std::string& source = spec.file;
+  SpecReader c = parameter_reader(spec);
 
   std::map<std::string, int> link_lines;
   ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines);

@@ -85,6 +85,18 @@ struct Problem {
   std::unique_ptr<ReferenceDynamics> make_reference_dynamics() const;
 };
 
+/// A SpecReader of the scenario's file with its parameters evaluated (in order; each may use
+/// the ones before it) and `deg`: what build_problem starts from.
+SpecReader parameter_reader(const ScenarioSpec& spec);
+
+/// A name that becomes part of a file or folder name (an experiment's track_<name>.csv, a
+/// variant's folder): printable, letters, digits and . _ - + = only, not starting with . or -.
+/// Fails with "… the <what> name '…' …".
+void check_output_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name,
+                       const std::string& what);
+/// `{parameter}` in a name template replaced by the value (printf %g).
+std::string substitute_value(std::string name_template, const std::string& parameter, double value);
+
 /// Builds and checks a Problem. Throws Error "FILE:LINE: KEY: message" naming the offending key.
 std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec);
 

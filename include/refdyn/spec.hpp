@@ -126,6 +126,16 @@ struct ExperimentSpec {
   SpecValue value;
 };
 
+/// `variants:` — a family of tasks: the same scenario with some parameters set to other values
+/// (io/variants.hpp, docs/sweeps.md). One of sweep (one parameter), grid and monte_carlo.
+struct VariantsSpec {
+  std::string name;                        ///< folder name template with {param} (and {sample})
+  bool named = false;
+  /// sweep / grid: parameter → values; one run per combination, the first parameter slowest.
+  std::vector<std::pair<std::string, std::vector<SpecValue>>> grid;
+  SpecValue value;                         ///< the section as written
+};
+
 struct ScenarioSpec {
   std::string file;                        ///< source name used in messages
   std::string name;
@@ -146,6 +156,7 @@ struct ScenarioSpec {
   std::vector<ExperimentSpec> experiments;
   SpecValue experiments_value;
   std::optional<std::vector<SpecValue>> output_points;  ///< absent: every model point
+  std::optional<VariantsSpec> variants;    ///< absent: one scenario
   SpecValue limits;                        ///< {max_steps, max_samples, max_runs} as written
   SpecValue root;                          ///< the whole file as written (for messages)
 };

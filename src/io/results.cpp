@@ -237,8 +237,8 @@ Distribution distribution_of(std::vector<double> v) {
 }
 
 namespace {
-
 JsonValue number_or_null(double x) { return std::isfinite(x) ? JsonValue(x) : JsonValue(); }
+}  // namespace
 
 JsonValue distribution_json(const Distribution& d) {
   JsonValue o = JsonValue::object();
@@ -249,6 +249,8 @@ JsonValue distribution_json(const Distribution& d) {
     o[k] = number_or_null(x);
   return o;
 }
+
+namespace {
 
 /// The largest finite value (NaN when none): a run's settle time is that of its slowest joint.
 double max_finite(const std::vector<JointTracking>& js, double JointTracking::*field) {

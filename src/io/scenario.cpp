@@ -236,7 +236,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
-                    "experiments", "outputs", "limits"});
+                    "experiments", "variants", "outputs", "limits"});
   const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
@@ -347,6 +347,28 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
       if (const SpecValue& ct = e["controller"]) x.controller = rd.controller(ct, x.key + ".controller");
       s.experiments.push_back(std::move(x));
     }
+  }
+  if (const SpecValue& va = root["variants"]) {
+    VariantsSpec v;
+    v.value = va;
+    c.keys(va, "variants", {"name", "sweep", "grid"});
+    if (va["name"]) {
+      v.name = c.string(va["name"], "variants.name");
+      v.named = true;
+    }
+    const SpecValue& sw = va["sweep"];
+    const SpecValue& gr = va["grid"];
+    if (sw && gr) c.fail(gr, "variants.grid", "give one of sweep and grid (sweep: one parameter; grid: several)");
+    if (!sw && !gr) c.fail(va, "variants", "expected sweep: {parameter: [values]} or grid: {p1: [values], p2: [values]}");
+    const SpecValue& g = sw ? sw : gr;
+    const std::string gkey = sw ? "variants.sweep" : "variants.grid";
+    if (!g.is_map() || g.size() == 0 || (sw && g.size() != 1))
+      c.fail(g, gkey, sw ? "expected one entry  parameter: [values]" : "expected parameter: [values] entries");
+    for (const auto& e : g.entries) {
+      if (!e.value.is_list() || e.value.size() == 0) c.fail(e.value, gkey + "." + e.key, "expected a non-empty list of values");
+      v.grid.emplace_back(e.key, e.value.items);
+    }
+    s.variants = std::move(v);
   }
   if (const SpecValue& lim = root["limits"]) {
     c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});

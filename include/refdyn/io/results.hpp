@@ -109,6 +109,8 @@ struct Distribution {
   double min = 0, p5 = 0, p25 = 0, p50 = 0, p75 = 0, p95 = 0, p99 = 0, max = 0, mean = 0;
 };
 Distribution distribution_of(std::vector<double> v);
+/// {count, missing, min, p5, …, max, mean} (null for NaN).
+JsonValue distribution_json(const Distribution& d);
 
 /// sweep.csv: one row per run (index, name, status, the sweep/grid/Monte Carlo values, t_end,
 /// the summary metrics, per joint e0, settle time, late error, peak |τ|), no wall times, so that
