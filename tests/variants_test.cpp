@@ -1,0 +1,172 @@
+// Families of tasks (src/io/variants.cpp): a variant is exactly the scenario with its
+// parameters rewritten (checked against the rewritten YAML, bit for bit); threads and shards
+// give the bits of one thread; invalid variants are reported and do not stop the others; the
+// section's errors name their key.
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/io/variants.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+using namespace refdyn;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string read(const fs::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The planar 2R circle example (fully prescribed motion, projected initial velocity) with a
+// shorter span, and the `variants:` section `extra`.
+std::string circle(const std::string& extra, const std::string& R = "0.15") {
+  std::string text = read(std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/planar_2r_circle.yaml");
+  text = std::regex_replace(text, std::regex("t1: 4\\}"), "t1: 0.5}");
+  text = std::regex_replace(text, std::regex("R: 0.15 "), "R: " + R + " ");
+  return text + "\n" + extra;
+}
+
+const std::string kGrid = R"(variants:
+  name: "R{R}_T{Tp}"
+  grid: {R: [0.1, 0.2], Tp: [1, 2, 3]}
+)";
+
+fs::path temp_dir(const std::string& what) {
+  const fs::path d = fs::temp_directory_path() / ("refdyn_variants_" + what + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  return d;
+}
+
+int cli(const std::string& args) {
+  const int status = std::system((std::string(REFDYN_CLI) + " " + args + " > /dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
+
+TEST(Variants, GridExpandsRowMajorWithNamesAndValues) {
+  const ScenarioSpec spec = io::parse_scenario(circle(kGrid), "family.yaml");
+  const auto v = io::expand_variants(spec);
+  ASSERT_EQ(v.size(), 6u);
+  const char* names[] = {"R0.1_T1", "R0.1_T2", "R0.1_T3", "R0.2_T1", "R0.2_T2", "R0.2_T3"};
+  for (size_t i = 0; i < 6; ++i) {
+    EXPECT_EQ(v[i].name, names[i]);
+    ASSERT_EQ(v[i].values.size(), 2u);
+    EXPECT_EQ(v[i].values[0], (std::pair<std::string, double>{"R", i < 3 ? 0.1 : 0.2}));
+    EXPECT_EQ(v[i].values[1], (std::pair<std::string, double>{"Tp", static_cast<double>(i % 3 + 1)}));
+  }
+  // No section: no variants.
+  EXPECT_TRUE(io::expand_variants(io::parse_scenario(circle(""), "one.yaml")).empty());
+}
+
+// A variant is the scenario with R rewritten: its plan equals the plan of that file, bit for bit
+// (and the parameters after R, which use it — v0, ex0, q10, q20 — follow).
+TEST(Variants, AVariantIsTheScenarioWithItsParametersRewritten) {
+  const ScenarioSpec spec = io::parse_scenario(circle(kGrid), "family.yaml");
+  const auto v = io::expand_variants(spec);
+  const auto from_variant = build_problem(io::variant_spec(spec, v[4]));  // R = 0.2, Tp = 2
+  const auto written = io::parse_problem(circle("", "0.2"), "written.yaml");
+  EXPECT_EQ(from_variant->parameters, written->parameters);
+  EXPECT_EQ(from_variant->q0, written->q0);
+  io::RunOptions o;
+  const io::Results a = io::run_problem(*from_variant, o), b = io::run_problem(*written, o);
+  ASSERT_TRUE(a.plan.summary.ok());
+  EXPECT_EQ(io::trajectory_table(a.plan).to_string(), io::trajectory_table(b.plan).to_string());
+}
+
+TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {
+  const ScenarioSpec spec = io::parse_scenario(circle(kGrid), "family.yaml");
+  const auto v = io::expand_variants(spec);
+  const fs::path d1 = temp_dir("j1"), d3 = temp_dir("j3");
+  io::VariantOptions o;
+  o.dir = d1;
+  o.jobs = 1;
+  const auto one = io::run_variants(spec, v, o);
+  o.dir = d3;
+  o.jobs = 3;
+  const auto three = io::run_variants(spec, v, o);
+  const std::vector<std::string> joints{"q1", "q2"};
+  EXPECT_EQ(io::variants_csv(joints, v, three, false), io::variants_csv(joints, v, one, false));
+  for (const auto& x : v)
+    for (const char* f : {"plan.csv", "feasibility.json"})
+      EXPECT_EQ(read(d3 / x.name / f), read(d1 / x.name / f)) << x.name << "/" << f;
+  // Two shards split the variants; together they give the same rows.
+  io::VariantOptions s;
+  s.num_shards = 2;
+  s.shard = 0;
+  auto merged = io::run_variants(spec, v, s);
+  s.shard = 1;
+  const auto other = io::run_variants(spec, v, s);
+  for (size_t i = 0; i < v.size(); ++i) {
+    EXPECT_NE(merged[i].done, other[i].done);
+    if (other[i].done) merged[i] = other[i];
+  }
+  EXPECT_EQ(io::variants_csv(joints, v, merged, false), io::variants_csv(joints, v, one, false));
+  // The peak effort grows with the speed of the turn: R = 0.2 at Tp = 1 needs more than at 3.
+  EXPECT_GT(one[3].peak_effort[0], one[5].peak_effort[0]);
+  fs::remove_all(d1);
+  fs::remove_all(d3);
+}
+
+// A variant whose initial state violates a constraint (the paper's ellipse with another a,
+// `consistency: check`) is reported as invalid with the error; the others are planned.
+TEST(Variants, AnInvalidVariantIsReportedAndTheOthersRun) {
+  std::string text = read(std::string(REFDYN_SOURCE_DIR) + "/examples/paper/paper.yaml");
+  text = std::regex_replace(text, std::regex("t1: 5, residual_from: 0.5"), "t1: 0.2, residual_from: 0.1");
+  text = std::regex_replace(text, std::regex("\nexperiments:[\\s\\S]*?\noutputs:"), "\noutputs:");
+  text += "\nvariants:\n  name: \"z{z0}\"\n  sweep: {z0: [0.5, 0.6]}\n";
+  const ScenarioSpec spec = io::parse_scenario(text, "paper_family.yaml");
+  const auto v = io::expand_variants(spec);
+  ASSERT_EQ(v.size(), 2u);
+  const auto s = io::run_variants(spec, v, {});
+  EXPECT_TRUE(s[0].ok()) << s[0].error << s[0].message;
+  EXPECT_TRUE(s[0].feasible);
+  EXPECT_FALSE(s[1].ok());
+  EXPECT_NE(s[1].error.find("violates constraint"), std::string::npos) << s[1].error;
+  const std::string csv = io::variants_csv({"psi1", "psi2", "z3"}, v, s, false);
+  EXPECT_NE(csv.find("\n1,z0.6,invalid,0.6,"), std::string::npos) << csv;
+  const std::string js = io::variants_summary_json("p", "f", {"psi1", "psi2", "z3"}, v, s, false, 0).dump(2, 2);
+  EXPECT_NE(js.find("\"valid\": 1,"), std::string::npos) << js;
+}
+
+TEST(Variants, SectionErrorsNameTheKey) {
+  auto fails = [](const std::string& section, const std::vector<std::string>& needles) {
+    test::expect_error_mentioning(
+        [&] { io::expand_variants(io::parse_scenario(circle(section), "bad.yaml")); }, needles);
+  };
+  fails("variants: {grid: {Rr: [1, 2]}}\n", {"bad.yaml:", "variants.grid.Rr", "no parameter 'Rr'", "did you mean 'R'"});
+  fails("variants: {sweep: {R: []}}\n", {"variants.sweep.R", "non-empty list"});
+  fails("variants: {sweep: {R: [1]}, grid: {Tp: [1]}}\n", {"variants.grid", "one of sweep and grid"});
+  fails("variants: {name: same, sweep: {R: [0.1, 0.2]}}\n", {"variants.name", "two variants are named 'same'"});
+  fails("variants: {name: \"a/{R}\", sweep: {R: [0.1]}}\n", {"variants.name", "variant name"});
+  fails("variants: {sweep: {R: [0.1, 0.2, 0.3]}}\nlimits: {max_runs: 2}\n", {"variants", "3 variants", "max_runs = 2"});
+  fails("variants: {sweep: {R: [1, x]}}\n", {"variants.sweep.R"});
+  fails("variants: {grid: {R: [0.1]}, names: x}\n", {"variants.names", "unknown key"});
+}
+
+TEST(Variants, CommandLineWritesTheAggregateAndOneFolderPerVariant) {
+  const fs::path base = temp_dir("cli");
+  fs::create_directories(base);
+  const fs::path scenario = base / "family.yaml";
+  std::ofstream(scenario) << circle(kGrid);
+  ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "j1").string() + " -q -j 1"), 0);
+  ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "j2").string() + " -q -j 2"), 0);
+  EXPECT_EQ(read(base / "j1" / "variants.csv"), read(base / "j2" / "variants.csv"));
+  EXPECT_TRUE(fs::exists(base / "j1" / "R0.2_T3" / "plan.csv"));
+  EXPECT_NE(read(base / "j1" / "summary.json").find("\"feasible\": 6,"), std::string::npos);
+  ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "none").string() + " -q --run-csv none"), 0);
+  EXPECT_FALSE(fs::exists(base / "none" / "R0.2_T3"));
+  EXPECT_EQ(read(base / "none" / "variants.csv"), read(base / "j1" / "variants.csv"));
+  EXPECT_EQ(cli("plan " + scenario.string() + " -o " + (base / "rep").string() + " -q --report"), 2);
+  EXPECT_FALSE(fs::exists(base / "rep"));
+  fs::remove_all(base);
+}
