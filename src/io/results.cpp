@@ -164,6 +164,10 @@ JsonValue summary_json(const Problem& p, const Results& res) {
         JsonValue& sw = o["sweep"] = JsonValue::object();
         for (const auto& [k, v] : rr.experiment->sweep) sw[k] = v;
       }
+      if (rr.experiment->sample >= 0) {
+        o["sample"] = rr.experiment->sample;
+        o["seed"] = rr.experiment->seed;
+      }
       o["controller"] = rr.experiment->controller_type;
       o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());
       o["status"] = to_string(r.summary.status);
