@@ -278,6 +278,10 @@ TEST(MonteCarlo, SummaryJsonRecordsValuesSampleAndSeed) {
   EXPECT_NE(json.find("\"sweep\": {\"dq1\": "), std::string::npos) << json;
   EXPECT_NE(json.find("\"sample\": 1"), std::string::npos) << json;
   EXPECT_NE(json.find("\"seed\": 5"), std::string::npos) << json;
+  // The largest seed is written exactly (not as a negative or rounded number).
+  const auto big = build(arm(mc(1, "18446744073709551615")));
+  const std::string big_json = io::summary_json(*big, io::run_problem(*big, [] { io::RunOptions o; o.track = true; return o; }())).dump();
+  EXPECT_NE(big_json.find("\"seed\": 18446744073709551615"), std::string::npos) << big_json;
 }
 
 // ---------------------------------------------------------------------------------------------
