@@ -104,7 +104,9 @@ void JsonValue::write(std::string& out, int indent, int depth, int level) const 
     case Kind::Null: out += "null"; break;
     case Kind::Bool: out += b_ ? "true" : "false"; break;
     case Kind::Number: out += std::isfinite(x_) ? fmt(x_) : "null"; break;
-    case Kind::Integer: out += std::to_string(i_); break;
+    case Kind::Integer:
+      out += unsigned_ ? std::to_string(static_cast<unsigned long long>(i_)) : std::to_string(i_);
+      break;
     case Kind::String: out += json_quote(s_); break;
     case Kind::Array:
       out += "[";

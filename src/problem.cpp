@@ -12,9 +12,12 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <numbers>
+#include <random>
 #include <set>
 
 namespace refdyn {
@@ -175,6 +178,57 @@ std::string substitute(std::string s, const std::string& var, double v) {
   std::snprintf(b, sizeof b, "%g", v);
   for (size_t pos; (pos = s.find(pat)) != std::string::npos;) s.replace(pos, pat.size(), b);
   return s;
+}
+
+/// Portable random numbers for monte_carlo experiments (docs/scenario.md, "experiments"): the
+/// engine std::mt19937_64 is specified exactly by the standard, its distributions are not, so
+/// the distributions are ours. u = (top 53 bits of the next output) · 2^−53, in [0, 1).
+double uniform01(std::mt19937_64& g) { return static_cast<double>(g() >> 11) * 0x1.0p-53; }
+
+/// Box–Muller with two uniforms u1, u2 (drawn in that order); 1 − u1 is in (0, 1], so the
+/// logarithm is finite. The second value of the pair is not used: each normal takes two draws.
+double standard_normal(std::mt19937_64& g) {
+  const double u1 = uniform01(g);
+  const double u2 = uniform01(g);
+  return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(2.0 * std::numbers::pi * u2);
+}
+
+/// x + y·z with the product rounded on its own: compilers may contract x + y*z into a fused
+/// multiply-add (GCC does with -march=native, even in ISO mode), which rounds once and would
+/// make the drawn values depend on the machine. The volatile keeps them the same everywhere.
+double add_product(double x, double y, double z) {
+  volatile double p = y * z;
+  return x + p;
+}
+
+/// Runs an experiment expands into, as a double (a grid's product may exceed every integer).
+/// Checks a Monte Carlo experiment's `samples`: a whole number >= 1.
+double experiment_runs(const SpecReader& c, const ExperimentSpec& e) {
+  if (!e.sweep_parameter.empty()) return static_cast<double>(e.sweep_values.size());
+  if (!e.grid.empty()) {
+    double n = 1;
+    for (const auto& axis : e.grid) n *= static_cast<double>(axis.second.size());
+    return n;
+  }
+  if (e.monte_carlo) {
+    const std::string key = e.key + ".monte_carlo.samples";
+    const double x = c.number(e.monte_carlo->samples, key);
+    if (!(x >= 1 && x <= 9e15 && x == std::floor(x)))
+      c.fail(e.monte_carlo->samples, key, "expected a whole number >= 1 of samples, got " + fmt(x));
+    return x;
+  }
+  return 1;
+}
+
+/// A Monte Carlo seed: an unsigned 64-bit integer written in digits (no expression: a double
+/// would round seeds above 2^53).
+std::uint64_t read_seed(const SpecReader& c, const SpecValue& v, const std::string& key) {
+  std::uint64_t seed = 0;
+  const std::string& t = v.text;
+  const auto r = std::from_chars(t.data(), t.data() + t.size(), seed);
+  if (!v.is_scalar() || t.empty() || r.ec != std::errc() || r.ptr != t.data() + t.size())
+    c.fail(v, key, "expected a whole number 0 to 18446744073709551615 written in digits, got " + v.describe());
+  return seed;
 }
 
 /// Builds one registry entry; errors from the factory that carry no location get the entry's.
@@ -598,12 +652,23 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       c.fail(at, "integrator",
              count_text(samples) + " output samples, more than limits.max_samples = " + std::to_string(lim.max_samples) +
                  " (hint: set integrator.output_interval, shorten the span, or raise limits.max_samples)");
-    double runs = 0;
-    for (const ExperimentSpec& e : spec.experiments) runs += e.sweep_parameter.empty() ? 1 : static_cast<double>(e.sweep_values.size());
+    // Counted (in double: no overflow) before anything is expanded or drawn.
+    double runs = 0, largest = 0;
+    const ExperimentSpec* biggest = nullptr;
+    for (const ExperimentSpec& e : spec.experiments) {
+      const double n = experiment_runs(c, e);
+      runs += n;
+      if (n > largest) {
+        largest = n;
+        biggest = &e;
+      }
+    }
     if (runs > static_cast<double>(lim.max_runs))
       c.fail(spec.experiments_value, "experiments",
-             count_text(runs) + " runs after expanding the sweeps, more than limits.max_runs = " + std::to_string(lim.max_runs) +
-                 " (hint: fewer sweep values, or raise limits.max_runs)");
+             count_text(runs) + " runs after expanding the sweeps, grids and Monte Carlo samples" +
+                 (biggest && largest < runs ? " (" + biggest->key + " gives " + count_text(largest) + ")" : "") +
+                 ", more than limits.max_runs = " + std::to_string(lim.max_runs) +
+                 " (hint: fewer sweep or grid values or samples, or raise limits.max_runs)");
   }
 
   // Initial consistency and partition at t0.
@@ -702,28 +767,113 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (!spec.controller && !e.controller)
       c.fail(e.value, "controller",
              "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
-    if (!e.sweep_parameter.empty() && c.params.count(e.sweep_parameter))
-      c.fail(e.sweep, k + ".sweep." + e.sweep_parameter,
-             "the sweep parameter '" + e.sweep_parameter + "' has the name of a parameter (or a constant); choose another name");
-    std::vector<double> values{0.0};
-    if (!e.sweep_parameter.empty()) {
-      values.clear();
-      for (const SpecValue& v : e.sweep_values) values.push_back(c.number(v, k + ".sweep." + e.sweep_parameter));
+    // The experiment's own parameters, in the order written: the sweep's, the grid's (first
+    // slowest) or the Monte Carlo distributions (drawn per sample in this order).
+    struct Axis {
+      std::string name, key;
+      const SpecValue* at;
+      std::vector<double> values;  // sweep, grid
+      bool normal = false;         // Monte Carlo: normal(a = mean, b = std) or uniform(a = low, b = high)
+      double a = 0, b = 0;
+    };
+    std::vector<Axis> axes;
+    std::string what = "sweep";
+    if (!e.sweep_parameter.empty()) axes.push_back({e.sweep_parameter, k + ".sweep." + e.sweep_parameter, &e.sweep, {}});
+    for (const auto& [name, values] : e.grid) {
+      what = "grid";
+      axes.push_back({name, k + ".grid." + name, &e.grid_value[name], {}});
     }
-    const std::string name_t = e.named ? e.name : "run" + k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
-    for (double v : values) {
-      SpecReader ce = c;  // the sweep parameter is visible in the run's values
-      auto exp = std::make_unique<Experiment>();
-      if (!e.sweep_parameter.empty()) {
-        ce.params[e.sweep_parameter] = v;
-        exp->sweep.emplace_back(e.sweep_parameter, v);
+    if (e.monte_carlo)
+      for (const DistributionSpec& d : e.monte_carlo->distributions) {
+        what = "Monte Carlo";
+        axes.push_back({d.parameter, k + ".monte_carlo.distributions." + d.parameter, &d.value, {}});
       }
-      exp->name = e.sweep_parameter.empty() ? name_t : substitute(name_t, e.sweep_parameter, v);
+    for (const Axis& a : axes) {
+      if (c.params.count(a.name) || a.name == "pi" || a.name == "e" || a.name == "t")
+        c.fail(*a.at, a.key,
+               "the " + what + " parameter '" + a.name + "' has the name of a parameter (or a constant); choose another name");
+      if (e.monte_carlo && a.name == "sample")
+        c.fail(*a.at, a.key, "'sample' is reserved in a Monte Carlo experiment ({sample} in the name is the sample index); "
+                             "choose another name");
+    }
+    if (!e.sweep_parameter.empty())
+      for (const SpecValue& v : e.sweep_values) axes[0].values.push_back(c.number(v, axes[0].key));
+    for (size_t i = 0; i < e.grid.size(); ++i)
+      for (const SpecValue& v : e.grid[i].second) axes[i].values.push_back(c.number(v, axes[i].key));
+    std::mt19937_64 generator;
+    std::uint64_t seed = 0;
+    if (e.monte_carlo) {
+      seed = read_seed(c, e.monte_carlo->seed, k + ".monte_carlo.seed");
+      generator.seed(seed);
+      for (size_t i = 0; i < axes.size(); ++i) {
+        const DistributionSpec& d = e.monte_carlo->distributions[i];
+        const std::string dk = axes[i].key + "." + d.kind;
+        Axis& a = axes[i];
+        a.normal = d.kind == "normal";
+        a.a = c.number(d.a, dk + (a.normal ? ".mean" : ".low"));
+        a.b = c.number(d.b, dk + (a.normal ? ".std" : ".high"));
+        if (a.normal && !(a.b >= 0))
+          c.fail(d.b, dk + ".std", "expected a standard deviation >= 0, got " + fmt(a.b));
+        if (!a.normal && !(a.a <= a.b))
+          c.fail(d.value[d.kind], dk, "expected low <= high, got low = " + fmt(a.a) + " > high = " + fmt(a.b));
+        if (!a.normal && !std::isfinite(a.b - a.a))
+          c.fail(d.value[d.kind], dk, "high - low = " + fmt(a.b - a.a) + " is not a finite number");
+      }
+    }
+    // Counted and checked against limits.max_runs above.
+    const long runs = static_cast<long>(experiment_runs(c, e));
+    const size_t width = std::to_string(runs - 1).size();
+    const auto padded = [width](long i) {
+      const std::string d = std::to_string(i);
+      return std::string(width - std::min(width, d.size()), '0') + d;
+    };
+    const std::string index = k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
+    std::string available;  // the placeholders this experiment's names may use
+    for (const Axis& a : axes) available += (available.empty() ? "{" : ", {") + a.name + "}";
+    if (e.monte_carlo) available += ", {sample}";
+    const std::string placeholders = e.monte_carlo ? "{sample}" : available.empty() ? "{param}" : available;
+    std::vector<double> values(axes.size());
+    for (long run = 0; run < runs; ++run) {
+      if (e.monte_carlo) {
+        for (size_t i = 0; i < axes.size(); ++i) {
+          const Axis& a = axes[i];
+          values[i] = a.normal ? add_product(a.a, a.b, standard_normal(generator))
+                               : add_product(a.a, a.b - a.a, uniform01(generator));
+          if (!std::isfinite(values[i]))
+            c.fail(*a.at, a.key, "sample " + std::to_string(run) + " drew " + fmt(values[i]) + ", not a finite number");
+        }
+      } else {
+        long rest = run;  // row-major: the last parameter varies fastest
+        for (size_t i = axes.size(); i-- > 0;) {
+          const long n = static_cast<long>(axes[i].values.size());
+          values[i] = axes[i].values[rest % n];
+          rest /= n;
+        }
+      }
+      SpecReader ce = c;  // the run's parameters are visible in its values
+      auto exp = std::make_unique<Experiment>();
+      std::string name = e.named ? e.name : runs == 1 ? "run" + index : "run" + index + "_" + padded(run);
+      for (size_t i = 0; i < axes.size(); ++i) {
+        ce.params[axes[i].name] = values[i];
+        exp->sweep.emplace_back(axes[i].name, values[i]);
+        if (e.named) name = substitute(name, axes[i].name, values[i]);
+      }
+      if (e.monte_carlo) {
+        exp->sample = run;
+        exp->seed = seed;
+        if (e.named)
+          for (size_t pos; (pos = name.find("{sample}")) != std::string::npos;) name.replace(pos, 8, padded(run));
+      }
+      if (const size_t open = name.find('{'); open != std::string::npos && name.find('}', open) != std::string::npos)
+        c.fail(e.value["name"], k + ".name",
+               "the name has the placeholder '" + name.substr(open, name.find('}', open) - open + 1) +
+                   "', which is not a parameter of this experiment (" +
+                   (available.empty() ? std::string("it has none") : "it has " + available) + ")");
+      exp->name = std::move(name);
       check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
       if (!experiment_names.insert(exp->name).second)
           c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
-                 "duplicate experiment name '" + exp->name + "' (use {" +
-                     (e.sweep_parameter.empty() ? "param" : e.sweep_parameter) + "} in the name)");
+                 "duplicate experiment name '" + exp->name + "' (use " + placeholders + " in the name)");
       exp->q0 = s->q0;
       exp->qd0 = Eigen::VectorXd::Zero(m.nq);
       if (e.initial_q) {

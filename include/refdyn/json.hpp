@@ -22,7 +22,8 @@ class JsonValue {
   JsonValue(int i) : kind_(Kind::Integer), i_(i) {}
   JsonValue(long i) : kind_(Kind::Integer), i_(i) {}
   JsonValue(long long i) : kind_(Kind::Integer), i_(i) {}
-  JsonValue(unsigned long i) : kind_(Kind::Integer), i_(static_cast<long long>(i)) {}
+  JsonValue(unsigned long i) : kind_(Kind::Integer), i_(static_cast<long long>(i)), unsigned_(true) {}
+  JsonValue(unsigned long long i) : kind_(Kind::Integer), i_(static_cast<long long>(i)), unsigned_(true) {}
   JsonValue(std::string s) : kind_(Kind::String), s_(std::move(s)) {}
   JsonValue(const char* s) : kind_(Kind::String), s_(s) {}
   static JsonValue array() { JsonValue v; v.kind_ = Kind::Array; return v; }
@@ -46,6 +47,7 @@ class JsonValue {
   bool b_ = false;
   double x_ = 0;
   long long i_ = 0;
+  bool unsigned_ = false;  ///< i_ holds an unsigned value (written exactly up to 2^64 − 1)
   std::string s_;
   std::vector<JsonValue> items_;
   std::vector<std::pair<std::string, JsonValue>> members_;

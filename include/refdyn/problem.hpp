@@ -18,6 +18,7 @@
 #include "refdyn/registry.hpp"
 #include "refdyn/spec.hpp"
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
@@ -31,13 +32,19 @@ namespace refdyn {
 struct Limits {
   long max_steps = 2'000'000;    ///< integration steps of one run (RK4: (t1 − t0)/step; DOPRI5: a stop)
   long max_samples = 1'000'000;  ///< recorded output samples of one run
-  long max_runs = 10'000;        ///< closed-loop runs after expanding the sweeps
+  long max_runs = 10'000;        ///< closed-loop runs after expanding sweeps, grids and Monte Carlo samples
 };
 
-/// One closed-loop run of a scenario (one value of a sweep).
+/// One closed-loop run of a scenario (one value of a sweep, one point of a grid, one Monte Carlo
+/// sample, or an experiment with none of them). Everything a run needs is fixed here, by
+/// build_problem, so runs may be executed in any order or in parallel with the same results.
 struct Experiment {
   std::string name;
-  std::vector<std::pair<std::string, double>> sweep;  ///< the sweep parameter and its value (empty: none)
+  /// The run's own parameters and their values, in the order written: the sweep parameter, the
+  /// grid's parameters, or the Monte Carlo distributions (values as drawn). Empty: none.
+  std::vector<std::pair<std::string, double>> sweep;
+  long sample = -1;                         ///< Monte Carlo: the sample index 0 … samples − 1; −1: not Monte Carlo
+  std::uint64_t seed = 0;                   ///< Monte Carlo: the experiment's seed (0 when sample < 0)
   Eigen::VectorXd q0, qd0;                  ///< plant initial state
   ForceSet plant_forces;                    ///< the plant's own force elements
   std::string controller_type;

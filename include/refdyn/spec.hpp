@@ -113,13 +113,37 @@ struct IntegratorSpec {
   SpecValue value;
 };
 
+/// One random parameter of a Monte Carlo experiment: `name: {normal: {mean: a, std: b}}` or
+/// `name: {uniform: {low: a, high: b}}` (docs/scenario.md, "experiments").
+struct DistributionSpec {
+  std::string parameter;
+  std::string kind;                        ///< "normal" | "uniform"
+  SpecValue a, b;                          ///< normal: mean, std; uniform: low, high (as written)
+  SpecValue value;                         ///< the parameter's mapping as written
+};
+
+/// `monte_carlo: {samples, seed, distributions}`: `samples` runs whose parameters are drawn
+/// from std::mt19937_64 seeded with `seed`, per sample in the order of `distributions`.
+struct MonteCarloSpec {
+  SpecValue samples, seed;                 ///< as written (build_problem evaluates and checks them)
+  std::vector<DistributionSpec> distributions;  ///< in the order written: the draw order
+  SpecValue value;
+};
+
+/// One entry of `experiments:`. At most one of sweep, grid and monte_carlo is given; each
+/// expands the experiment into several runs (build_problem).
 struct ExperimentSpec {
-  std::string name;                        ///< may contain {param}
+  std::string name;                        ///< may contain {param} (and {sample})
   bool named = false;
   std::string key;                         ///< "experiments[i]"
   std::string sweep_parameter;             ///< empty: no sweep
   std::vector<SpecValue> sweep_values;
   SpecValue sweep;                         ///< as written
+  /// grid: {p1: [values], p2: [values], …}: one run per combination, the first parameter
+  /// varying slowest (row-major). Empty: no grid.
+  std::vector<std::pair<std::string, std::vector<SpecValue>>> grid;
+  SpecValue grid_value;                    ///< as written
+  std::optional<MonteCarloSpec> monte_carlo;
   SpecValue initial_q, initial_qd;
   std::optional<std::vector<EntrySpec>> plant_forces;  ///< absent: the top-level plant_forces
   std::optional<EntrySpec> controller;                 ///< absent: the top-level controller

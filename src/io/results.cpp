@@ -274,7 +274,10 @@ std::vector<std::string> sweep_names(const Results& res) {
 std::string sweep_csv(const Problem& p, const Results& res) {
   const std::vector<std::string> params = sweep_names(res);
   const std::vector<std::string>& joints = p.model.joint_name;
+  bool sampled = false;  // a `sample` column when some run is a Monte Carlo sample
+  for (const RunRecord& r : res.runs) sampled = sampled || r.experiment->sample >= 0;
   std::string s = "index,name,status";
+  if (sampled) s += ",sample";
   for (const auto& k : params) s += "," + k;
   s += ",t_end,final_max_abs_error,peak_abs_tau,max_e0,max_settle_time,max_late_error,saturated_samples";
   for (const char* f : {"e0_", "settle_", "late_", "peak_tau_"})
@@ -285,6 +288,7 @@ std::string sweep_csv(const Problem& p, const Results& res) {
     const RunRecord& r = res.runs[i];
     const RunSummary& m = r.summary;
     s += std::to_string(i) + "," + r.experiment->name + "," + (r.done ? to_string(m.status) : "not_run");
+    if (sampled) s += "," + (r.experiment->sample >= 0 ? std::to_string(r.experiment->sample) : std::string());
     for (const auto& k : params) {
       s += ",";
       for (const auto& [name, v] : r.experiment->sweep)
@@ -330,6 +334,10 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     if (!rr.experiment->sweep.empty()) {
       JsonValue& sw = o["sweep"] = JsonValue::object();
       for (const auto& [k, v] : rr.experiment->sweep) sw[k] = v;
+    }
+    if (rr.experiment->sample >= 0) {
+      o["sample"] = rr.experiment->sample;
+      o["seed"] = rr.experiment->seed;
     }
     o["controller"] = rr.experiment->controller_type;
     o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());

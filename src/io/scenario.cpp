@@ -9,6 +9,7 @@
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -162,6 +163,45 @@ class Reader {
  private:
   const SpecReader& c_;
 };
+
+/// monte_carlo: {samples, seed, distributions: {name: {normal: {mean, std}} | {uniform: {low, high}}}};
+/// the numbers stay text (build_problem evaluates and checks them).
+MonteCarloSpec monte_carlo(const SpecReader& c, const SpecValue& mc, const std::string& key) {
+  c.keys(mc, key, {"samples", "seed", "distributions"});
+  MonteCarloSpec m;
+  m.value = mc;
+  m.samples = c.need(mc, "samples", key);
+  m.seed = c.need(mc, "seed", key);
+  const SpecValue& ds = c.need(mc, "distributions", key);
+  if (!ds.is_map() || ds.size() == 0)
+    c.fail(ds, key + ".distributions",
+           "expected a mapping  name: {normal: {mean: ..., std: ...}} or {uniform: {low: ..., high: ...}}  with at least "
+           "one parameter, got " + ds.describe());
+  static const std::vector<std::string> kinds{"normal", "uniform"};
+  for (const auto& en : ds.entries) {
+    const std::string dk = key + ".distributions." + en.key;
+    const SpecValue& d = en.value;
+    if (!d.is_map() || d.size() != 1)
+      c.fail(d.where.line ? d.where : SourceLocation{d.where.file, en.key_line}, dk,
+             "expected exactly one distribution, {normal: {mean: ..., std: ...}} or {uniform: {low: ..., high: ...}}, got " +
+                 (d.is_map() ? std::to_string(d.size()) + " entries" : d.describe()));
+    const SpecValue::Entry& kind = d.entries[0];
+    if (kind.key != "normal" && kind.key != "uniform")
+      c.fail(SourceLocation{d.where.file, kind.key_line}, dk + "." + kind.key,
+             "unknown distribution '" + kind.key + "'" + did_you_mean(kind.key, kinds));
+    const bool normal = kind.key == "normal";
+    const std::string first = normal ? "mean" : "low", second = normal ? "std" : "high";
+    c.keys(kind.value, dk + "." + kind.key, {first, second});
+    DistributionSpec s;
+    s.parameter = en.key;
+    s.kind = kind.key;
+    s.a = c.need(kind.value, first, dk + "." + kind.key);
+    s.b = c.need(kind.value, second, dk + "." + kind.key);
+    s.value = d;
+    m.distributions.push_back(std::move(s));
+  }
+  return m;
+}
 
 }  // namespace
 
@@ -323,8 +363,17 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
       const SpecValue& e = ex[i];
       ExperimentSpec x;
       x.key = "experiments[" + std::to_string(i) + "]";
-      c.keys(e, x.key, {"name", "sweep", "initial", "plant_forces", "controller"});
+      c.keys(e, x.key, {"name", "sweep", "grid", "monte_carlo", "initial", "plant_forces", "controller"});
       x.value = e;
+      {  // at most one way of expanding an experiment into runs; the second one written is named
+        std::vector<const SpecValue::Entry*> given;
+        for (const auto& en : e.entries)
+          if (en.key == "sweep" || en.key == "grid" || en.key == "monte_carlo") given.push_back(&en);
+        if (given.size() > 1)
+          c.fail(SourceLocation{source, given[1]->key_line}, x.key + "." + given[1]->key,
+                 "an experiment has at most one of sweep, grid and monte_carlo, got '" + given[0]->key + "' and '" +
+                     given[1]->key + "' (hint: put every parameter into one grid, or split it into two experiments)");
+      }
       if (e["name"]) {
         x.name = c.string(e["name"], x.key + ".name");
         x.named = true;
@@ -337,6 +386,28 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
         if (!vs.is_list() || vs.size() == 0)
           c.fail(vs, x.key + ".sweep." + x.sweep_parameter, "expected a non-empty list of values");
         x.sweep_values = vs.items;
+      }
+      const auto given = [&](const std::string& k) {  // written, even with an empty value
+        return std::any_of(e.entries.begin(), e.entries.end(), [&](const auto& en) { return en.key == k; });
+      };
+      if (given("grid")) {
+        const SpecValue& g = e["grid"];
+        if (!g.is_map() || g.size() == 0)
+          c.fail(e.key_location("grid"), x.key + ".grid",
+                 "expected a mapping  name: [values]  with at least one parameter, got " + g.describe());
+        for (const auto& en : g.entries) {
+          if (!en.value.is_list() || en.value.size() == 0)
+            c.fail(en.value.where.line ? en.value.where : SourceLocation{source, en.key_line}, x.key + ".grid." + en.key,
+                   "expected a non-empty list of values, got " + en.value.describe());
+          x.grid.emplace_back(en.key, en.value.items);
+        }
+        x.grid_value = g;
+      }
+      if (given("monte_carlo")) {
+        if (!e["monte_carlo"].is_map())
+          c.fail(e.key_location("monte_carlo"), x.key + ".monte_carlo",
+                 "expected a mapping with samples, seed and distributions, got " + e["monte_carlo"].describe());
+        x.monte_carlo = monte_carlo(c, e["monte_carlo"], x.key + ".monte_carlo");
       }
       if (const SpecValue& in = e["initial"]) {
         c.keys(in, x.key + ".initial", {"q", "qd"});
