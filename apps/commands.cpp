@@ -376,9 +376,8 @@ int finish_results(const Problem& problem, const io::Results& r, const std::stri
   return kOk;
 }
 
-int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report) {
-  RunConfig cfg;
-  cfg.report = report;
+int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
+             const RunConfig& cfg) {
   return plan_or_track(file, out_dir, quiet, false, in, cfg);
 }
 

@@ -44,7 +44,8 @@ io::ProgressFactory terminal_progress(bool enabled);
 void report_stopped(const io::Results& results);
 
 int run_check(const std::string& file, const InputOptions& in);
-int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in, bool report = false);
+int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
+             const RunConfig& config);
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
               const RunConfig& config);
 /// A family of variants: writes variants.csv and summary.json (last) into out_dir, prints the

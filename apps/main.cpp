@@ -59,25 +59,29 @@ int main(int argc, char** argv) {
   plan->add_flag("-q,--quiet", quiet, "Print nothing on success");
   plan->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
   input_options(plan);
-
   RunConfig run;
+  auto run_options = [&run](CLI::App* c, const char* what) {
+    c->add_option("-j,--jobs", run.jobs,
+                  std::string("Threads running ") + what + " (0: every core; default: every core, 1 per rank with --mpi); "
+                  "results do not depend on it")
+        ->check(CLI::NonNegativeNumber);
+    c->add_option("--run-csv", run.run_csv,
+                  std::string("Per-run files (track_<name>.csv; for variants: a folder each): all, none, or auto (all up "
+                              "to 100); the aggregate (sweep.csv / variants.csv, summary.json) always"))
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "all", "none"}));
+    c->add_flag("--mpi", run.mpi,
+                "Spread the runs or variants over MPI ranks (mpirun -np N refdyn ... --mpi; DIR on a shared file "
+                "system); the files are those of one process (docs/sweeps.md)");
+  };
+  run_options(plan, "the scenario's variants");
+
   auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   track->add_option("file", file, "Scenario file (YAML)")->required();
   track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
   track->add_flag("-q,--quiet", quiet, "Print nothing on success");
   track->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
-  track->add_option("-j,--jobs", run.jobs,
-                    "Threads running experiments (0: every core; default: every core, 1 per rank with --mpi); "
-                    "results do not depend on it")
-      ->check(CLI::NonNegativeNumber);
-  track->add_option("--run-csv", run.run_csv,
-                    "track_<name>.csv of each run: all, none, or auto (all up to 100 runs); sweep.csv and summary.json "
-                    "always")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "all", "none"}));
-  track->add_flag("--mpi", run.mpi,
-                  "Spread the runs over MPI ranks (mpirun -np N refdyn track FILE -o DIR --mpi; DIR on a shared file "
-                  "system); the files are those of one process");
+  run_options(track, "experiments (or variants)");
   input_options(track);
 
   auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
@@ -126,8 +130,8 @@ int main(int argc, char** argv) {
   try {
     if (*check) return run_check(file, in);
     if (report) require_report_template();
-    if (*plan) return run_plan(file, out_dir, quiet, in, report);
     run.report = report;
+    if (*plan) return run_plan(file, out_dir, quiet, in, run);
     if (*track) return run_track(file, out_dir, quiet, in, run);
     if (*plot) return run_plot(out_dir);
     if (*rep) return run_report(out_dir, scenario, report_out, quiet, in);
