@@ -632,6 +632,12 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     count("max_steps", lim.max_steps);
     count("max_samples", lim.max_samples);
     count("max_runs", lim.max_runs);
+    // Every run is built here (its values drawn, its controller and forces made): a ceiling that
+    // keeps the build of a scenario within seconds and a few hundred MB whatever the file says.
+    if (lim.max_runs > kMaxRunsCeiling)
+      c.fail(spec.limits["max_runs"], "limits.max_runs",
+             "at most " + std::to_string(kMaxRunsCeiling) + " runs per scenario, got " + std::to_string(lim.max_runs) +
+                 " (hint: split the study into several scenarios, e.g. Monte Carlo with other seeds)");
     IntegratorOptions& o = s->integrator;
     const double span = o.t1 - o.t0;
     const SpecValue& at = spec.integrator.value ? spec.integrator.value : spec.root;

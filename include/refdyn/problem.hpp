@@ -32,8 +32,11 @@ namespace refdyn {
 struct Limits {
   long max_steps = 2'000'000;    ///< integration steps of one run (RK4: (t1 − t0)/step; DOPRI5: a stop)
   long max_samples = 1'000'000;  ///< recorded output samples of one run
-  long max_runs = 10'000;        ///< closed-loop runs after expanding sweeps, grids and Monte Carlo samples
+  long max_runs = 10'000;        ///< closed-loop runs (or variants) after expanding sweeps, grids and Monte Carlo samples; at most kMaxRunsCeiling
 };
+
+/// The largest limits.max_runs a scenario may set (building 100,000 runs takes ~5 s, ~0.3 GB).
+inline constexpr long kMaxRunsCeiling = 100'000;
 
 /// One closed-loop run of a scenario (one value of a sweep, one point of a grid, one Monte Carlo
 /// sample, or an experiment with none of them). Everything a run needs is fixed here, by

@@ -39,7 +39,9 @@ std::vector<Variant> expand_variants(const ScenarioSpec& spec) {
     axes.emplace_back(name, std::vector<double>());
   }
   long max_runs = Limits{}.max_runs;
-  if (spec.limits["max_runs"]) max_runs = static_cast<long>(c.number(spec.limits["max_runs"], "limits.max_runs"));
+  if (spec.limits["max_runs"])
+    max_runs = static_cast<long>(std::min(c.number(spec.limits["max_runs"], "limits.max_runs"),
+                                          static_cast<double>(kMaxRunsCeiling)));
   if (count > static_cast<double>(max_runs))
     c.fail(vs.value, "variants",
            fmt(count) + " variants, more than limits.max_runs = " + std::to_string(max_runs) +
