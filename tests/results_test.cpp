@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -254,4 +255,29 @@ TEST(ParallelRuns, CommandLineJobsWriteTheFilesOfOneThread) {
   EXPECT_EQ(cli("track " + kScenario + " -o " + (base / "bad").string() + " --jobs -2"), 1);
   EXPECT_FALSE(fs::exists(base / "bad"));
   fs::remove_all(base);
+}
+
+// The pool itself: every index of the shard exactly once, `after` serialized and counting, the
+// exception of the smallest failing index rethrown whatever the threads did.
+TEST(ParallelRuns, ForEachIndexVisitsTheShardOnceAndRethrowsTheFirstFailure) {
+  for (int jobs : {1, 2, 4}) {
+    std::vector<std::atomic<int>> hits(103);
+    size_t last_done = 0;
+    io::for_each_index(hits.size(), 1, 3, jobs, [&](size_t i) { ++hits[i]; },
+                       [&](size_t done, size_t total, size_t) {
+                         EXPECT_EQ(done, last_done + 1);
+                         EXPECT_EQ(total, 34u);
+                         last_done = done;
+                       });
+    EXPECT_EQ(last_done, 34u);
+    for (size_t i = 0; i < hits.size(); ++i) EXPECT_EQ(hits[i], i % 3 == 1 ? 1 : 0) << i << " with " << jobs << " jobs";
+    // Indices 40 and 70 fail; with one thread 70 is never reached; with more, 40 is reported.
+    test::expect_error_mentioning(
+        [&] {
+          io::for_each_index(100, 0, 1, jobs, [](size_t i) {
+            if (i == 40 || i == 70) throw Error("index " + std::to_string(i));
+          });
+        },
+        {"index 40"});
+  }
 }

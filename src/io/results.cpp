@@ -22,43 +22,30 @@ bool Results::ok() const {
   return true;
 }
 
-namespace {
-
-/// Runs the experiments with index i % num_shards == shard on `jobs` threads. Each run gets its
-/// own ReferenceDynamics (an automatic partition is state that a shared one would carry from
-/// run to run) and its own controller, so a run's numbers depend on its experiment only.
-void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
+void for_each_index(size_t count, int shard, int num_shards, int jobs, const std::function<void(size_t)>& body,
+                    const std::function<void(size_t done, size_t total, size_t index)>& after) {
+  if (num_shards < 1 || shard < 0 || shard >= num_shards)
+    throw Error("shard " + std::to_string(shard) + " of " + std::to_string(num_shards) + " shards");
   std::vector<size_t> mine;
-  for (size_t i = 0; i < p.experiments.size(); ++i)
-    if (static_cast<int>(i % static_cast<size_t>(o.num_shards)) == o.shard) mine.push_back(i);
+  for (size_t i = 0; i < count; ++i)
+    if (static_cast<int>(i % static_cast<size_t>(num_shards)) == shard) mine.push_back(i);
   if (mine.empty()) return;
-  int jobs = o.jobs > 0 ? o.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (jobs <= 0) jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   jobs = static_cast<int>(std::min<size_t>(static_cast<size_t>(jobs), mine.size()));
-  const bool one_run = p.experiments.size() == 1;
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
-  std::mutex done_mutex;
+  std::mutex after_mutex;
   size_t done = 0;
   std::vector<std::exception_ptr> errors(mine.size());
   auto work = [&] {
     while (!stop) {
       const size_t k = next++;
       if (k >= mine.size()) break;
-      const size_t i = mine[k];
-      const Experiment& ex = *p.experiments[i];
-      RunRecord& rec = res.runs[i];
       try {
-        const auto rd = p.make_reference_dynamics();
-        std::function<void(double)> progress;
-        if (one_run && o.progress) progress = o.progress("experiment " + ex.name, p.integrator.t0, res.plan.summary.t_end);
-        ClosedLoopResult r = track_experiment(p, ex, res.plan, *rd, progress);
-        rec.summary = summarize_run(p, r);
-        if (!o.run_csv_dir.empty()) write_csv_atomic(o.run_csv_dir / ("track_" + ex.name + ".csv"), trajectory_table(r));
-        if (i < o.keep_trajectories) rec.result = std::move(r);
-        rec.done = true;
-        if (o.on_run_done) {
-          std::lock_guard<std::mutex> lock(done_mutex);
-          o.on_run_done(++done, mine.size(), ex.name);
+        body(mine[k]);
+        if (after) {
+          std::lock_guard<std::mutex> lock(after_mutex);
+          after(++done, mine.size(), mine[k]);
         }
       } catch (...) {
         errors[k] = std::current_exception();
@@ -74,14 +61,39 @@ void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
     for (int j = 0; j < jobs; ++j) pool.emplace_back(work);
     for (auto& t : pool) t.join();
   }
-  for (const auto& e : errors)  // the first failed run in experiment order, whatever the threads
+  for (const auto& e : errors)  // the first failure in index order, whatever the threads did
     if (e) std::rethrow_exception(e);
+}
+
+namespace {
+
+/// Runs the experiments of this shard. Each run gets its own ReferenceDynamics (an automatic
+/// partition is state that a shared one would carry from run to run) and its own controller,
+/// so a run's numbers depend on its experiment only.
+void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
+  const bool one_run = p.experiments.size() == 1;
+  auto run = [&](size_t i) {
+    const Experiment& ex = *p.experiments[i];
+    RunRecord& rec = res.runs[i];
+    const auto rd = p.make_reference_dynamics();
+    std::function<void(double)> progress;
+    if (one_run && o.progress) progress = o.progress("experiment " + ex.name, p.integrator.t0, res.plan.summary.t_end);
+    ClosedLoopResult r = track_experiment(p, ex, res.plan, *rd, progress);
+    rec.summary = summarize_run(p, r);
+    if (!o.run_csv_dir.empty()) write_csv_atomic(o.run_csv_dir / ("track_" + ex.name + ".csv"), trajectory_table(r));
+    if (i < o.keep_trajectories) rec.result = std::move(r);
+    rec.done = true;
+  };
+  std::function<void(size_t, size_t, size_t)> after;
+  if (o.on_run_done)
+    after = [&](size_t done, size_t total, size_t i) { o.on_run_done(done, total, p.experiments[i]->name); };
+  for_each_index(p.experiments.size(), o.shard, o.num_shards, o.jobs, run, after);
 }
 
 }  // namespace
 
 Results run_problem(const Problem& p, const RunOptions& o) {
-  if (o.num_shards < 1 || o.shard < 0 || o.shard >= o.num_shards)
+  if (o.num_shards < 1 || o.shard < 0 || o.shard >= o.num_shards)  // before the plan
     throw Error("run_problem: shard " + std::to_string(o.shard) + " of " + std::to_string(o.num_shards) + " shards");
   const auto start = std::chrono::steady_clock::now();
   Results res;

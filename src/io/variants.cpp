@@ -6,13 +6,9 @@
 #include "refdyn/text.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <exception>
-#include <mutex>
 #include <set>
-#include <thread>
 
 namespace refdyn::io {
 
@@ -136,46 +132,12 @@ VariantSummary run_one(const ScenarioSpec& spec, const Variant& v, const Variant
 
 std::vector<VariantSummary> run_variants(const ScenarioSpec& spec, const std::vector<Variant>& variants,
                                          const VariantOptions& o) {
-  if (o.num_shards < 1 || o.shard < 0 || o.shard >= o.num_shards)
-    throw Error("run_variants: shard " + std::to_string(o.shard) + " of " + std::to_string(o.num_shards) + " shards");
   std::vector<VariantSummary> out(variants.size());
-  std::vector<size_t> mine;
-  for (size_t i = 0; i < variants.size(); ++i)
-    if (static_cast<int>(i % static_cast<size_t>(o.num_shards)) == o.shard) mine.push_back(i);
-  if (mine.empty()) return out;
-  int jobs = o.jobs > 0 ? o.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  jobs = static_cast<int>(std::min<size_t>(static_cast<size_t>(jobs), mine.size()));
-  std::atomic<size_t> next{0};
-  std::atomic<bool> stop{false};
-  std::mutex done_mutex;
-  size_t done = 0;
-  std::vector<std::exception_ptr> errors(mine.size());
-  auto work = [&] {
-    while (!stop) {
-      const size_t k = next++;
-      if (k >= mine.size()) break;
-      const size_t i = mine[k];
-      try {
-        out[i] = run_one(spec, variants[i], o);
-        if (o.on_done) {
-          std::lock_guard<std::mutex> lock(done_mutex);
-          o.on_done(++done, mine.size(), variants[i].name);
-        }
-      } catch (...) {  // not a property of the variant (a folder that cannot be written, …): stop
-        errors[k] = std::current_exception();
-        stop = true;
-      }
-    }
-  };
-  if (jobs == 1) {
-    work();
-  } else {
-    std::vector<std::thread> pool;
-    for (int j = 0; j < jobs; ++j) pool.emplace_back(work);
-    for (auto& t : pool) t.join();
-  }
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);
+  std::function<void(size_t, size_t, size_t)> after;
+  if (o.on_done) after = [&](size_t done, size_t total, size_t i) { o.on_done(done, total, variants[i].name); };
+  // An exception (a folder that cannot be written, …) is not a property of a variant: it stops all.
+  for_each_index(variants.size(), o.shard, o.num_shards, o.jobs,
+                 [&](size_t i) { out[i] = run_one(spec, variants[i], o); }, after);
   return out;
 }
 

@@ -84,6 +84,13 @@ struct Results {
   bool ok() const;
 };
 
+/// Calls body(i) for every i < count with i % num_shards == shard, on `jobs` threads (0: every
+/// core) taking the indices in order from a shared counter; after(done, total, i) follows each
+/// body, never two at once. After a body throws no new index starts, and the exception of the
+/// smallest failed index is rethrown. The pool of run_problem (experiments) and run_variants.
+void for_each_index(size_t count, int shard, int num_shards, int jobs, const std::function<void(size_t)>& body,
+                    const std::function<void(size_t done, size_t total, size_t index)>& after = {});
+
 /// Plans the problem (and, with options.track, runs its experiments) and assesses feasibility
 /// from the recorded actuator efforts.
 Results run_problem(const Problem& problem, const RunOptions& options = {});
