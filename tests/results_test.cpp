@@ -65,13 +65,6 @@ void expect_same_summary(const io::RunSummary& a, const io::RunSummary& b, const
   }
 }
 
-std::string read(const fs::path& f) {
-  std::ifstream in(f, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 /// summary.json without its wall-time lines (the only thing that differs between executions).
 std::string without_wall_times(const std::string& json) {
   std::istringstream in(json);
@@ -162,7 +155,7 @@ TEST(ParallelRuns, StreamedRunTablesEqualTheKeptTrajectories) {
   EXPECT_TRUE(streamed.runs_written);
   for (size_t i = 0; i < kept.runs.size(); ++i) {
     const std::string& name = kept.runs[i].experiment->name;
-    EXPECT_EQ(read(dir / ("track_" + name + ".csv")), io::trajectory_table(kept.runs[i].result).to_string()) << name;
+    EXPECT_EQ(test::read_file(dir / ("track_" + name + ".csv")), io::trajectory_table(kept.runs[i].result).to_string()) << name;
     EXPECT_EQ(streamed.runs[i].result.t.empty(), i >= 2) << "the first two trajectories are kept";
   }
   fs::remove_all(dir);
@@ -240,16 +233,16 @@ TEST(ParallelRuns, CommandLineJobsWriteTheFilesOfOneThread) {
     const std::string f = e.path().filename().string();
     ++files;
     if (f == "summary.json")
-      EXPECT_EQ(without_wall_times(read(e.path())), without_wall_times(read(base / "j2" / f)));
+      EXPECT_EQ(without_wall_times(test::read_file(e.path())), without_wall_times(test::read_file(base / "j2" / f)));
     else
-      EXPECT_EQ(read(e.path()), read(base / "j2" / f)) << f;
+      EXPECT_EQ(test::read_file(e.path()), test::read_file(base / "j2" / f)) << f;
   }
   EXPECT_EQ(files, 4 + 6) << "plan.csv, feasibility.json, sweep.csv, summary.json and six track_*.csv";
   // --run-csv none: the aggregate only.
   ASSERT_EQ(cli("track " + kScenario + " -o " + (base / "none").string() + " -q --run-csv none"), 0);
   EXPECT_FALSE(fs::exists(base / "none" / "track_damped.csv"));
-  EXPECT_EQ(read(base / "none" / "sweep.csv"), read(base / "j1" / "sweep.csv"));
-  EXPECT_NE(read(base / "none" / "summary.json").find("\"track_csv\": false"), std::string::npos);
+  EXPECT_EQ(test::read_file(base / "none" / "sweep.csv"), test::read_file(base / "j1" / "sweep.csv"));
+  EXPECT_NE(test::read_file(base / "none" / "summary.json").find("\"track_csv\": false"), std::string::npos);
   // Bad values: one line, exit 1 (command line), nothing written.
   EXPECT_EQ(cli("track " + kScenario + " -o " + (base / "bad").string() + " --run-csv some"), 1);
   EXPECT_EQ(cli("track " + kScenario + " -o " + (base / "bad").string() + " --jobs -2"), 1);

@@ -23,17 +23,10 @@ using namespace refdyn;
 
 namespace {
 
-std::string read_text(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
 // The minimal test scenario (a horizontal planar 2R arm: g(q) = 0 about the vertical joint
 // axes) with a PD controller, `extra` and `experiments` appended.
 std::string arm(const std::string& experiments, const std::string& extra = "") {
-  static const std::string minimal = read_text(std::string(REFDYN_SOURCE_DIR) + "/tests/data/good/minimal.yaml");
+  static const std::string minimal = test::read_file(std::string(REFDYN_SOURCE_DIR) + "/tests/data/good/minimal.yaml");
   return minimal + "\ncontroller: {type: pd_gravity, kp: [1, 1], kd: [1, 1]}\n" + extra + "experiments:\n" + experiments;
 }
 

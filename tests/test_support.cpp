@@ -1,3 +1,5 @@
+#include <fstream>
+#include <sstream>
 #include "test_support.hpp"
 
 #include <Eigen/Geometry>
@@ -5,6 +7,14 @@
 #include <sstream>
 
 namespace refdyn::test {
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
 
 ::testing::AssertionResult near(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double rel_tol,
                                 double abs_tol) {

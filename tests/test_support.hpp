@@ -34,6 +34,9 @@ ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt =
 
 Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale = 1.0);
 
+/// The whole file as bytes ("" if it cannot be read).
+std::string read_file(const std::string& path);
+
 /// Expects fn() to throw refdyn::Error whose message contains every needle.
 template <typename Fn>
 void expect_error_mentioning(Fn&& fn, const std::vector<std::string>& needles) {

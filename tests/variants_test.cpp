@@ -20,17 +20,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string read(const fs::path& f) {
-  std::ifstream in(f, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 // The planar 2R circle example (fully prescribed motion, projected initial velocity) with a
 // shorter span, and the `variants:` section `extra`.
 std::string circle(const std::string& extra, const std::string& R = "0.15") {
-  std::string text = read(std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/planar_2r_circle.yaml");
+  std::string text = test::read_file(std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/planar_2r_circle.yaml");
   text = std::regex_replace(text, std::regex("t1: 4\\}"), "t1: 0.5}");
   text = std::regex_replace(text, std::regex("R: 0.15 "), "R: " + R + " ");
   return text + "\n" + extra;
@@ -99,7 +92,7 @@ TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {
   EXPECT_EQ(io::variants_csv(joints, v, three, false), io::variants_csv(joints, v, one, false));
   for (const auto& x : v)
     for (const char* f : {"plan.csv", "feasibility.json"})
-      EXPECT_EQ(read(d3 / x.name / f), read(d1 / x.name / f)) << x.name << "/" << f;
+      EXPECT_EQ(test::read_file(d3 / x.name / f), test::read_file(d1 / x.name / f)) << x.name << "/" << f;
   // Two shards split the variants; together they give the same rows.
   io::VariantOptions s;
   s.num_shards = 2;
@@ -115,7 +108,7 @@ TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {
   // Each folder holds its own variant: at t0 (same position, velocity projected onto the speed
   // 2πR/Tp) the joint speeds of R = 0.2, Tp = 1 are three times those of Tp = 3.
   auto first_qd1 = [&](const std::string& name) {
-    std::istringstream in(read(d1 / name / "plan.csv"));
+    std::istringstream in(test::read_file(d1 / name / "plan.csv"));
     std::string header, row, cell;
     std::getline(in, header);
     std::getline(in, row);
@@ -137,7 +130,7 @@ TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {
 // A variant whose initial state violates a constraint (the paper's ellipse with another a,
 // `consistency: check`) is reported as invalid with the error; the others are planned.
 TEST(Variants, AnInvalidVariantIsReportedAndTheOthersRun) {
-  std::string text = read(std::string(REFDYN_SOURCE_DIR) + "/examples/paper/paper.yaml");
+  std::string text = test::read_file(std::string(REFDYN_SOURCE_DIR) + "/examples/paper/paper.yaml");
   text = std::regex_replace(text, std::regex("t1: 5, residual_from: 0.5"), "t1: 0.2, residual_from: 0.1");
   text = std::regex_replace(text, std::regex("\nexperiments:[\\s\\S]*?\noutputs:"), "\noutputs:");
   text += "\nvariants:\n  name: \"z{z0}\"\n  sweep: {z0: [h1 + 0.5*sin(45*deg), 0.6]}\n";
@@ -177,12 +170,12 @@ TEST(Variants, CommandLineWritesTheAggregateAndOneFolderPerVariant) {
   std::ofstream(scenario) << circle(kGrid);
   ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "j1").string() + " -q -j 1"), 0);
   ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "j2").string() + " -q -j 2"), 0);
-  EXPECT_EQ(read(base / "j1" / "variants.csv"), read(base / "j2" / "variants.csv"));
+  EXPECT_EQ(test::read_file(base / "j1" / "variants.csv"), test::read_file(base / "j2" / "variants.csv"));
   EXPECT_TRUE(fs::exists(base / "j1" / "R0.2_T3" / "plan.csv"));
-  EXPECT_NE(read(base / "j1" / "summary.json").find("\"feasible\": 6,"), std::string::npos);
+  EXPECT_NE(test::read_file(base / "j1" / "summary.json").find("\"feasible\": 6,"), std::string::npos);
   ASSERT_EQ(cli("plan " + scenario.string() + " -o " + (base / "none").string() + " -q --run-csv none"), 0);
   EXPECT_FALSE(fs::exists(base / "none" / "R0.2_T3"));
-  EXPECT_EQ(read(base / "none" / "variants.csv"), read(base / "j1" / "variants.csv"));
+  EXPECT_EQ(test::read_file(base / "none" / "variants.csv"), test::read_file(base / "j1" / "variants.csv"));
   EXPECT_EQ(cli("plan " + scenario.string() + " -o " + (base / "rep").string() + " -q --report"), 2);
   EXPECT_FALSE(fs::exists(base / "rep"));
   fs::remove_all(base);
