@@ -180,3 +180,30 @@ TEST(Variants, CommandLineWritesTheAggregateAndOneFolderPerVariant) {
   EXPECT_FALSE(fs::exists(base / "rep"));
   fs::remove_all(base);
 }
+
+// examples/planar_2r_circle/family.yaml: every variant's end effector runs on its own circle,
+// |E − C| = R of that variant, at its own speed 2πR/Tp (closed form of the task).
+TEST(Variants, TheFamilyExampleDrawsEachVariantsCircleAtItsSpeed) {
+  const ScenarioSpec spec = io::load_scenario(std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/family.yaml");
+  const auto v = io::expand_variants(spec);
+  ASSERT_EQ(v.size(), 6u);
+  for (const io::Variant& x : v) {
+    const auto p = build_problem(io::variant_spec(spec, x));
+    const double R = p->parameters.at("R"), Tp = p->parameters.at("Tp");
+    EXPECT_EQ(R, x.values[0].second);
+    EXPECT_EQ(Tp, x.values[1].second);
+    const io::Results r = io::run_problem(*p);
+    ASSERT_TRUE(r.plan.summary.ok()) << x.name;
+    const Trajectory& t = r.plan;
+    double worst_r = 0, worst_v = 0;
+    for (size_t k = 1; k + 1 < t.size(); k += 97) {
+      const Eigen::Vector3d e = t.point_positions[k].head<3>();
+      worst_r = std::max(worst_r, std::abs(std::hypot(e.x() - 0.6, e.y() - 0.2) - R));
+      const Eigen::Vector3d d = (t.point_positions[k + 1].head<3>() - t.point_positions[k - 1].head<3>()) /
+                                (t.t[k + 1] - t.t[k - 1]);  // central difference of E
+      worst_v = std::max(worst_v, std::abs(d.norm() - 2 * M_PI * R / Tp));
+    }
+    EXPECT_LT(worst_r, 1e-8) << x.name;
+    EXPECT_LT(worst_v, 1e-5) << x.name << " (finite-difference speed)";
+  }
+}
