@@ -1,5 +1,6 @@
 // Scenario YAML → ScenarioSpec. Structure only: numbers stay text (build_problem evaluates them).
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/io/variants.hpp"
 
 #include "refdyn/error.hpp"
 #include "refdyn/io/urdf.hpp"
@@ -461,12 +462,21 @@ ScenarioSpec load_scenario(const std::string& path, std::size_t max_input_bytes)
   return parse_scenario(read_text_file(path, "scenario file", max_input_bytes), path, max_input_bytes);
 }
 
+namespace {
+/// build_problem, and the `variants:` section checked too (the whole file is valid or an error).
+std::unique_ptr<Problem> build_checked(const ScenarioSpec& spec) {
+  auto p = build_problem(spec);
+  (void)expand_variants(spec);
+  return p;
+}
+}  // namespace
+
 std::unique_ptr<Problem> load_problem(const std::string& path, std::size_t max_input_bytes) {
-  return build_problem(load_scenario(path, max_input_bytes));
+  return build_checked(load_scenario(path, max_input_bytes));
 }
 
 std::unique_ptr<Problem> parse_problem(const std::string& yaml, const std::string& source_name) {
-  return build_problem(parse_scenario(yaml, source_name));
+  return build_checked(parse_scenario(yaml, source_name));
 }
 
 }  // namespace refdyn::io

@@ -30,7 +30,8 @@ ScenarioSpec parse_scenario(const std::string& yaml, const std::string& source_n
 /// Reads and parses a scenario file.
 ScenarioSpec load_scenario(const std::string& path, std::size_t max_input_bytes = kDefaultMaxInputBytes);
 
-/// load_scenario + build_problem.
+/// load_scenario + build_problem (the base scenario; a `variants:` section is checked too, see
+/// io/variants.hpp for running it).
 std::unique_ptr<Problem> load_problem(const std::string& path, std::size_t max_input_bytes = kDefaultMaxInputBytes);
 /// parse_scenario + build_problem.
 std::unique_ptr<Problem> parse_problem(const std::string& yaml, const std::string& source_name);
