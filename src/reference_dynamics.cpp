@@ -43,6 +43,8 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
     : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
       m_(constraints.rows()), data_(model), ev_(model, constraints) {
   opt_.validate();
+  if (opt_.solver == ReferenceSolver::Automatic) opt_.solver = automatic_reference_solver(n_, m_);
+  aba_ = m_ == 0 && constraints.points().empty() && forward_dynamics_uses_aba(n_);
   for (int r = 0; r < constraints.rows(); ++r) {
     first_order_row_.push_back(constraints.row_first_order(r));
     acceleration_row_.push_back(constraints.row_order(r) == 2);
@@ -290,6 +292,17 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   qd_ = x.segment(n, n);
   const double* z = nz ? x.data() + 2 * n : nullptr;
 
+  if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
+    forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
+    tmp_n_ = Q_;
+    if (opt_.paper_literal_forces) tmp_n_.noalias() += dQ_.transpose() * qd_;
+    if (unchecked::aba(model_, data_, q_, qd_, tmp_n_, qdd_) >= 0)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+    Qc_.setZero();
+    write_derivative(xdot);
+    return;
+  }
+
   // One set of joint placements per evaluation, computed with M and c + g in one sweep; the
   // constraint kinematics reuse them and RNEA's body velocities and accelerations.
   unchecked::mass_matrix_and_bias(model_, data_, q_, qd_);
@@ -345,8 +358,14 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
     }
   }
   if (has_acceleration_rows_) acceleration_residuals();
+  write_derivative(xdot);
+}
+
+void ReferenceDynamics::write_derivative(Eigen::VectorXd& xdot) const {
+  const int n = n_, nz = forces_.num_states();
   double* __restrict out = xdot.data();
   const double* __restrict qd = qd_.data();
+  const double* __restrict qdd = qdd_.data();
   for (int i = 0; i < n; ++i) out[i] = qd[i];
   for (int i = 0; i < n; ++i) out[n + i] = qdd[i];
   const double* __restrict zd = zdot_.data();

@@ -53,6 +53,7 @@ TEST(HotPathAllocation, ControllerAndDynamics) {
   for (int i = 0; i < 20; ++i) {
     ctrl.compute(0, q, qd, ref, tau);
     forward_dynamics(ex.model, data, q, qd, tau);
+    forward_dynamics_aba(ex.model, data, q, qd, tau);
     mass_matrix(ex.model, data, q);
     bias_forces(ex.model, data, q, qd);
     inverse_dynamics(ex.model, data, q, qd, qdd);
