@@ -656,6 +656,30 @@ REFDYN_INLINE void world_axis(const Model& m, int i, const JointKind& k, const M
   }
 }
 
+/// Joint transform of body i (sin/cos of four joints at a time into sn, cs when i is a multiple
+/// of four) into data.liMi[i], and the body's world pose (OR, Op) from its parent's (carried in
+/// registers along a chain, else loaded from data.oMi) into data.oMi[i]. True when the parent is
+/// body i − 1 (or the world for body 0 of a chain).
+REFDYN_INLINE bool world_pose_step(const Model& model, Data& data, const double* q, int i, const JointKind& k,
+                                   double* sn, double* cs, M3& OR, v4& Op) {
+  M3 R;
+  v4 p;
+  if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
+  joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
+  const int par = model.parent[i];
+  if (par < 0) {
+    OR = R;
+    Op = p;
+  } else {
+    if (par != i - 1) load_transform(data.oMi[par], OR, Op);
+    Op += mul(OR, p);
+    OR = M3{mul(OR, R.c0), mul(OR, R.c1), mul(OR, R.c2)};
+  }
+  st(OR, data.oMi[i].R);
+  st3(Op, data.oMi[i].p);
+  return par == i - 1;
+}
+
 /// Bodies whose world axes fit the stack buffer of crba_world (6 doubles each).
 constexpr int kWorldAxesOnStack = 128;
 
@@ -674,22 +698,7 @@ void crba_world(const Model& model, Data& data, const double* q) {
   v4 Op{};
   for (int i = 0; i < n; ++i) {
     const JointKind k = joint_kind(model, i);
-    M3 R;
-    v4 p;
-    if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
-    joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
-    const int par = model.parent[i];
-    chain &= par == i - 1;
-    if (par < 0) {
-      OR = R;
-      Op = p;
-    } else {
-      if (par != i - 1) load_transform(data.oMi[par], OR, Op);
-      Op += mul(OR, p);
-      OR = M3{mul(OR, R.c0), mul(OR, R.c1), mul(OR, R.c2)};
-    }
-    st(OR, data.oMi[i].R);
-    st3(Op, data.oMi[i].p);
+    chain &= world_pose_step(model, data, q, i, k, sn, cs, OR, Op);
     if (axes_on_stack) {
       v4 sw, sv;
       world_axis(model, i, k, OR, Op, sw, sv);
@@ -846,26 +855,10 @@ int aba_world(const Model& model, Data& data, const double* q, const double* qd,
   SV vel{splat(0.0), splat(0.0)};
   for (int i = 0; i < n; ++i) {
     const JointKind k = joint_kind(model, i);
-    M3 R;
-    v4 p;
-    if (i % kBlock == 0) joint_sincos(model, q, i, sn, cs);
-    joint_transform(model, i, k, q[i], cs[i % kBlock], sn[i % kBlock], R, p, data.liMi[i]);
     const int par = model.parent[i];
-    chain &= par == i - 1;
-    if (par < 0) {
-      OR = R;
-      Op = p;
-      vel = {splat(0.0), splat(0.0)};
-    } else {
-      if (par != i - 1) {
-        load_transform(data.oMi[par], OR, Op);
-        vel = ld(B[par].v);
-      }
-      Op += mul(OR, p);
-      OR = M3{mul(OR, R.c0), mul(OR, R.c1), mul(OR, R.c2)};
-    }
-    st(OR, data.oMi[i].R);
-    st3(Op, data.oMi[i].p);
+    if (par < 0) vel = {splat(0.0), splat(0.0)};
+    else if (par != i - 1) vel = ld(B[par].v);  // tree: the parent's velocity from memory
+    chain &= world_pose_step(model, data, q, i, k, sn, cs, OR, Op);
     SV S;
     world_axis(model, i, k, OR, Op, S.w, S.v);
     const v4 d = splat(qd[i]);

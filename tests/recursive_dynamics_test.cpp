@@ -303,43 +303,6 @@ TEST(ArticulatedBody, AutomaticForwardDynamicsIsExactlyTheChosenAlgorithm) {
   }
 }
 
-TEST(ArticulatedBody, OneBodyClosedForms) {
-  // nq = 1: the pendulum and the vertical slider of the closed-form tests below.
-  const double m = 2.3, l = 0.7, I = 0.05, gr = 9.81;
-  ModelDescription d;
-  LinkSpec p;
-  p.name = "bob";
-  p.placement = SE3::trans(Vec3(0.2, 0.4, -0.1));
-  p.axis = Vec3(0, 0, 3.0);  // non-unit: normalized by build_model
-  p.inertia = {m, Vec3(0, -l, 0), Vec3(I, 0.5 * I, I).asDiagonal()};
-  d.add_link(p);
-  d.gravity = Vec3(0, -gr, 0);
-  const Model model = build_model(d);
-  Data data(model);
-  for (double th : {-2.5, -1.0, 0.0, 0.3, 1.2, 3.0}) {
-    Eigen::VectorXd q(1), qd(1), tau(1);
-    q << th;
-    qd << 1.7;
-    tau << 0.4;
-    EXPECT_NEAR(forward_dynamics_aba(model, data, q, qd, tau)[0],
-                (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I), 1e-13);
-  }
-  ModelDescription ds;
-  LinkSpec s;
-  s.name = "carriage";
-  s.type = JointType::Prismatic;
-  s.offset = 0.25;
-  s.inertia = {4.2, Vec3(0.1, 0.2, 0.3), Vec3(0.1, 0.2, 0.25).asDiagonal()};
-  ds.add_link(s);
-  const Model slider = build_model(ds);
-  Data sd(slider);
-  Eigen::VectorXd q(1), qd(1), tau(1);
-  q << 0.5;
-  qd << -0.8;
-  tau << 50.0;
-  EXPECT_NEAR(forward_dynamics_aba(slider, sd, q, qd, tau)[0], 50.0 / 4.2 - 9.81, 1e-13);
-}
-
 TEST(ArticulatedBody, SingularMassMatrixIsAnErrorNamingTheJoint) {
   // A massless last link on a revolute joint whose axis passes through nothing: D = 0 there.
   for (int n : {1, 3, kAbaFrom, 40}) {
@@ -608,6 +571,11 @@ TEST(ClosedForm, SimplePendulum) {
     EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr * l * std::sin(th), 1e-13);
     EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I),
                 1e-13);
+    // nq = 1 by both explicit algorithms.
+    EXPECT_NEAR(forward_dynamics_crba(model, data, q, qd, tau)[0],
+                (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I), 1e-13);
+    EXPECT_NEAR(forward_dynamics_aba(model, data, q, qd, tau)[0],
+                (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I), 1e-13);
     EXPECT_NEAR(potential_energy(model, data, q), m * gr * (0.4 - l * std::cos(th)), 1e-13);
     EXPECT_NEAR(kinetic_energy(model, data, q, qd), 0.5 * (m * l * l + I) * 1.7 * 1.7, 1e-13);
   }
@@ -634,6 +602,8 @@ TEST(ClosedForm, VerticalSlider) {
     EXPECT_NEAR(gravity_forces(model, data, q)[0], m * gr, 1e-13);
     EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr, 1e-13);
     EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
+    EXPECT_NEAR(forward_dynamics_crba(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
+    EXPECT_NEAR(forward_dynamics_aba(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
     EXPECT_NEAR(potential_energy(model, data, q), m * gr * (z + 0.25 + 0.3), 1e-12);
   }
 }
