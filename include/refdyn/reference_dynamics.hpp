@@ -56,10 +56,11 @@ enum class ReferenceSolver { Projection, Lagrange, Automatic };
 /// Models with at least this many coordinates take the Lagrange (KKT) solver under
 /// ReferenceSolver::Automatic; smaller ones the projection. Measured with
 /// `dynamics_bench --benchmark_filter=CFD` (bench/README.md, "Forward dynamics"; one evaluation
-/// with 4 constraint rows, CPU-time medians of projection over Lagrange, 2026-11-25): 0.73 at 7,
-/// 0.82 at 10, 0.98 at 15, 0.98 at 20, 1.02 at 24, 1.03 at 30, 1.30 at 60 DOF (the paper's
+/// with 4 constraint rows, CPU-time medians of projection over Lagrange, two runs 2026-11-25):
+/// 0.73/0.69 at 7, 0.82/0.79 at 10, 0.98/0.97 at 15, 0.98/0.90 at 20, 1.02/0.93 at 24,
+/// 1.03/1.07 at 30, 1.30/1.26 at 60 DOF: the crossover lies between 24 and 30 (the paper's
 /// 3-DOF example: projection 1.35× faster, bench/README.md, reference_dynamics_bench).
-inline constexpr int kLagrangeFrom = 24;
+inline constexpr int kLagrangeFrom = 28;
 
 /// The solver ReferenceSolver::Automatic stands for with nq coordinates and `rows` constraint
 /// rows: Lagrange from kLagrangeFrom coordinates on, else Projection (the paper's 3-DOF example
