@@ -30,6 +30,11 @@
 //    RNEA motion and body force) and one backward sweep (RNEA force, CRBA composite and column),
 //    each joint transform computed once and loaded once; the per-body steps are shared inline
 //    functions (rnea_forward_body, rnea_backward_body, crba_backward_body), not copies.
+//  - ABA (forward_dynamics_aba) runs in the world frame, like crba_world: the articulated
+//    inertia a body passes to its parent needs no change of frame (a 6×6 add), the body inertias
+//    and joint axes are transformed to {0} once; the 6×6 is held as six columns of two 4-lane
+//    vectors, so IA·x, the rank-1 update IA − U Uᵀ/D and the add are 12 vector operations each.
+//    Faster than CRBA + Cholesky from 2–3 bodies on (bench/README.md, kAbaFrom).
 //  - Everything is fixed-size and lives in Data: no allocation.
 
 #if defined(__GNUC__) || defined(__clang__)

@@ -241,7 +241,7 @@ TEST(Spec, SolverAutoIsResolvedBySizeWhenTheProblemIsBuilt) {
   EXPECT_EQ(io::parse_problem(arm("solver: auto\n"), "arm.yaml")->options.solver, automatic_reference_solver(2, 0));
   EXPECT_EQ(io::parse_problem(arm("solver: auto\n"), "arm.yaml")->options.solver, ReferenceSolver::Projection);
   EXPECT_EQ(io::parse_problem(arm("solver: lagrange\n"), "arm.yaml")->options.solver, ReferenceSolver::Lagrange);
-  EXPECT_EQ(io::parse_problem(arm(""), "arm.yaml")->options.solver, ReferenceSolver::Projection);
+  EXPECT_EQ(io::parse_problem(arm(""), "arm.yaml")->options.solver, ReferenceSolver::Projection);  // default: auto
   test::expect_error_mentioning([] { io::parse_problem(arm("solver: fastest\n"), "arm.yaml"); },
                                 {"arm.yaml:", "solver", "auto", "fastest"});
 }

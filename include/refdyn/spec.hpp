@@ -137,7 +137,7 @@ struct ScenarioSpec {
   std::optional<std::vector<EntrySpec>> plant_forces;
   PartitionSpec partition;
   BaumgarteSpec baumgarte;
-  std::string solver = "projection";       ///< projection | lagrange | auto (by size, at build_problem)
+  std::string solver = "auto";             ///< projection | lagrange | auto (by size, resolved by build_problem)
   bool paper_literal_forces = false;
   InitialSpec initial;
   IntegratorSpec integrator;
