@@ -953,6 +953,51 @@ int aba_world(const Model& model, Data& data, const double* q, const double* qd,
   return -1;
 }
 
+/// x = M⁻¹ τ with the articulated-body factorization the last aba_world call left in data.aba
+/// (U_i, D_i, S_i at that q): ABA's backward and forward sweeps without velocity and gravity
+/// terms, O(n). data.aba's p and a are its scratch (trees).
+void aba_solve_impl(const Model& model, Data& data, const double* tau, double* x) {
+  const int n = model.nq;
+  AbaBody* __restrict B = data.aba.data();
+  bool chain = true;
+  for (int i = 0; i < n; ++i) chain &= model.parent[i] == i - 1;
+  const SV zero{splat(0.0), splat(0.0)};
+  if (!chain)
+    for (int i = 0; i < n; ++i) st(zero, B[i].p);
+  SV carry = zero;
+  for (int i = n - 1; i >= 0; --i) {
+    SV pA = carry;  // the child i + 1's share (registers), plus in a tree the others' (memory)
+    if (!chain) {
+      pA.w += ld4(B[i].p[0]);
+      pA.v += ld4(B[i].p[1]);
+    }
+    const double u = tau[i] - dot6(ld(B[i].S), pA);
+    x[i] = u;
+    const int par = model.parent[i];
+    carry = zero;
+    if (par < 0) continue;
+    const SV U = ld(B[i].U);
+    const v4 s = splat(u * B[i].Dinv);
+    pA.w += U.w * s;
+    pA.v += U.v * s;
+    if (par == i - 1) carry = pA;
+    else st(SV{ld4(B[par].p[0]) + pA.w, ld4(B[par].p[1]) + pA.v}, B[par].p);
+  }
+  SV acc = zero;
+  for (int i = 0; i < n; ++i) {
+    const int par = model.parent[i];
+    if (par < 0) acc = zero;
+    else if (par != i - 1) acc = ld(B[par].a);
+    const double xi = (x[i] - dot6(ld(B[i].U), acc)) * B[i].Dinv;
+    x[i] = xi;
+    const SV S = ld(B[i].S);
+    const v4 sx = splat(xi);
+    acc.w += S.w * sx;
+    acc.v += S.v * sx;
+    if (!chain) st(acc, B[i].a);
+  }
+}
+
 /// Argument checks with a fast success path; on failure the library's checks produce the
 /// error message (and throw).
 REFDYN_INLINE bool fine(const Eigen::VectorXd& x, int n) { return x.size() == n && x.allFinite(); }
@@ -994,6 +1039,8 @@ int aba(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::V
         const Eigen::VectorXd& tau, Eigen::VectorXd& qdd) {
   return aba_world(model, data, q.data(), qd.data(), tau.data(), qdd.data());
 }
+
+void aba_solve(const Model& model, Data& data, const double* tau, double* x) { aba_solve_impl(model, data, tau, x); }
 
 bool solve_mass_matrix(Data& data, Eigen::VectorXd& b) {
   switch (data.M.rows()) {  // fixed-size Cholesky on the stack for small models

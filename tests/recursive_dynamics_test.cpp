@@ -261,6 +261,25 @@ TEST(ArticulatedBody, InverseDynamicsOfItsResultGivesTau) {
   expect_forward_dynamics_inverts_inverse_dynamics(cases, rng, forward_dynamics_crba);
 }
 
+TEST(ArticulatedBody, SolveReusesTheFactorizationOfTheLastCall) {
+  std::mt19937 rng(126);
+  for (const Case& c : aba_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0), b = test::random_vector(rng, n, 5.0);
+    forward_dynamics_aba(c.model, data, q, qd, tau);
+    Eigen::VectorXd x(n);
+    unchecked::aba_solve(c.model, data, b.data(), x.data());
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+    const double cond = condition(M);
+    EXPECT_LE(test::rel_diff(x, M.fullPivLu().solve(b)), 1e-13 * cond + 1e-13) << c.label << " cond(M) = " << cond;
+    Eigen::VectorXd in_place = b;  // x may be tau
+    unchecked::aba_solve(c.model, data, in_place.data(), in_place.data());
+    EXPECT_EQ(in_place, x) << c.label;
+  }
+}
+
 TEST(ArticulatedBody, UncheckedKernelEqualsCheckedFunction) {
   std::mt19937 rng(122);
   for (const Case& c : aba_models(rng)) {

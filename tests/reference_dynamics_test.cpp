@@ -281,7 +281,8 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
         Data data(model);
         mass_matrix(model, data, q);
         bias_forces(model, data, q, qd);
-        EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
+        // (the Lagrange solver from kAbaLagrangeFrom coordinates factors M by ABA: no mass())
+        if (rd == &proj || n < kAbaLagrangeFrom) EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
         EXPECT_TRUE(near(rd->bias(), data.nle, 1e-12, 1e-12));
         const Eigen::VectorXd balance = data.M * rd->qdd() - (rd->applied_force() - data.nle);
         EXPECT_TRUE(near(balance, minus_At_lambda, 1e-9)) << where;

@@ -75,6 +75,9 @@ void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd&
 /// about its joint axis is not positive, i.e. M(q) is not positive definite (qdd unspecified).
 int aba(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
         const Eigen::VectorXd& tau, Eigen::VectorXd& qdd);
+/// x = M(q)⁻¹ tau (n values each; x may be tau) for the q of the last successful aba call on this
+/// data, reusing its articulated-body factorization: two O(n) sweeps.
+void aba_solve(const Model& model, Data& data, const double* tau, double* x);
 /// Solves data.M x = b in place by Cholesky (fixed-size for up to 4 coordinates, else data.llt);
 /// false, with b unspecified, when data.M is not positive definite.
 bool solve_mass_matrix(Data& data, Eigen::VectorXd& b);
