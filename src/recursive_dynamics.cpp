@@ -837,6 +837,31 @@ REFDYN_INLINE void st(const M6& A, double (&x)[6][2][4]) {
   }
 }
 
+/// ABA's last sweep, shared by aba_world and aba_solve_impl: x holds u_i on entry and q̈_i on
+/// return, x_i = (u_i − U_iᵀ a'_i) / D_i, a'_i = a_parent (+ c_i with Bias), a_i = a'_i + S_i x_i,
+/// a = a0 at the roots; the parent's a from registers along a chain, from data.aba in trees.
+template <bool Bias>
+REFDYN_INLINE void aba_forward_sweep(const Model& model, AbaBody* __restrict B, bool chain, const SV& a0, double* x) {
+  SV acc = a0;
+  for (int i = 0; i < model.nq; ++i) {
+    const int par = model.parent[i];
+    if (par < 0) acc = a0;
+    else if (par != i - 1) acc = ld(B[par].a);
+    if constexpr (Bias) {
+      const SV c = ld(B[i].c);
+      acc.w += c.w;
+      acc.v += c.v;
+    }
+    const double xi = (x[i] - dot6(ld(B[i].U), acc)) * B[i].Dinv;
+    x[i] = xi;
+    const SV S = ld(B[i].S);
+    const v4 sx = splat(xi);
+    acc.w += S.w * sx;
+    acc.v += S.v * sx;
+    if (!chain) st(acc, B[i].a);
+  }
+}
+
 /// Featherstone's articulated-body algorithm in the world frame {0} (spatial vectors at the
 /// world origin; as Pinocchio does it, so that the articulated inertia a body passes to its
 /// parent needs no change of frame: Ia_parent += IA − U Uᵀ/D). Three sweeps:
@@ -905,7 +930,7 @@ int aba_world(const Model& model, Data& data, const double* q, const double* qd,
     if (!(D > 0)) return i;
     const double u = tau[i] - dot6(S, pA);
     st(U, B[i].U);
-    B[i].u = u;
+    qdd[i] = u;  // the last sweep turns it into q̈_i
     const int par = model.parent[i];
     carry = false;
     if (par < 0) continue;
@@ -933,23 +958,7 @@ int aba_world(const Model& model, Data& data, const double* q, const double* qd,
     }
   }
   // Forward: accelerations (gravity as the base acceleration −g).
-  const SV a0{splat(0.0), -ld3(model.gravity)};
-  SV acc = a0;
-  for (int i = 0; i < n; ++i) {
-    const int par = model.parent[i];
-    if (par < 0) acc = a0;
-    else if (par != i - 1) acc = ld(B[par].a);
-    const SV c = ld(B[i].c);
-    acc.w += c.w;
-    acc.v += c.v;
-    const double x = (B[i].u - dot6(ld(B[i].U), acc)) * B[i].Dinv;
-    qdd[i] = x;
-    const SV S = ld(B[i].S);
-    const v4 sx = splat(x);
-    acc.w += S.w * sx;
-    acc.v += S.v * sx;
-    if (!chain) st(acc, B[i].a);
-  }
+  aba_forward_sweep<true>(model, B, chain, SV{splat(0.0), -ld3(model.gravity)}, qdd);
   return -1;
 }
 
@@ -983,19 +992,7 @@ void aba_solve_impl(const Model& model, Data& data, const double* tau, double* x
     if (par == i - 1) carry = pA;
     else st(SV{ld4(B[par].p[0]) + pA.w, ld4(B[par].p[1]) + pA.v}, B[par].p);
   }
-  SV acc = zero;
-  for (int i = 0; i < n; ++i) {
-    const int par = model.parent[i];
-    if (par < 0) acc = zero;
-    else if (par != i - 1) acc = ld(B[par].a);
-    const double xi = (x[i] - dot6(ld(B[i].U), acc)) * B[i].Dinv;
-    x[i] = xi;
-    const SV S = ld(B[i].S);
-    const v4 sx = splat(xi);
-    acc.w += S.w * sx;
-    acc.v += S.v * sx;
-    if (!chain) st(acc, B[i].a);
-  }
+  aba_forward_sweep<false>(model, B, chain, zero, x);
 }
 
 /// Argument checks with a fast success path; on failure the library's checks produce the

@@ -290,6 +290,9 @@ TEST(ArticulatedBody, UncheckedKernelEqualsCheckedFunction) {
     Eigen::VectorXd out(n);
     ASSERT_EQ(unchecked::aba(c.model, d2, q, qd, tau, out), -1) << c.label;
     EXPECT_EQ(forward_dynamics_aba(c.model, d1, q, qd, tau), out) << c.label;  // bit for bit
+    Eigen::VectorXd in_place = tau;  // the result may overwrite τ
+    ASSERT_EQ(unchecked::aba(c.model, d2, q, qd, in_place, in_place), -1) << c.label;
+    EXPECT_EQ(in_place, out) << c.label;
   }
 }
 

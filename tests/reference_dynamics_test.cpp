@@ -282,7 +282,9 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
         mass_matrix(model, data, q);
         bias_forces(model, data, q, qd);
         // (the Lagrange solver from kAbaLagrangeFrom coordinates factors M by ABA: no mass())
-        if (rd == &proj || n < kAbaLagrangeFrom) EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
+        if (rd == &proj || n < kAbaLagrangeFrom) {
+          EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
+        }
         EXPECT_TRUE(near(rd->bias(), data.nle, 1e-12, 1e-12));
         const Eigen::VectorXd balance = data.M * rd->qdd() - (rd->applied_force() - data.nle);
         EXPECT_TRUE(near(balance, minus_At_lambda, 1e-9)) << where;
@@ -355,9 +357,10 @@ TEST(ReferenceDynamics, AutomaticSolverPicksBySizeAndIsExactlyTheChosenSolver) {
       const ReferenceDynamics& proj = chosen == ReferenceSolver::Projection ? automatic : other;
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(mass_matrix(model, data, q), Eigen::EigenvaluesOnly);
       const double cond_M = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
-      if (proj.partition_condition() < 1e3)
+      if (proj.partition_condition() < 1e3) {
         EXPECT_LE(test::rel_diff(xa.segment(n, n), xo.segment(n, n)), 1e-13 * cond_M + 1e-13)
             << n << " cond(M) = " << cond_M;
+      }
     }
   }
 }

@@ -188,7 +188,6 @@ struct AbaBody {
   double a[2][4];                   ///< body acceleration a_i (trees only)
   double Ia[6][2][4];               ///< children's articulated inertias (trees only; 6 columns)
   double Dinv = 0;                  ///< 1 / (S_iᵀ U_i)
-  double u = 0;                     ///< τ_i − S_iᵀ p_i
 };
 
 /// Workspace for the algorithms; allocated once by the constructor, never resized afterwards.

@@ -70,9 +70,9 @@ void rnea_reusing_placements(const Model& model, Data& data, const Eigen::Vector
 /// rnea_reusing_placements(q, &q̇, nullptr, true, data.nle) gives, and the same data.liMi,
 /// data.v, data.a): for small models in one forward and one backward sweep.
 void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
-/// Articulated-body algorithm: qdd = M⁻¹ (tau − c − g) (qdd may be data.ddq; it must not alias
-/// q, qd or tau). Returns −1, or the first body (in backward order) whose articulated inertia
-/// about its joint axis is not positive, i.e. M(q) is not positive definite (qdd unspecified).
+/// Articulated-body algorithm: qdd = M⁻¹ (tau − c − g) (qdd may be any of the inputs or
+/// data.ddq). Returns −1, or the first body (in backward order) whose articulated inertia about
+/// its joint axis is not positive, i.e. M(q) is not positive definite (qdd unspecified).
 int aba(const Model& model, Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
         const Eigen::VectorXd& tau, Eigen::VectorXd& qdd);
 /// x = M(q)⁻¹ tau (n values each; x may be tau) for the q of the last successful aba call on this
