@@ -5,17 +5,29 @@
 // Before timing, every model is checked once: M, g, c + g and τ from refdyn's recursive route,
 // refdyn's trace route and KDL must agree to 1e-10 (relative to the largest entry); the
 // program aborts loudly otherwise. At the end it prints the table of ratios KDL / refdyn.
+//
+// Forward dynamics (FD: CRBA + Cholesky, the articulated-body algorithm, the automatic choice,
+// KDL's ChainFdSolver_RNE) and constrained forward dynamics (CFD: one reference-dynamics
+// evaluation with 4 constraint rows by projection, Lagrange/KKT and the automatic choice, against
+// KDL's M, c, g and an Eigen KKT solve) are timed in the same run; their own table follows.
 
 #include "bench_report.hpp"
 #include "dh_tables.hpp"
 #include "kdl_peer.hpp"
 
+#include "refdyn/constraints.hpp"
+#include "refdyn/force_elements.hpp"
+#include "refdyn/kinematics.hpp"
 #include "refdyn/model.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/time_function.hpp"
 #include "refdyn/trace_dynamics.hpp"
 
 #include <benchmark/benchmark.h>
+
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -50,6 +62,7 @@ refdyn::Model model_from_table(const DHTable& t) {
   }
   refdyn::ModelDescription d = refdyn::from_dh(rows, refdyn::DHConvention::Standard, t.name);
   d.gravity = refdyn::Vec3(t.gravity[0], t.gravity[1], t.gravity[2]);
+  d.add_point("tip", d.links.back().name, refdyn::Vec3(0.05, 0.0, 0.0));  // for the constrained FD
   return refdyn::build_model(d);
 }
 
@@ -59,8 +72,51 @@ struct Case {
   refdyn::Model model;
   std::unique_ptr<refdyn::Data> data;
   std::unique_ptr<KdlPeer> kdl;
-  std::vector<Eigen::VectorXd> q, qd, qdd;
+  std::vector<Eigen::VectorXd> q, qd, qdd, tau;
+  // Constrained FD (models with a "tip" point and at least 7 DOF): 4 rows, no applied forces.
+  refdyn::ForceSet forces;
+  refdyn::ConstraintSet constraints;
+  std::unique_ptr<refdyn::ReferenceDynamics> rd_proj, rd_lag, rd_auto;
+  std::vector<Eigen::VectorXd> x;
+  Eigen::VectorXd xdot;
+  bool constrained = false;
+  bool crossover_only = false;  ///< only the FD and CFD benchmarks (sizes for the crossovers)
 };
+
+/// Constrained FD: the tip's x, y and z held at their values in state 0 (point_coordinate) and
+/// joint 2 coupled to joint 1 (joint_coupling, ratio 0.5): 4 rows, Baumgarte terms active (the
+/// states are not consistent). The KDL peer gets the same A and right-hand side
+/// (A q̈ = −γ − 2αΦ̇ − β²Φ) per state, computed once here from refdyn's evaluation.
+void setup_constrained(Case& c) {
+  using namespace refdyn;
+  const Model& m = c.model;
+  Data data(m);
+  forward_kinematics(m, data, c.q[0]);
+  const Vec3 tip = point_position(m, data, m.point_index("tip"));
+  for (int axis = 0; axis < 3; ++axis) c.constraints.add(point_coordinate(m, "tip", axis, constant(tip[axis])));
+  c.constraints.add(joint_coupling(m, m.joint_name[1], m.joint_name[0], 0.5));
+  ReferenceDynamicsOptions o;
+  o.automatic_partition = true;
+  o.solver = ReferenceSolver::Projection;
+  c.rd_proj = std::make_unique<ReferenceDynamics>(m, c.forces, c.constraints, o);
+  o.solver = ReferenceSolver::Lagrange;
+  c.rd_lag = std::make_unique<ReferenceDynamics>(m, c.forces, c.constraints, o);
+  o.solver = ReferenceSolver::Automatic;
+  c.rd_auto = std::make_unique<ReferenceDynamics>(m, c.forces, c.constraints, o);
+  const int n = m.nq, rows = c.constraints.rows();
+  std::vector<double> A(static_cast<size_t>(kStates) * rows * n), rhs(static_cast<size_t>(kStates) * rows);
+  for (int k = 0; k < kStates; ++k) {
+    c.x.push_back(c.rd_lag->make_state(c.q[k], c.qd[k]));
+    c.xdot = Eigen::VectorXd::Zero(c.x[k].size());
+    c.rd_lag->derivative(0.0, c.x[k], c.xdot);
+    const ConstraintEval& ev = c.rd_lag->constraints();
+    Eigen::Map<Eigen::MatrixXd>(A.data() + static_cast<size_t>(k) * rows * n, rows, n) = ev.A;
+    for (int r = 0; r < rows; ++r)
+      rhs[k * rows + r] = -ev.gamma[r] - 2.0 * o.alpha * ev.phid[r] - o.beta * o.beta * ev.phi[r];
+  }
+  c.kdl->set_constraints(A.data(), rhs.data(), rows, kStates);
+  c.constrained = true;
+}
 
 std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::uint32_t seed) {
   auto c = std::make_unique<Case>(std::move(model));
@@ -76,12 +132,16 @@ std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::
   const auto q = refdyn_bench::random_states(n, kStates, 3.0, seed);
   const auto qd = refdyn_bench::random_states(n, kStates, 2.0, seed + 1);
   const auto qdd = refdyn_bench::random_states(n, kStates, 5.0, seed + 2);
+  const auto tau = refdyn_bench::random_states(n, kStates, 20.0, seed + 3);
   c->kdl->load_states(q.data(), qd.data(), qdd.data(), kStates);
+  c->kdl->load_torques(tau.data(), kStates);
   for (int k = 0; k < kStates; ++k) {
     c->q.push_back(Eigen::Map<const Eigen::VectorXd>(q.data() + k * n, n));
     c->qd.push_back(Eigen::Map<const Eigen::VectorXd>(qd.data() + k * n, n));
     c->qdd.push_back(Eigen::Map<const Eigen::VectorXd>(qdd.data() + k * n, n));
+    c->tau.push_back(Eigen::Map<const Eigen::VectorXd>(tau.data() + k * n, n));
   }
+  if (n >= 7 && !c->model.point_name.empty()) setup_constrained(*c);
   return c;
 }
 
@@ -91,6 +151,63 @@ std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::
 double rel_diff(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   const double scale = std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), 1e-300});
   return (a - b).cwiseAbs().maxCoeff() / scale;
+}
+
+/// FD and CFD: every route's q̈ against the others. Each is backward stable, so two of them may
+/// differ by cond(M)·ε relative: the bound is 1e-13·cond(M) + 1e-13 (cond(M) computed here).
+bool check_forward_dynamics(Case& c) {
+  const int n = c.model.nq;
+  refdyn::Data& data = *c.data;
+  bool ok = true;
+  double worst = 0, worst_c = 0, worst_cond = 0;
+  auto expect = [&](const char* what, int k, const Eigen::VectorXd& a, const Eigen::VectorXd& b, double tol,
+                    double& w) {
+    const double d = (a - b).cwiseAbs().maxCoeff() / std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), 1e-300});
+    w = std::max(w, d);
+    if (!(d <= tol)) {
+      ok = false;
+      std::fprintf(stderr, "FATAL: %s state %d: %s differ, relative max difference %.3e > %.1e\n", c.name.c_str(), k,
+                   what, d, tol);
+    }
+  };
+  Eigen::VectorXd kq(n);
+  for (int k = 0; k < kStates; ++k) {
+    const Eigen::MatrixXd M = refdyn::mass_matrix(c.model, data, c.q[k]);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
+    const double cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+    worst_cond = std::max(worst_cond, cond);
+    const double tol = 1e-13 * cond + 1e-13;
+    const Eigen::VectorXd crba = refdyn::forward_dynamics_crba(c.model, data, c.q[k], c.qd[k], c.tau[k]);
+    const Eigen::VectorXd aba = refdyn::forward_dynamics_aba(c.model, data, c.q[k], c.qd[k], c.tau[k]);
+    const Eigen::VectorXd automatic = refdyn::forward_dynamics(c.model, data, c.q[k], c.qd[k], c.tau[k]);
+    if (c.kdl->forward_dynamics(k) != 0) {
+      std::fprintf(stderr, "FATAL: %s: KDL ChainFdSolver_RNE returned an error\n", c.name.c_str());
+      return false;
+    }
+    c.kdl->get_qdd(kq.data());
+    expect("FD: ABA vs CRBA + Cholesky", k, aba, crba, tol, worst);
+    expect("FD: automatic vs its choice", k, automatic, refdyn::forward_dynamics_uses_aba(n) ? aba : crba, 0.0, worst);
+    expect("FD: refdyn vs KDL ChainFdSolver_RNE", k, automatic, kq, tol, worst);
+    if (!c.constrained) continue;
+    Eigen::VectorXd xp = c.xdot, xl = c.xdot, xa = c.xdot;
+    c.rd_proj->derivative(0.0, c.x[k], xp);
+    c.rd_lag->derivative(0.0, c.x[k], xl);
+    c.rd_auto->derivative(0.0, c.x[k], xa);
+    if (c.kdl->constrained_forward_dynamics(k) != 0) {
+      std::fprintf(stderr, "FATAL: %s: the KDL KKT peer failed\n", c.name.c_str());
+      return false;
+    }
+    c.kdl->get_qdd(kq.data());
+    expect("CFD: projection vs Lagrange", k, xp.segment(n, n), xl.segment(n, n), 1e3 * tol, worst_c);
+    expect("CFD: automatic vs its choice", k, xa,
+           c.rd_auto->options().solver == refdyn::ReferenceSolver::Lagrange ? xl : xp, 0.0, worst_c);
+    expect("CFD: refdyn Lagrange vs KDL M, c, g + KKT", k, xl.segment(n, n), kq, 1e3 * tol, worst_c);
+  }
+  std::printf("check %-8s %2d DOF: FD routes and KDL agree (worst %.1e, cond(M) up to %.1e)", c.name.c_str(), n,
+              worst, worst_cond);
+  if (c.constrained) std::printf("; CFD routes and KDL peer agree (worst %.1e)", worst_c);
+  std::printf("\n");
+  return ok;
 }
 
 bool check_case(Case& c, double tol) {
@@ -135,7 +252,7 @@ bool check_case(Case& c, double tol) {
   }
   std::printf("check %-8s %2d DOF: recursive, trace and KDL agree (worst relative difference %.1e)\n",
               c.name.c_str(), n, worst);
-  return ok;
+  return check_forward_dynamics(c) && ok;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -153,6 +270,46 @@ void timed(benchmark::State& st, F&& f) {
 const std::vector<std::string> kQuantities = {"M", "c+g", "g", "ID"};
 const std::vector<std::string> kRoutes = {"recursive", "trace", "kdl"};
 
+/// FD and CFD benchmarks of one case (`reg` registers one timed loop).
+template <typename Reg>
+void register_forward_dynamics(Case* c, Reg reg) {
+  const std::string p = c->name + "/";
+  refdyn::Data* d = c->data.get();
+  const refdyn::Model* m = &c->model;
+  KdlPeer* kdl = c->kdl.get();
+  // Forward dynamics.
+  reg(p + "FD/crba", [=](int k) {
+    benchmark::DoNotOptimize(refdyn::forward_dynamics_crba(*m, *d, c->q[k], c->qd[k], c->tau[k]).data());
+  });
+  reg(p + "FD/aba", [=](int k) {
+    benchmark::DoNotOptimize(refdyn::forward_dynamics_aba(*m, *d, c->q[k], c->qd[k], c->tau[k]).data());
+  });
+  reg(p + "FD/fused", [=](int k) {  // what the closed-loop plant does when its controller needs M, c + g
+    refdyn::unchecked::mass_matrix_and_bias(*m, *d, c->q[k], c->qd[k]);
+    d->ddq = c->tau[k] - d->nle;
+    benchmark::DoNotOptimize(refdyn::unchecked::solve_mass_matrix(*d, d->ddq));
+  });
+  reg(p + "FD/auto", [=](int k) {
+    benchmark::DoNotOptimize(refdyn::forward_dynamics(*m, *d, c->q[k], c->qd[k], c->tau[k]).data());
+  });
+  reg(p + "FD/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->forward_dynamics(k)); });
+  if (!c->constrained) return;
+  // Constrained forward dynamics: one reference-dynamics evaluation.
+  reg(p + "CFD/projection", [=](int k) {
+    c->rd_proj->derivative(0.0, c->x[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  reg(p + "CFD/lagrange", [=](int k) {
+    c->rd_lag->derivative(0.0, c->x[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  reg(p + "CFD/auto", [=](int k) {
+    c->rd_auto->derivative(0.0, c->x[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  reg(p + "CFD/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->constrained_forward_dynamics(k)); });
+}
+
 void register_case(Case* c) {
   const std::string p = c->name + "/";
   refdyn::Data* d = c->data.get();
@@ -165,6 +322,8 @@ void register_case(Case* c) {
           return v.empty() ? 0.0 : *std::min_element(v.begin(), v.end());
         });
   };
+  register_forward_dynamics(c, reg);
+  if (c->crossover_only) return;
   // Joint-space mass matrix.
   reg(p + "M/recursive", [=](int k) { benchmark::DoNotOptimize(refdyn::mass_matrix(*m, *d, c->q[k]).data()); });
   reg(p + "M/trace", [=](int k) { benchmark::DoNotOptimize(refdyn::trace_mass_matrix(*m, *d, c->q[k]).data()); });
@@ -231,6 +390,30 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
   std::printf("      JntToCoriolis + JntToGravity)\n");
   std::printf("g = gravity (gravity_forces | trace_gravity | JntToGravity)\n");
   std::printf("ID = inverse dynamics (inverse_dynamics [RNEA] | - | ChainIdSolver_RNE::CartToJnt)\n");
+
+  std::printf("\nForward dynamics (FD) and constrained forward dynamics (CFD, 4 rows). FD: crba =\n");
+  std::printf("forward_dynamics_crba (CRBA + RNEA + Cholesky), aba = forward_dynamics_aba, auto = forward_dynamics,\n");
+  std::printf("kdl = ChainFdSolver_RNE. CFD: crba = projection, aba = lagrange (KKT), auto = ReferenceSolver::Automatic,\n");
+  std::printf("kdl = JntToMass + JntToCoriolis + JntToGravity + Eigen KKT. Medians; ratios med/med.\n\n");
+  std::printf("fused = unchecked::mass_matrix_and_bias + solve_mass_matrix (the closed-loop plant's CRBA route).\n\n");
+  std::printf("| model | DOF | quantity | crba/projection | fused | aba/lagrange | auto | KDL | crba÷aba (proj÷lag) | fused÷aba | KDL÷auto | KDL min÷auto min |\n");
+  std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const auto& c : cases)
+    for (const std::string qty : {"FD", "CFD"}) {
+      const std::string p = c->name + "/" + qty + "/";
+      const Stats* a = get(p + (qty == "FD" ? "crba" : "projection"));
+      const Stats* b = get(p + (qty == "FD" ? "aba" : "lagrange"));
+      const Stats* au = get(p + "auto");
+      const Stats* k = get(p + "kdl");
+      const Stats* fu = get(p + "fused");
+      if (!a || !b || !au || !k) continue;
+      const double fm = fu ? fu->median() : NAN;
+      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
+                  qty.c_str(), fmt_ns(a->median()).c_str(), fmt_ns(fm).c_str(), fmt_ns(b->median()).c_str(),
+                  fmt_ns(au->median()).c_str(), fmt_ns(k->median()).c_str(),
+                  fmt_ratio(a->median() / b->median()).c_str(), fmt_ratio(fm / b->median()).c_str(),
+                  fmt_ratio(k->median() / au->median()).c_str(), fmt_ratio(k->min() / au->min()).c_str());
+    }
 }
 
 }  // namespace
@@ -244,6 +427,12 @@ int main(int argc, char** argv) {
   for (int dof : {7, 15, 30, 60}) {
     const DHTable t = refdyn_bench::random_table(dof, 1000 + dof);
     cases.push_back(make_case(t, model_from_table(t), 2000 + dof));
+  }
+  // Extra sizes for the crossovers (FD and CFD only): kAbaFrom, kLagrangeFrom.
+  for (int dof : {2, 4, 5, 10, 20, 24}) {
+    const DHTable t = refdyn_bench::random_table(dof, 1000 + dof);
+    cases.push_back(make_case(t, model_from_table(t), 2000 + dof));
+    cases.back()->crossover_only = true;
   }
 
   bool ok = true;

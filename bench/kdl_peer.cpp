@@ -3,6 +3,7 @@
 
 #include <kdl/chain.hpp>
 #include <kdl/chaindynparam.hpp>
+#include <kdl/chainfdsolver_recursive_newton_euler.hpp>
 #include <kdl/chainfksolvervel_recursive.hpp>
 #include <kdl/chainhdsolver_vereshchagin.hpp>
 #include <kdl/chainidsolver_recursive_newton_euler.hpp>
@@ -17,6 +18,8 @@
 #include <kdl/rigidbodyinertia.hpp>
 #include <kdl/rotationalinertia.hpp>
 #include <kdl/segment.hpp>
+
+#include <Eigen/Cholesky>
 
 #include <memory>
 #include <vector>
@@ -43,21 +46,34 @@ struct KdlPeer::Impl {
         grav(t.gravity[0], t.gravity[1], t.gravity[2]),
         dyn(chain, grav),
         rne(chain, grav),
+        fd(chain, grav),
         n(static_cast<int>(chain.getNrOfJoints())),
         M(n),
         c(n),
         g(n),
         tau(n),
-        fext(chain.getNrOfSegments(), KDL::Wrench::Zero()) {}
+        fext(chain.getNrOfSegments(), KDL::Wrench::Zero()),
+        qdd_out(n),
+        llt_n(n) {}
   KDL::Chain chain;
   KDL::Vector grav;
   KDL::ChainDynParam dyn;
   KDL::ChainIdSolver_RNE rne;
+  KDL::ChainFdSolver_RNE fd;  // keeps a reference to `chain`
   int n;
   std::vector<KDL::JntArray> q, qd, qdd;
   KDL::JntSpaceInertiaMatrix M;
   KDL::JntArray c, g, tau;
   KDL::Wrenches fext;
+  // forward dynamics
+  std::vector<KDL::JntArray> torques;
+  KDL::JntArray qdd_out;
+  int m = 0;
+  std::vector<Eigen::MatrixXd> A;
+  std::vector<Eigen::VectorXd> rhs;
+  Eigen::LLT<Eigen::MatrixXd> llt_n, llt_m;
+  Eigen::MatrixXd Y, S;
+  Eigen::VectorXd u, lambda;
   // Vereshchagin (after setup_vereshchagin). The solver keeps a reference to `chain`.
   std::unique_ptr<KDL::ChainHdSolver_Vereshchagin> hd;
   int nc = 0;
@@ -90,6 +106,62 @@ int KdlPeer::coriolis(int k) { return impl_->dyn.JntToCoriolis(impl_->q[k], impl
 int KdlPeer::gravity(int k) { return impl_->dyn.JntToGravity(impl_->q[k], impl_->g); }
 int KdlPeer::inverse_dynamics(int k) {
   return impl_->rne.CartToJnt(impl_->q[k], impl_->qd[k], impl_->qdd[k], impl_->fext, impl_->tau);
+}
+
+void KdlPeer::load_torques(const double* tau, int count) {
+  Impl& s = *impl_;
+  s.torques.assign(count, KDL::JntArray(s.n));
+  for (int k = 0; k < count; ++k)
+    for (int i = 0; i < s.n; ++i) s.torques[k](i) = tau[k * s.n + i];
+}
+
+int KdlPeer::forward_dynamics(int k) {
+  Impl& s = *impl_;
+  return s.fd.CartToJnt(s.q[k], s.qd[k], s.torques[k], s.fext, s.qdd_out);
+}
+
+void KdlPeer::set_constraints(const double* A, const double* rhs, int m, int count) {
+  Impl& s = *impl_;
+  s.m = m;
+  s.A.assign(count, Eigen::MatrixXd(m, s.n));
+  s.rhs.assign(count, Eigen::VectorXd(m));
+  for (int k = 0; k < count; ++k) {
+    s.A[k] = Eigen::Map<const Eigen::MatrixXd>(A + static_cast<size_t>(k) * m * s.n, m, s.n);
+    s.rhs[k] = Eigen::Map<const Eigen::VectorXd>(rhs + static_cast<size_t>(k) * m, m);
+  }
+  s.llt_m = Eigen::LLT<Eigen::MatrixXd>(m);
+  s.Y.resize(s.n, m);
+  s.S.resize(m, m);
+  s.u.resize(s.n);
+  s.lambda.resize(m);
+}
+
+int KdlPeer::constrained_forward_dynamics(int k) {
+  Impl& s = *impl_;
+  if (int e = s.dyn.JntToMass(s.q[k], s.M); e < 0) return e;
+  if (int e = s.dyn.JntToCoriolis(s.q[k], s.qd[k], s.c); e < 0) return e;
+  if (int e = s.dyn.JntToGravity(s.q[k], s.g); e < 0) return e;
+  // u = M⁻¹(τ − c − g), Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ.
+  s.llt_n.compute(s.M.data);
+  if (s.llt_n.info() != Eigen::Success) return -100;
+  s.u = -s.c.data - s.g.data;  // no applied forces (as on the refdyn side)
+  s.llt_n.solveInPlace(s.u);
+  const Eigen::MatrixXd& A = s.A[k];
+  s.Y = A.transpose();
+  s.llt_n.solveInPlace(s.Y);
+  s.S.noalias() = A * s.Y;
+  s.llt_m.compute(s.S);
+  if (s.llt_m.info() != Eigen::Success) return -101;
+  s.lambda.noalias() = A * s.u;
+  s.lambda -= s.rhs[k];
+  s.llt_m.solveInPlace(s.lambda);
+  s.qdd_out.data = s.u;
+  s.qdd_out.data.noalias() -= s.Y * s.lambda;
+  return 0;
+}
+
+void KdlPeer::get_qdd(double* qdd) const {
+  for (int i = 0; i < impl_->n; ++i) qdd[i] = impl_->qdd_out(i);
 }
 
 void KdlPeer::get_mass_matrix(double* M) const {

@@ -42,6 +42,22 @@ class REFDYN_KDL_PEER_API KdlPeer {
   int gravity(int k);                     ///< ChainDynParam::JntToGravity
   int inverse_dynamics(int k);            ///< ChainIdSolver_RNE::CartToJnt (no external wrenches)
 
+  // ---- forward dynamics ----
+  /// Stores `count` joint-torque vectors (count × n doubles, state k at offset k·n) for the two
+  /// forward-dynamics kernels below.
+  void load_torques(const double* tau, int count);
+  /// KDL's own forward dynamics, ChainFdSolver_RNE::CartToJnt (JntToMass + RNE with q̈ = 0 +
+  /// KDL's LDLᵀ), on stored state k and torques k → get_qdd.
+  int forward_dynamics(int k);
+  /// Constrained forward dynamics with KDL's dynamics: JntToMass, JntToCoriolis, JntToGravity,
+  /// then the KKT system [[M, Aᵀ], [A, 0]] [q̈; λ] = [−c − g; rhs] (no applied forces) by Eigen (LLT of M and of
+  /// the Schur complement A M⁻¹ Aᵀ, workspaces allocated once) → get_qdd. A and rhs come
+  /// precomputed from set_constraints (KDL has no constraint model of its own).
+  int constrained_forward_dynamics(int k);
+  /// Per state k: A (m × n, column-major, offset k·m·n) and rhs (m, offset k·m).
+  void set_constraints(const double* A, const double* rhs, int m, int count);
+  void get_qdd(double* qdd) const;
+
   void get_mass_matrix(double* M_colmajor) const;  ///< n × n
   void get_coriolis(double* c) const;
   void get_gravity(double* g) const;

@@ -260,12 +260,20 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   const int n = m.nv, nz = forces.num_states(), nc = c.num_states();
   w.q = Eigen::Map<const Eigen::VectorXd>(x, n);
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
-  unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
-  control(c, w, t, limit, m, &w.data, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
-  forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
-  w.data.ddq = w.tau + w.Q - w.data.nle;
-  if (!unchecked::solve_mass_matrix(w.data, w.data.ddq))
-    throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
+  if (forward_dynamics_uses_aba(n) && !c.reuses_dynamics(m)) {  // articulated-body algorithm: no M needed
+    control(c, w, t, limit, m, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
+    forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
+    w.Q += w.tau;
+    if (unchecked::aba(m, w.data, w.q, w.qd, w.Q, w.data.ddq) >= 0)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
+  } else {  // the controller reuses M and c + g: CRBA + Cholesky
+    unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
+    control(c, w, t, limit, m, &w.data, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
+    forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
+    w.data.ddq = w.tau + w.Q - w.data.nle;
+    if (!unchecked::solve_mass_matrix(w.data, w.data.ddq))
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
+  }
   Eigen::Map<Eigen::VectorXd>(dx, n) = w.qd;
   Eigen::Map<Eigen::VectorXd>(dx + n, n) = w.data.ddq;
   for (int k = 0; k < nz; ++k) dx[2 * n + k] = w.zdot[k];

@@ -262,7 +262,7 @@ Data::Data(const Model& model)
     : model_id(model.id), nq(model.nq), liMi(model.nq), oMi(model.nq), v(model.nq), a(model.nq), f(model.nq),
       tau(Eigen::VectorXd::Zero(model.nq)), nle(Eigen::VectorXd::Zero(model.nq)),
       g(Eigen::VectorXd::Zero(model.nq)), Ic(model.nq), M(Eigen::MatrixXd::Zero(model.nq, model.nq)),
-      llt(model.nq), ddq(Eigen::VectorXd::Zero(model.nq)), T(model.nq, Mat4::Identity()),
+      llt(model.nq), ddq(Eigen::VectorXd::Zero(model.nq)), aba(model.nq), T(model.nq, Mat4::Identity()),
       D(model.nq, Mat4::Zero()), H(model.nq), Tdd(model.nq), Td(model.nq),
       M_trace(Eigen::MatrixXd::Zero(model.nq, model.nq)), c_trace(Eigen::VectorXd::Zero(model.nq)),
       g_trace(Eigen::VectorXd::Zero(model.nq)), Jp(3, model.nq), Jw(3, model.nq) {

@@ -543,7 +543,9 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       c.fail(b.value, "baumgarte", e.what());
     }
   }
-  s->options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
+  s->options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange
+                      : spec.solver == "auto"   ? automatic_reference_solver(m.nq, s->constraints.rows())
+                                                : ReferenceSolver::Projection;
   s->options.paper_literal_forces = spec.paper_literal_forces;
 
   const int nrows = s->constraints.rows();

@@ -43,6 +43,9 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
     : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
       m_(constraints.rows()), data_(model), ev_(model, constraints) {
   opt_.validate();
+  if (opt_.solver == ReferenceSolver::Automatic) opt_.solver = automatic_reference_solver(n_, m_);
+  aba_ = m_ == 0 && constraints.points().empty() && forward_dynamics_uses_aba(n_);
+  aba_lagrange_ = m_ > 0 && opt_.solver == ReferenceSolver::Lagrange && n_ >= kAbaLagrangeFrom;
   for (int r = 0; r < constraints.rows(); ++r) {
     first_order_row_.push_back(constraints.row_first_order(r));
     acceleration_row_.push_back(constraints.row_order(r) == 2);
@@ -290,9 +293,23 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
   qd_ = x.segment(n, n);
   const double* z = nz ? x.data() + 2 * n : nullptr;
 
+  if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
+    forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
+    tmp_n_ = Q_;
+    if (opt_.paper_literal_forces) tmp_n_.noalias() += dQ_.transpose() * qd_;
+    if (unchecked::aba(model_, data_, q_, qd_, tmp_n_, qdd_) >= 0)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+    Qc_.setZero();
+    write_derivative(xdot);
+    return;
+  }
+
   // One set of joint placements per evaluation, computed with M and c + g in one sweep; the
   // constraint kinematics reuse them and RNEA's body velocities and accelerations.
-  unchecked::mass_matrix_and_bias(model_, data_, q_, qd_);
+  if (aba_lagrange_)  // c + g and the body motions the constraints read; M is not needed
+    unchecked::rnea(model_, data_, q_, &qd_, nullptr, true, data_.nle);
+  else
+    unchecked::mass_matrix_and_bias(model_, data_, q_, qd_);
   evaluate_constraints_after_bias_forces(model_, data_, constraints_, ev_, t, q_, qd_);
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
   {
@@ -318,13 +335,23 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
 
   if (opt_.solver == ReferenceSolver::Projection)
     solve_projection(t);
+  else if (aba_lagrange_)
+    solve_lagrange_aba(t);
   else
     solve_lagrange(t);
 
   const double* __restrict qdd = qdd_.data();
   const double* __restrict F = F_.data();
   double* __restrict Qc = Qc_.data();
-  {  // Q_c = M q̈ − F
+  if (aba_lagrange_) {  // Q_c = −Aᵀλ (M is not formed)
+    const double* __restrict A = ev_.A.data();  // m × n, column-major
+    const double* __restrict lambda = lambda_.data();
+    for (int i = 0; i < n; ++i) {
+      double sum = 0;
+      for (int r = 0; r < m; ++r) sum -= A[static_cast<size_t>(i) * m + r] * lambda[r];
+      Qc[i] = sum;
+    }
+  } else {  // Q_c = M q̈ − F
     const double* __restrict Mp = data_.M.data();
     for (int i = 0; i < n; ++i) Qc[i] = -F[i];
     for (int j = 0; j < n; ++j) {
@@ -345,8 +372,14 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
     }
   }
   if (has_acceleration_rows_) acceleration_residuals();
+  write_derivative(xdot);
+}
+
+void ReferenceDynamics::write_derivative(Eigen::VectorXd& xdot) const {
+  const int n = n_, nz = forces_.num_states();
   double* __restrict out = xdot.data();
   const double* __restrict qd = qd_.data();
+  const double* __restrict qdd = qdd_.data();
   for (int i = 0; i < n; ++i) out[i] = qd[i];
   for (int i = 0; i < n; ++i) out[n + i] = qdd[i];
   const double* __restrict zd = zdot_.data();
@@ -496,6 +529,28 @@ void ReferenceDynamics::solve_lagrange_sized(double t) {
     throw NumericalFailure(t, "at t = " + fmt(t) +
                                   " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
                                   "hint: remove redundant constraints");
+}
+
+void ReferenceDynamics::solve_lagrange_aba(double t) {
+  // u = M⁻¹F with F = Q − (c + g): ABA with τ = Q. Y = M⁻¹Aᵀ column by column with its
+  // factorization; S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ (as kkt_solve).
+  if (unchecked::aba(model_, data_, q_, qd_, Q_, qdd_) >= 0)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+  for (int r = 0; r < m_; ++r) {
+    for (int i = 0; i < n_; ++i) tmp_n_[i] = ev_.A(r, i);
+    unchecked::aba_solve(model_, data_, tmp_n_.data(), Y_.col(r).data());
+  }
+  Smm_.noalias() = ev_.A.lazyProduct(Y_);
+  llt_m_.compute(Smm_);
+  if (llt_m_.info() != Eigen::Success)
+    throw NumericalFailure(t, "at t = " + fmt(t) +
+                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
+                                  "hint: remove redundant constraints");
+  tmp_m_.noalias() = ev_.A.lazyProduct(qdd_);
+  tmp_m_ -= rhs_;
+  lambda_ = tmp_m_;
+  llt_m_.solveInPlace(lambda_);
+  qdd_.noalias() -= Y_.lazyProduct(lambda_);
 }
 
 void ReferenceDynamics::acceleration_residuals() {

@@ -99,6 +99,50 @@ TEST(Control, ComputedTorqueReusesThePlantDynamicsOnlyForItsOwnModel) {
   for (size_t k = 0; k < a.x.size(); ++k) ASSERT_TRUE(near(a.x[k], b.x[k], 1e-12, 1e-12)) << "sample " << k;
 }
 
+// A plant whose controller does not reuse M and c + g takes the articulated-body algorithm
+// (from kAbaFrom coordinates); one that does, CRBA + Cholesky. The same PD + g controller,
+// once declaring reuse and once not, gives the same closed loop by the two routes.
+namespace {
+class PdGravityDeclaringReuse final : public Controller {
+ public:
+  PdGravityDeclaringReuse(const Model& model, bool reuse) : pd_(model, kp(), kd()), reuse_(reuse) {}
+  static Eigen::VectorXd kp() { return Eigen::Vector3d(400, 40, 900); }
+  static Eigen::VectorXd kd() { return Eigen::Vector3d(40, 4, 60); }
+  std::string name() const override { return "pd_test"; }
+  void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
+               Eigen::VectorXd& tau) override {
+    pd_.compute(t, q, qd, ref, tau);
+  }
+  bool reuses_dynamics(const Model&) const override { return reuse_; }
+
+ private:
+  PDGravity pd_;
+  bool reuse_;
+};
+}  // namespace
+
+TEST(Control, PlantTakesTheArticulatedBodyAlgorithmWhenTheControllerDoesNotReuseItsDynamics) {
+  Fixture& f = fixture();
+  const Model copy = f.ex.model;
+  const Eigen::Vector3d delta(40, 3, 60);
+  ComputedTorquePD own(f.ex.model, delta), other(copy, delta);
+  PDGravity pd(f.ex.model, PdGravityDeclaringReuse::kp(), PdGravityDeclaringReuse::kd());
+  EXPECT_TRUE(own.reuses_dynamics(f.ex.model));
+  EXPECT_FALSE(other.reuses_dynamics(f.ex.model));
+  EXPECT_FALSE(pd.reuses_dynamics(f.ex.model));
+  ASSERT_TRUE(forward_dynamics_uses_aba(f.ex.model.nq));
+  const ForceSet none;
+  ClosedLoopOptions o;
+  o.integrator = f.ex.integrator();
+  o.integrator.t1 = 2.0;
+  PdGravityDeclaringReuse aba(f.ex.model, false), crba(f.ex.model, true);
+  const ClosedLoopResult a = simulate_closed_loop(f.ex.model, none, aba, f.plan, nullptr, plant_start(70), o);
+  const ClosedLoopResult b = simulate_closed_loop(f.ex.model, none, crba, f.plan, nullptr, plant_start(70), o);
+  ASSERT_TRUE(a.summary.ok() && b.summary.ok());
+  ASSERT_EQ(a.x.size(), b.x.size());
+  for (size_t k = 0; k < a.x.size(); ++k) ASSERT_TRUE(near(a.x[k], b.x[k], 1e-11, 1e-12)) << "sample " << k;
+}
+
 TEST(Control, ExactStartTracksToRoundoffAndTorqueEqualsPlanForces) {
   Fixture& f = fixture();
   ComputedTorquePD ctrl(f.ex.model, Eigen::Vector3d(40, 3, 60));

@@ -1,6 +1,10 @@
 // No heap allocation in the planner's and the closed loop's hot paths. Counts calls to malloc
 // itself (Eigen allocates with malloc, not operator new), through glibc's __libc_malloc.
+#include "refdyn/constraints.hpp"
 #include "refdyn/control.hpp"
+#include "refdyn/force_elements.hpp"
+#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/time_function.hpp"
 #include "refdyn/models/paper_example.hpp"
 #include "refdyn/recursive_dynamics.hpp"
 
@@ -40,6 +44,35 @@ TEST(HotPathAllocation, ReferenceDynamicsDerivativeBothSolvers) {
   }
 }
 
+TEST(HotPathAllocation, LargeModelLagrangeAndUnconstrainedRoutes) {
+  // 40 DOF: the Lagrange solver's ABA factorization and the unconstrained ABA route.
+  std::vector<DHRow> rows(40);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    rows[i].a = 0.1;
+    rows[i].alpha = 0.3 * static_cast<double>(i % 5) - 0.6;
+    rows[i].inertia.mass = 1.0;
+    rows[i].inertia.com = Vec3(-0.05, 0.01, 0.0);
+    rows[i].inertia.I_com = Vec3(0.01, 0.02, 0.02).asDiagonal();
+  }
+  ModelDescription d = from_dh(rows);
+  d.add_point("tip", d.links.back().name, Vec3::Zero());
+  const Model model = build_model(d);
+  ConstraintSet one_row, none;
+  one_row.add(point_coordinate(model, "tip", 2, constant(0.1)));
+  const ForceSet forces;
+  ReferenceDynamicsOptions o;
+  o.solver = ReferenceSolver::Lagrange;
+  for (const ConstraintSet* set : {&one_row, &none}) {
+    ReferenceDynamics rd(model, forces, *set, o);
+    Eigen::VectorXd x = rd.make_state(Eigen::VectorXd::Constant(40, 0.2), Eigen::VectorXd::Constant(40, 0.1));
+    Eigen::VectorXd dx(x.size());
+    rd.derivative(0.0, x, dx);  // warm-up
+    const long before = g_mallocs;
+    for (int i = 0; i < 10; ++i) rd.derivative(0.01 * i, x, dx);
+    EXPECT_EQ(g_mallocs - before, 0) << set->rows() << " rows";
+  }
+}
+
 TEST(HotPathAllocation, ControllerAndDynamics) {
   models::PaperExample ex;
   ComputedTorquePD ctrl(ex.model, Eigen::Vector3d(40, 3, 60));
@@ -53,6 +86,7 @@ TEST(HotPathAllocation, ControllerAndDynamics) {
   for (int i = 0; i < 20; ++i) {
     ctrl.compute(0, q, qd, ref, tau);
     forward_dynamics(ex.model, data, q, qd, tau);
+    forward_dynamics_aba(ex.model, data, q, qd, tau);
     mass_matrix(ex.model, data, q);
     bias_forces(ex.model, data, q, qd);
     inverse_dynamics(ex.model, data, q, qd, qdd);

@@ -144,6 +144,8 @@ void hot_calls(const Model& m, Data& data, const Eigen::VectorXd& q, const Eigen
   sink += gravity_forces(m, data, q)[0];
   sink += inverse_dynamics(m, data, q, qd, qdd)[0];
   sink += forward_dynamics(m, data, q, qd, tau)[0];
+  sink += forward_dynamics_crba(m, data, q, qd, tau)[0];
+  sink += forward_dynamics_aba(m, data, q, qd, tau)[0];
   forward_kinematics(m, data, q);
   sink += data.oMi[0].p[0];
   point_jacobian(m, data, point);
@@ -214,6 +216,8 @@ TEST(NoAllocation, EachFunctionSeparately) {
   EXPECT_EQ(count([&] { sink += gravity_forces(m, data, q)[0]; }), 0) << "gravity_forces";
   EXPECT_EQ(count([&] { sink += inverse_dynamics(m, data, q, qd, qdd)[0]; }), 0) << "inverse_dynamics";
   EXPECT_EQ(count([&] { sink += forward_dynamics(m, data, q, qd, tau)[0]; }), 0) << "forward_dynamics";
+  EXPECT_EQ(count([&] { sink += forward_dynamics_crba(m, data, q, qd, tau)[0]; }), 0) << "forward_dynamics_crba";
+  EXPECT_EQ(count([&] { sink += forward_dynamics_aba(m, data, q, qd, tau)[0]; }), 0) << "forward_dynamics_aba";
   EXPECT_EQ(count([&] { forward_kinematics(m, data, q); }), 0) << "forward_kinematics";
   EXPECT_EQ(count([&] { point_jacobian(m, data, E); }), 0) << "point_jacobian";
   EXPECT_EQ(count([&] { sink += point_drift(m, data, E, qd).drift[0]; }), 0) << "point_drift";
@@ -234,5 +238,6 @@ TEST(NoAllocation, ChecksStillRejectBadInput) {
   EXPECT_THROW(inverse_dynamics(m, data, q, bad, qd), Error);
   EXPECT_THROW(bias_forces(m, data, q, Eigen::VectorXd::Zero(2)), Error);
   EXPECT_THROW(forward_dynamics(m, data, q, qd, bad), Error);
+  EXPECT_THROW(forward_dynamics_aba(m, data, bad, qd, q), Error);
   EXPECT_THROW(gravity_forces(m, data, Eigen::VectorXd::Zero(4)), Error);
 }

@@ -236,6 +236,16 @@ TEST(Spec, TheSpecKeepsNumbersAsWrittenAndBuildEvaluatesThem) {
   EXPECT_EQ(p->options.beta, 7.0);
 }
 
+TEST(Spec, SolverAutoIsResolvedBySizeWhenTheProblemIsBuilt) {
+  // The 2-DOF arm is below kLagrangeFrom: auto is the projection; explicit choices stay.
+  EXPECT_EQ(io::parse_problem(arm("solver: auto\n"), "arm.yaml")->options.solver, automatic_reference_solver(2, 0));
+  EXPECT_EQ(io::parse_problem(arm("solver: auto\n"), "arm.yaml")->options.solver, ReferenceSolver::Projection);
+  EXPECT_EQ(io::parse_problem(arm("solver: lagrange\n"), "arm.yaml")->options.solver, ReferenceSolver::Lagrange);
+  EXPECT_EQ(io::parse_problem(arm(""), "arm.yaml")->options.solver, ReferenceSolver::Projection);  // default: auto
+  test::expect_error_mentioning([] { io::parse_problem(arm("solver: fastest\n"), "arm.yaml"); },
+                                {"arm.yaml:", "solver", "auto", "fastest"});
+}
+
 TEST(Spec, SweepParameterMayNotShadowAParameter) {
   const std::string text = arm(R"(controller: {type: pd_gravity, kp: [1, 1], kd: [1, 1]}
 experiments:

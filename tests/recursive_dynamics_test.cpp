@@ -1,6 +1,7 @@
-// Recursive dynamics (RNEA, CRBA, forward dynamics, energies): algebraic identities on random
-// chains and trees of 1..30 DOF, Lagrangian identities checked by finite differences, and
-// closed-form oracles (planar 2R arm, pendulum, sliders).
+// Recursive dynamics (RNEA, CRBA, forward dynamics by CRBA + Cholesky and by the articulated-body
+// algorithm, energies): algebraic identities on random chains and trees of 1..60 DOF, Lagrangian
+// identities checked by finite differences, and closed-form oracles (planar 2R arm, pendulum,
+// sliders).
 #include "refdyn/kinematics.hpp"
 #include "refdyn/recursive_dynamics.hpp"
 #include "refdyn/trace_dynamics.hpp"
@@ -8,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 using namespace refdyn;
@@ -40,9 +42,9 @@ void randomize_axes(std::mt19937& rng, ModelDescription& d) {
 
 /// For each size: a standard-DH chain, a modified-DH chain with fixed links, a tree, and a
 /// tree with general joint axes (not only the DH z axis).
-std::vector<Case> random_models(std::mt19937& rng) {
+std::vector<Case> random_models(std::mt19937& rng, const std::vector<int>& sizes = kSizes) {
   std::vector<Case> out;
-  for (int n : kSizes) {
+  for (int n : sizes) {
     for (int variant = 0; variant < 4; ++variant) {
       test::RandomChainOptions o;
       o.dof = n;
@@ -159,27 +161,190 @@ TEST(RecursiveDynamics, SolveMassMatrixMatchesAnIndependentFactorization) {
   }
 }
 
-TEST(RecursiveDynamics, ForwardDynamicsInvertsInverseDynamics) {
-  std::mt19937 rng(103);
-  for (const Case& c : random_models(rng)) {
+namespace {
+using ForwardDynamicsFn = const Eigen::VectorXd& (*)(const Model&, Data&, const Eigen::VectorXd&,
+                                                      const Eigen::VectorXd&, const Eigen::VectorXd&);
+
+/// cond₂(M) of a symmetric positive definite matrix.
+double condition(const Eigen::MatrixXd& M) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
+  return es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+}
+
+/// `fd` against RNEA on every case: the backward error of M q̈ + c + g = τ is at rounding level,
+/// and τ from RNEA at a chosen q̈ gives that q̈ back to cond(M)·ε.
+void expect_forward_dynamics_inverts_inverse_dynamics(const std::vector<Case>& cases, std::mt19937& rng,
+                                                      ForwardDynamicsFn fd) {
+  for (const Case& c : cases) {
     const int n = c.model.nq;
     Data data(c.model);
     const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
                           tau = test::random_vector(rng, n, 20.0);
-    const Eigen::VectorXd qdd = forward_dynamics(c.model, data, q, qd, tau);
-    const Eigen::MatrixXd M = data.M;
+    const Eigen::VectorXd qdd = fd(c.model, data, q, qd, tau);
+    EXPECT_TRUE(qdd.allFinite()) << c.label;
+    // (the ABA route leaves no M or c + g in data: computed here)
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+    const Eigen::VectorXd nle = bias_forces(c.model, data, q, qd);
     // Backward error: the residual of M q̈ + c + g = τ is at rounding level.
     const Eigen::VectorXd tau_back = inverse_dynamics(c.model, data, q, qd, qdd);
-    const double scale = std::max({inf_norm(tau), inf_norm(M * qdd), inf_norm(data.nle)});
+    const double scale = std::max({inf_norm(tau), inf_norm(M * qdd), inf_norm(nle)});
     EXPECT_TRUE(near(tau_back, tau, 0, 1e-11 * scale)) << c.label;
     // Forward error, the other way round, bounded by cond(M)·ε.
     const Eigen::VectorXd qdd_ref = test::random_vector(rng, n, 2.0);
     const Eigen::VectorXd tau2 = inverse_dynamics(c.model, data, q, qd, qdd_ref);
-    const Eigen::VectorXd qdd2 = forward_dynamics(c.model, data, q, qd, tau2);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
-    const double cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+    const Eigen::VectorXd qdd2 = fd(c.model, data, q, qd, tau2);
+    const double cond = condition(M);
     EXPECT_LE(test::rel_diff(qdd2, qdd_ref), 1e-13 * cond + 1e-13) << c.label << " cond(M) = " << cond;
   }
+}
+}  // namespace
+
+TEST(RecursiveDynamics, ForwardDynamicsInvertsInverseDynamics) {
+  std::mt19937 rng(103);
+  expect_forward_dynamics_inverts_inverse_dynamics(random_models(rng), rng, forward_dynamics);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Articulated-body algorithm: against CRBA + Cholesky (an independent route to the same q̈),
+// against RNEA (its inverse), and the automatic choice between the two.
+
+namespace {
+/// The random models of every size in kSizes plus 45 and 60 bodies (chains and trees, DH and
+/// general axes, fixed links folded); the general-axis variants get axes of non-unit length
+/// (build_model normalizes them).
+std::vector<Case> aba_models(std::mt19937& rng) {
+  std::vector<Case> all = random_models(rng);
+  for (Case& c : random_models(rng, {45, 60})) all.push_back(std::move(c));
+  std::vector<Case> out;
+  for (const Case& c : all) {
+    if (c.label.find("general") == std::string::npos) {
+      out.push_back(c);
+      continue;
+    }
+    ModelDescription d = c.desc;
+    for (std::size_t i = 0; i < d.links.size(); ++i) d.links[i].axis *= 0.25 + 0.5 * static_cast<double>(i % 5);
+    out.push_back({c.label + ", non-unit axes", build_model(d), d});
+  }
+  return out;
+}
+}  // namespace
+
+TEST(ArticulatedBody, EqualsCrbaCholesky) {
+  std::mt19937 rng(120);
+  for (const Case& c : aba_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    for (int rep = 0; rep < 3; ++rep) {
+      const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                            tau = test::random_vector(rng, n, 20.0);
+      const Eigen::VectorXd crba = forward_dynamics_crba(c.model, data, q, qd, tau);
+      const Eigen::MatrixXd M = data.M;
+      const Eigen::VectorXd aba = forward_dynamics_aba(c.model, data, q, qd, tau);
+      // Both are backward stable: the two solutions differ by at most cond(M)·ε (relative).
+      const double cond = condition(M);
+      EXPECT_LE(test::rel_diff(aba, crba), 1e-13 * cond + 1e-13) << c.label << " cond(M) = " << cond;
+      // The world poses ABA leaves in data are forward kinematics'.
+      Data fk(c.model);
+      forward_kinematics(c.model, fk, q);
+      for (int i = 0; i < n; ++i) {
+        EXPECT_TRUE(near(data.oMi[i].R, fk.oMi[i].R, 1e-14, 1e-14)) << c.label;
+        EXPECT_TRUE(near(data.oMi[i].p, fk.oMi[i].p, 1e-13, 1e-13)) << c.label;
+      }
+    }
+  }
+}
+
+TEST(ArticulatedBody, InverseDynamicsOfItsResultGivesTau) {
+  std::mt19937 rng(121);
+  const std::vector<Case> cases = aba_models(rng);
+  expect_forward_dynamics_inverts_inverse_dynamics(cases, rng, forward_dynamics_aba);
+  expect_forward_dynamics_inverts_inverse_dynamics(cases, rng, forward_dynamics_crba);
+}
+
+TEST(ArticulatedBody, SolveReusesTheFactorizationOfTheLastCall) {
+  std::mt19937 rng(126);
+  for (const Case& c : aba_models(rng)) {
+    const int n = c.model.nq;
+    Data data(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0), b = test::random_vector(rng, n, 5.0);
+    forward_dynamics_aba(c.model, data, q, qd, tau);
+    Eigen::VectorXd x(n);
+    unchecked::aba_solve(c.model, data, b.data(), x.data());
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
+    const double cond = condition(M);
+    EXPECT_LE(test::rel_diff(x, M.fullPivLu().solve(b)), 1e-13 * cond + 1e-13) << c.label << " cond(M) = " << cond;
+    Eigen::VectorXd in_place = b;  // x may be tau
+    unchecked::aba_solve(c.model, data, in_place.data(), in_place.data());
+    EXPECT_EQ(in_place, x) << c.label;
+  }
+}
+
+TEST(ArticulatedBody, UncheckedKernelEqualsCheckedFunction) {
+  std::mt19937 rng(122);
+  for (const Case& c : aba_models(rng)) {
+    const int n = c.model.nq;
+    Data d1(c.model), d2(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0);
+    Eigen::VectorXd out(n);
+    ASSERT_EQ(unchecked::aba(c.model, d2, q, qd, tau, out), -1) << c.label;
+    EXPECT_EQ(forward_dynamics_aba(c.model, d1, q, qd, tau), out) << c.label;  // bit for bit
+    Eigen::VectorXd in_place = tau;  // the result may overwrite τ
+    ASSERT_EQ(unchecked::aba(c.model, d2, q, qd, in_place, in_place), -1) << c.label;
+    EXPECT_EQ(in_place, out) << c.label;
+  }
+}
+
+TEST(ArticulatedBody, AutomaticForwardDynamicsIsExactlyTheChosenAlgorithm) {
+  EXPECT_FALSE(forward_dynamics_uses_aba(1));
+  EXPECT_FALSE(forward_dynamics_uses_aba(kAbaFrom - 1));
+  EXPECT_TRUE(forward_dynamics_uses_aba(kAbaFrom));
+  EXPECT_TRUE(forward_dynamics_uses_aba(60));
+  std::mt19937 rng(123);
+  for (const Case& c : aba_models(rng)) {
+    const int n = c.model.nq;
+    Data d1(c.model), d2(c.model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          tau = test::random_vector(rng, n, 20.0);
+    const Eigen::VectorXd automatic = forward_dynamics(c.model, d1, q, qd, tau);
+    const Eigen::VectorXd chosen = forward_dynamics_uses_aba(n) ? forward_dynamics_aba(c.model, d2, q, qd, tau)
+                                                                : forward_dynamics_crba(c.model, d2, q, qd, tau);
+    EXPECT_EQ(automatic, chosen) << c.label;  // bit for bit
+  }
+}
+
+TEST(ArticulatedBody, SingularMassMatrixIsAnErrorNamingTheJoint) {
+  // A massless last link on a revolute joint whose axis passes through nothing: D = 0 there.
+  for (int n : {1, 3, kAbaFrom, 40}) {
+    std::mt19937 rng(124 + n);
+    test::RandomChainOptions o;
+    o.dof = n;
+    o.prismatic_fraction = 0.0;
+    ModelDescription d = test::random_chain(rng, o);
+    d.links.back().inertia = LinkInertia{};
+    d.links.back().joint_name = "ghost_joint";
+    const Model model = build_model(d);
+    Data data(model);
+    const Eigen::VectorXd q = test::random_vector(rng, n, 1.0), z = Eigen::VectorXd::Zero(n);
+    test::expect_error_mentioning([&] { forward_dynamics_aba(model, data, q, z, z); },
+                                  {"not positive definite", "ghost_joint"});
+    EXPECT_THROW(forward_dynamics(model, data, q, z, z), Error) << n;
+    Eigen::VectorXd out(n);
+    EXPECT_EQ(unchecked::aba(model, data, q, z, z, out), n - 1);
+  }
+  // Bad sizes and non-finite input: the checks of forward_dynamics.
+  std::mt19937 rng(125);
+  const Model model = build_model(test::random_chain(rng, {}));
+  Data data(model);
+  const Eigen::VectorXd ok = Eigen::VectorXd::Zero(model.nq);
+  Eigen::VectorXd nan = ok;
+  nan[1] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(forward_dynamics_aba(model, data, Eigen::VectorXd::Zero(model.nq + 1), ok, ok), Error);
+  EXPECT_THROW(forward_dynamics_aba(model, data, ok, nan, ok), Error);
+  EXPECT_THROW(forward_dynamics_aba(model, data, ok, ok, nan), Error);
+  Data other(build_model(test::random_chain(rng, {})));
+  EXPECT_THROW(forward_dynamics_aba(model, other, ok, ok, ok), Error);
 }
 
 TEST(RecursiveDynamics, MassMatrixIsSymmetricPositiveDefiniteAndEqualsTraceRoute) {
@@ -287,7 +452,7 @@ TEST(RecursiveDynamics, PowerBalanceAlongForwardDynamics) {
     const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
                           tau = test::random_vector(rng, n, 20.0);
     const Eigen::VectorXd qdd = forward_dynamics(c.model, data, q, qd, tau);
-    const Eigen::MatrixXd M = data.M;
+    const Eigen::MatrixXd M = mass_matrix(c.model, data, q);
     const Eigen::VectorXd g = gravity_forces(c.model, data, q);
     const Eigen::MatrixXd Md = mdot_fd(c.model, q, qd, kH);
     const double Edot = qd.dot(M * qdd) + 0.5 * qd.dot(Md * qd) + g.dot(qd);
@@ -417,6 +582,11 @@ TEST(ClosedForm, SimplePendulum) {
     EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr * l * std::sin(th), 1e-13);
     EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I),
                 1e-13);
+    // nq = 1 by both explicit algorithms.
+    EXPECT_NEAR(forward_dynamics_crba(model, data, q, qd, tau)[0],
+                (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I), 1e-13);
+    EXPECT_NEAR(forward_dynamics_aba(model, data, q, qd, tau)[0],
+                (0.4 - m * gr * l * std::sin(th)) / (m * l * l + I), 1e-13);
     EXPECT_NEAR(potential_energy(model, data, q), m * gr * (0.4 - l * std::cos(th)), 1e-13);
     EXPECT_NEAR(kinetic_energy(model, data, q, qd), 0.5 * (m * l * l + I) * 1.7 * 1.7, 1e-13);
   }
@@ -443,6 +613,8 @@ TEST(ClosedForm, VerticalSlider) {
     EXPECT_NEAR(gravity_forces(model, data, q)[0], m * gr, 1e-13);
     EXPECT_NEAR(bias_forces(model, data, q, qd)[0], m * gr, 1e-13);
     EXPECT_NEAR(forward_dynamics(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
+    EXPECT_NEAR(forward_dynamics_crba(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
+    EXPECT_NEAR(forward_dynamics_aba(model, data, q, qd, tau)[0], 50.0 / m - gr, 1e-13);
     EXPECT_NEAR(potential_energy(model, data, q), m * gr * (z + 0.25 + 0.3), 1e-12);
   }
 }

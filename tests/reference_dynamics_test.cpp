@@ -10,6 +10,7 @@
 #include "refdyn/reference_dynamics.hpp"
 #include "test_support.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -280,7 +281,10 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
         Data data(model);
         mass_matrix(model, data, q);
         bias_forces(model, data, q, qd);
-        EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
+        // (the Lagrange solver from kAbaLagrangeFrom coordinates factors M by ABA: no mass())
+        if (rd == &proj || n < kAbaLagrangeFrom) {
+          EXPECT_TRUE(near(rd->mass(), data.M, 1e-13, 1e-13));
+        }
         EXPECT_TRUE(near(rd->bias(), data.nle, 1e-12, 1e-12));
         const Eigen::VectorXd balance = data.M * rd->qdd() - (rd->applied_force() - data.nle);
         EXPECT_TRUE(near(balance, minus_At_lambda, 1e-9)) << where;
@@ -309,6 +313,95 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
   std::cout << "\n";
   // Every kind took part in the comparison, several times.
   for (int kd = 0; kd < 8; ++kd) EXPECT_GE(kind_count[kd], 5) << "kind " << kd;
+}
+
+// ReferenceSolver::Automatic: resolved by size at construction, and then bit for bit the
+// explicit solver it names; projection and Lagrange agree on either side of the crossover.
+TEST(ReferenceDynamics, AutomaticSolverPicksBySizeAndIsExactlyTheChosenSolver) {
+  EXPECT_EQ(automatic_reference_solver(3, 2), ReferenceSolver::Projection);  // the paper's example
+  EXPECT_EQ(automatic_reference_solver(kLagrangeFrom - 1, 4), ReferenceSolver::Projection);
+  EXPECT_EQ(automatic_reference_solver(kLagrangeFrom, 4), ReferenceSolver::Lagrange);
+  EXPECT_EQ(automatic_reference_solver(60, 4), ReferenceSolver::Lagrange);
+  std::mt19937 rng(131);
+  for (int n : {4, kLagrangeFrom - 1, kLagrangeFrom, 30, 60}) {
+    test::RandomChainOptions opt;
+    opt.dof = n;
+    const Model model = build_model(test::random_chain(rng, opt));
+    ConstraintSet set;
+    set.add(point_coordinate(model, "tip", 2, constant(0.3)));
+    set.add(joint_coupling(model, model.joint_name[1], model.joint_name[0], 0.5));
+    ForceSet forces;
+    forces.add(joint_damping(model, model.joint_name[0], 0.7));
+    ReferenceDynamicsOptions o;
+    o.automatic_partition = true;
+    o.solver = ReferenceSolver::Automatic;
+    ReferenceDynamics automatic(model, forces, set, o);
+    const ReferenceSolver chosen = automatic_reference_solver(n, set.rows());
+    EXPECT_EQ(automatic.options().solver, chosen) << n;
+    o.solver = chosen;
+    ReferenceDynamics explicit_rd(model, forces, set, o);
+    o.solver = chosen == ReferenceSolver::Lagrange ? ReferenceSolver::Projection : ReferenceSolver::Lagrange;
+    ReferenceDynamics other(model, forces, set, o);
+    Data data(model);
+    for (int rep = 0; rep < 3; ++rep) {
+      const Eigen::VectorXd q = test::random_vector(rng, n, 2.0), qd = test::random_vector(rng, n, 1.0);
+      const Eigen::VectorXd x = automatic.make_state(q, qd);
+      Eigen::VectorXd xa(x.size()), xe(x.size()), xo(x.size());
+      automatic.derivative(0.4, x, xa);
+      explicit_rd.derivative(0.4, x, xe);
+      EXPECT_EQ(xa, xe) << n;  // bit for bit
+      EXPECT_EQ(automatic.lambda(), explicit_rd.lambda()) << n;
+      other.derivative(0.4, x, xo);
+      // Both solvers are backward stable: their q̈ differ by cond(M)·ε relative (as ABA and
+      // CRBA + Cholesky do), where the partition is sound.
+      const ReferenceDynamics& proj = chosen == ReferenceSolver::Projection ? automatic : other;
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(mass_matrix(model, data, q), Eigen::EigenvaluesOnly);
+      const double cond_M = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+      if (proj.partition_condition() < 1e3) {
+        EXPECT_LE(test::rel_diff(xa.segment(n, n), xo.segment(n, n)), 1e-13 * cond_M + 1e-13)
+            << n << " cond(M) = " << cond_M;
+      }
+    }
+  }
+}
+
+// Without constraint rows a large model's reference dynamics takes the articulated-body
+// algorithm: exactly forward_dynamics_aba with τ = Q, and Q_c = 0; smaller ones keep the
+// projection's Cholesky of M, and both equal CRBA + Cholesky to cond(M)·ε.
+TEST(ReferenceDynamics, UnconstrainedLargeModelsUseTheArticulatedBodyAlgorithm) {
+  std::mt19937 rng(132);
+  for (int n : {kAbaFrom - 1, kAbaFrom, 40}) {
+    for (bool tree : {false, true}) {
+      test::RandomChainOptions opt;
+      opt.dof = n;
+      opt.tree = tree;
+      const Model model = build_model(test::random_chain(rng, opt));
+      ConstraintSet none;
+      ForceSet forces;
+      forces.add(joint_damping(model, model.joint_name[0], 0.7));
+      forces.add(joint_spring(model, model.joint_name[n - 1], 3.0, 0.2));
+      for (ReferenceSolver solver : {ReferenceSolver::Projection, ReferenceSolver::Lagrange}) {
+        ReferenceDynamicsOptions o;
+        o.solver = solver;
+        ReferenceDynamics rd(model, forces, none, o);
+        const Eigen::VectorXd q = test::random_vector(rng, n, 2.0), qd = test::random_vector(rng, n, 1.0);
+        const Eigen::VectorXd x = rd.make_state(q, qd);
+        Eigen::VectorXd xdot(x.size());
+        rd.derivative(0.2, x, xdot);
+        Data data(model);
+        const Eigen::VectorXd Q = rd.applied_force();
+        const Eigen::VectorXd crba = forward_dynamics_crba(model, data, q, qd, Q);
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(data.M, Eigen::EigenvaluesOnly);
+        const double cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+        EXPECT_LE(test::rel_diff(rd.qdd(), crba), 1e-13 * cond + 1e-13) << n;
+        if (forward_dynamics_uses_aba(n)) {
+          EXPECT_EQ(rd.qdd(), forward_dynamics_aba(model, data, q, qd, Q)) << n;  // bit for bit
+          EXPECT_EQ(rd.constraint_force(), Eigen::VectorXd::Zero(n)) << n;
+        }
+        EXPECT_TRUE(near(xdot.head(n), qd, 0, 0));
+      }
+    }
+  }
 }
 
 TEST(ReferenceDynamics, AnyValidPartitionGivesTheSameAcceleration) {

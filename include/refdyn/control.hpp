@@ -50,6 +50,10 @@ class Controller {
                                      Eigen::VectorXd& tau) {
     compute(t, q, qd, ref, tau);
   }
+  /// True when compute_with_dynamics uses the M and c + g of `model` it is given (the closed
+  /// loop then evaluates them for the plant and solves M q̈ = … by Cholesky; otherwise a plant
+  /// from kAbaFrom coordinates on takes the articulated-body algorithm, recursive_dynamics.hpp).
+  virtual bool reuses_dynamics(const Model& /*model*/) const { return false; }
   /// The entry point of the closed loop: as compute_with_dynamics (`dynamics` may be null:
   /// not evaluated), plus the controller's states xc and their derivatives xc_dot (written;
   /// null when the caller needs τ only). The default has no states.
@@ -74,6 +78,7 @@ class ComputedTorquePD final : public Controller {
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                Eigen::VectorXd& tau) override;
   /// Uses dynamics.M and dynamics.nle when `model` is this controller's model (same object).
+  bool reuses_dynamics(const Model& model) const override { return &model == &model_; }
   void compute_with_dynamics(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                              const ReferenceSample& ref, const Model& model, const Data& dynamics,
                              Eigen::VectorXd& tau) override;

@@ -176,6 +176,20 @@ class Model {
   explicit Model(ModelData d);
 };
 
+/// Per-body scratch of the articulated-body algorithm (forward_dynamics_aba), in the world
+/// frame {0}. Spatial vectors are [angular; linear] about the world origin, each part padded to
+/// four doubles (the kernels load and store them as 4-lane SIMD registers).
+struct AbaBody {
+  double S[2][4];                   ///< joint axis S_i
+  double v[2][4];                   ///< body velocity v_i
+  double c[2][4];                   ///< velocity-product acceleration v_i ×m S_i q̇_i
+  double p[2][4];                   ///< articulated bias force p_i
+  double U[2][4];                   ///< U_i = IA_i S_i
+  double a[2][4];                   ///< body acceleration a_i (trees only)
+  double Ia[6][2][4];               ///< children's articulated inertias (trees only; 6 columns)
+  double Dinv = 0;                  ///< 1 / (S_iᵀ U_i)
+};
+
 /// Workspace for the algorithms; allocated once by the constructor, never resized afterwards.
 /// Each field says which function fills it.
 struct Data {
@@ -195,11 +209,14 @@ struct Data {
   Eigen::VectorXd g;                ///< g(q), result of gravity_forces
   // mass_matrix
   std::vector<Inertia> Ic;          ///< composite inertias (scratch of mass_matrix: body frames below
-                                    ///< 7 bodies, the world frame {0} from 7 on)
+                                    ///< 7 bodies, the world frame {0} from 7 on); forward_dynamics_aba:
+                                    ///< the body inertias in {0}
   Eigen::MatrixXd M;                ///< joint-space mass matrix (both triangles filled)
-  // forward_dynamics
+  // forward_dynamics (CRBA + Cholesky route: data.llt; articulated-body route: data.aba, which
+  // also leaves data.liMi and data.oMi)
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd ddq;
+  std::vector<AbaBody> aba;
   // trace route (trace_dynamics.hpp)
   std::vector<Mat4> T;              ///< world pose of each body frame as a 4×4 matrix
   std::vector<Mat4> D;              ///< D_i = T_i Δ_i T_i⁻¹: ∂T^(l)/∂q_i = D_i T^(l)

@@ -48,7 +48,37 @@ class NumericalFailure : public Error {
   double time;
 };
 
-enum class ReferenceSolver { Projection, Lagrange };
+/// Projection (the paper's reduced form), Lagrange (KKT), or Automatic: resolved by the
+/// ReferenceDynamics constructor to automatic_reference_solver(nq, rows) (options() then holds
+/// the resolved solver).
+enum class ReferenceSolver { Projection, Lagrange, Automatic };
+
+/// Models with at least this many coordinates take the Lagrange (KKT) solver under
+/// ReferenceSolver::Automatic; smaller ones the projection. Measured with
+/// `dynamics_bench --benchmark_filter=CFD` (bench/README.md, "Forward dynamics"; one evaluation
+/// with 4 constraint rows, CPU-time medians of projection over Lagrange with its ABA
+/// factorization, two runs 2026-11-25): 0.73/0.74 at 7, 0.88/0.88 at 10, 0.99/1.01 at 15,
+/// 1.05/1.08 at 20, 1.11/1.15 at 24, 1.31/1.31 at 30, 2.16/2.21 at 60 DOF: the crossover is at
+/// 15, where the two tie (the paper's 3-DOF example: projection 1.35× faster, bench/README.md,
+/// reference_dynamics_bench).
+inline constexpr int kLagrangeFrom = 16;
+
+/// From this many coordinates the Lagrange (KKT) solver factors M by the articulated-body
+/// algorithm instead of forming it: u = M⁻¹F by ABA, M⁻¹Aᵀ by its O(n) solves
+/// (unchecked::aba_solve), Q_c = −Aᵀλ; mass() is then not filled. Measured with
+/// `dynamics_bench --benchmark_filter=CFD` (4 rows, CPU-time medians, 2026-11-25; M + dense
+/// Cholesky KKT in one run → ABA KKT in two later runs): 1349 → 1297/1296 ns at 7, 1868 →
+/// 1757/1780 ns at 10, 2906 → 2604/2614 ns at 15, 3780 → 3462/3484 ns at 20, 6603 → 5220/5225 ns
+/// at 30, 19.9 → 10.3/10.5 µs at 60 DOF: faster at every size measured (from 7; the CFD
+/// benchmark has 4 rows), so from 7 on; below, the fixed-size dense kernels stay.
+inline constexpr int kAbaLagrangeFrom = 7;
+
+/// The solver ReferenceSolver::Automatic stands for with nq coordinates and `rows` constraint
+/// rows: Lagrange from kLagrangeFrom coordinates on, else Projection (the paper's 3-DOF example
+/// keeps the projection).
+constexpr ReferenceSolver automatic_reference_solver(int nq, int /*rows*/) {
+  return nq >= kLagrangeFrom ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
+}
 
 struct ReferenceDynamicsOptions {
   double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
@@ -87,6 +117,9 @@ class ReferenceDynamics {
 
   /// ẋ = [q̇; q̈; ż] at (t, x). No heap allocation (after the first call with an automatic
   /// partition). Throws NumericalFailure on a singular partition, Error on bad sizes.
+  /// Without constraint rows, from kAbaFrom coordinates on (recursive_dynamics.hpp), q̈ comes
+  /// from the articulated-body algorithm: mass() and bias() are then not filled and Q_c = 0.
+  /// With the Lagrange solver from kAbaLagrangeFrom coordinates on, mass() is not filled.
   void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
 
   // ---- results of the last derivative() call ----
@@ -95,8 +128,8 @@ class ReferenceDynamics {
   /// Q_c = M q̈ − F = −Aᵀλ: what the joints must add to realize the constraints.
   const Eigen::VectorXd& constraint_force() const { return Qc_; }
   const Eigen::VectorXd& applied_force() const { return Q_; }      ///< Q of the force elements
-  const Eigen::VectorXd& bias() const { return data_.nle; }        ///< c + g
-  const Eigen::MatrixXd& mass() const { return data_.M; }
+  const Eigen::VectorXd& bias() const { return data_.nle; }        ///< c + g (see derivative())
+  const Eigen::MatrixXd& mass() const { return data_.M; }          ///< M (see derivative())
   const ConstraintEval& constraints() const { return ev_; }
   /// κ = ‖A‖₁ ‖K_dc⁻¹‖₁ at the last evaluation: K_dc's conditioning measured against the whole
   /// constraint Jacobian (so a tiny K_dc next to a large K_ic counts as ill-conditioned).
@@ -128,8 +161,10 @@ class ReferenceDynamics {
   double residual(double t, const Eigen::VectorXd& x);
 
  private:
+  void write_derivative(Eigen::VectorXd& xdot) const;  // ẋ = [q̇; q̈; ż] from the workspaces
   void solve_projection(double t);
   void solve_lagrange(double t);
+  void solve_lagrange_aba(double t);  // the KKT solve with ABA's factorization (kAbaLagrangeFrom)
   bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
   template <int N, int Mr>
   bool factor_partition_sized();  // N = 0: sizes at run time
@@ -150,6 +185,8 @@ class ReferenceDynamics {
   std::vector<char> first_order_row_;  ///< per constraint row: velocity-level (ċ + β₁c) or not
   std::vector<char> acceleration_row_;  ///< per constraint row: acceleration level (B q̈ + s = 0)
   bool has_acceleration_rows_ = false;
+  bool aba_ = false;  ///< no constraint rows and a large model: derivative() takes the ABA route
+  bool aba_lagrange_ = false;  ///< Lagrange solver from kAbaLagrangeFrom coordinates: KKT by ABA
   void acceleration_residuals();  // Φ = Φ̇ = B q̈ + s on acceleration rows after a solve
   Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
   bool partition_set_ = false;

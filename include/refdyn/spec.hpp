@@ -171,7 +171,7 @@ struct ScenarioSpec {
   std::optional<std::vector<EntrySpec>> plant_forces;
   PartitionSpec partition;
   BaumgarteSpec baumgarte;
-  std::string solver = "projection";       ///< projection | lagrange
+  std::string solver = "auto";             ///< projection | lagrange | auto (by size, resolved by build_problem)
   bool paper_literal_forces = false;
   InitialSpec initial;
   IntegratorSpec integrator;

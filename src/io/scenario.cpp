@@ -313,7 +313,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b};
     s.baumgarte.kappa = b["kappa"];
   }
-  if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange"});
+  if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange", "auto"});
   if (root["paper_literal_forces"]) s.paper_literal_forces = c.boolean(root["paper_literal_forces"], "paper_literal_forces");
 
   const SpecValue& part = root["partition"];
