@@ -15,6 +15,7 @@ no_wall() { sed -E 's/"wall_time_s": [^,}]*[,]? ?//g' "$1"; }
 same_files() {  # DIR_A DIR_B
   local n=0
   for f in "$1"/*; do
+    [ -d "$f" ] && continue  # folders (variants) are compared one by one
     n=$((n + 1))
     local b
     b=$(basename "$f")
@@ -24,7 +25,9 @@ same_files() {  # DIR_A DIR_B
       echo "FAIL: $b differs ($1 vs $2)"; fail=1
     fi
   done
-  if [ "$(ls "$2" | wc -l)" -ne "$n" ]; then echo "FAIL: $2 has $(ls "$2" | wc -l) files, $1 has $n"; fail=1; fi
+  local m
+  m=$(find "$2" -maxdepth 1 -type f | wc -l)
+  if [ "$m" -ne "$n" ]; then echo "FAIL: $2 has $m files, $1 has $n"; fail=1; fi
   echo "compared $n files: $1 vs $2"
 }
 "$refdyn" track "$scenario" -o "$work/serial" -q -j 1
@@ -35,6 +38,15 @@ done
 # Two ranks with two threads each.
 "${MPI[@]}" -np 2 "$refdyn" track "$scenario" -o "$work/mpi2j2" -q --mpi --jobs 2
 same_files "$work/serial" "$work/mpi2j2"
+# A family of variants (one plan each) over 2 ranks: variants.csv and every variant's folder
+# as one process writes them.
+family=$src/examples/planar_2r_circle/family.yaml
+"$refdyn" plan "$family" -o "$work/family_serial" -q -j 1
+"${MPI[@]}" -np 2 "$refdyn" plan "$family" -o "$work/family_mpi" -q --mpi
+same_files "$work/family_serial" "$work/family_mpi"
+for d in "$work/family_serial"/*/; do
+  same_files "${d%/}" "$work/family_mpi/$(basename "$d")"
+done
 # --report: rank 0 writes the report from the folder; it equals one process's report (which
 # is made from memory) up to the wall times embedded with summary.json.
 if "$refdyn" track "$scenario" -o "$work/serial_report" -q -j 1 --report 2> /dev/null; then
