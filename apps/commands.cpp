@@ -181,9 +181,13 @@ class SweepProgress {
       : tty_(enabled && ::isatty(STDERR_FILENO)), noun_(std::move(noun)), start_(clock::now()) {}
   void update(size_t done, size_t total) {
     if (!tty_) return;
+    if (done == total) {  // the last one: the summary follows on a clean line
+      clear();
+      return;
+    }
     const auto now = clock::now();
     const double el = std::chrono::duration<double>(now - start_).count();
-    if (el < 1.0 || (done < total && std::chrono::duration<double>(now - last_).count() < 0.2)) return;
+    if (el < 1.0 || std::chrono::duration<double>(now - last_).count() < 0.2) return;
     last_ = now;
     const double f = static_cast<double>(done) / static_cast<double>(total), rate = static_cast<double>(done) / el;
     const int w = 30, k = static_cast<int>(f * w);
@@ -192,8 +196,10 @@ class SweepProgress {
                  std::string(k, '#').c_str(), std::string(w - k, ' ').c_str(), 100 * f, rate, duration_text(eta).c_str());
     shown_ = true;
   }
-  ~SweepProgress() {
+  ~SweepProgress() { clear(); }
+  void clear() {
     if (shown_) std::fprintf(stderr, "\r%s\r", std::string(90, ' ').c_str());
+    shown_ = false;
   }
 
  private:
