@@ -70,11 +70,11 @@ std::vector<Variant> expand_variants(const ScenarioSpec& spec) {
 ScenarioSpec variant_spec(const ScenarioSpec& spec, const Variant& v) {
   ScenarioSpec s = spec;
   s.variants.reset();
-  for (const auto& [name, value] : v.values) {
-    auto it = std::find_if(s.parameters.begin(), s.parameters.end(), [&](const auto& p) { return p.first == name; });
-    if (it == s.parameters.end()) throw Error("variant '" + v.name + "': no parameter '" + name + "' to set");
+  for (const auto& nv : v.values) {
+    auto it = std::find_if(s.parameters.begin(), s.parameters.end(), [&](const auto& p) { return p.first == nv.first; });
+    if (it == s.parameters.end()) throw Error("variant '" + v.name + "': no parameter '" + nv.first + "' to set");
     // The shortest text that reads back as the same double (fmt round-trips).
-    it->second = SpecValue::scalar(fmt(value), it->second.where);
+    it->second = SpecValue::scalar(fmt(nv.second), it->second.where);
   }
   return s;
 }
