@@ -4,13 +4,13 @@
 #include "mpi_run.hpp"
 #include "report.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
-#include "refdyn/symbolic.hpp"
-#include "refdyn/registry.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
+#include "refdyn/scenario/registry.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <algorithm>
 #include <atomic>

@@ -3,8 +3,8 @@
 #include "commands.hpp"
 #include "paper_study_output.hpp"
 #include "report.hpp"
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>

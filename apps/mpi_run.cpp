@@ -2,7 +2,7 @@
 // buffers: numbers as their bytes (bit-exact), strings with their length.
 #include "mpi_run.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 
 #include <cstdint>
 #include <cstring>

@@ -6,7 +6,7 @@
 #include "report.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <cmath>
 #include <cstdio>

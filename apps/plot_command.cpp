@@ -4,7 +4,7 @@
 // are just characters of a path.
 #include "commands.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 
 #include <spawn.h>
 #include <sys/wait.h>

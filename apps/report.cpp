@@ -4,10 +4,10 @@
 // decimated tables and the forward kinematics of every replay frame.
 #include "report.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>

@@ -9,8 +9,8 @@
 #include "commands.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/results.hpp"
-#include "refdyn/json.hpp"
-#include "refdyn/problem.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/scenario/problem.hpp"
 
 #include <cstddef>
 #include <filesystem>

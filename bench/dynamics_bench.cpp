@@ -15,15 +15,15 @@
 #include "dh_tables.hpp"
 #include "kdl_peer.hpp"
 
-#include "refdyn/constraints.hpp"
-#include "refdyn/force_elements.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/model.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/model.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
-#include "refdyn/time_function.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/expression/time_function.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 
 #include <benchmark/benchmark.h>
 

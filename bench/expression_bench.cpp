@@ -12,7 +12,7 @@
 //   ./build/bench/expression_bench --benchmark_filter=Construct
 //
 //   ./build/bench/expression_bench            (add --benchmark_filter=Phi1 etc. as usual)
-#include "refdyn/expression.hpp"
+#include "refdyn/expression/expression.hpp"
 
 #include <benchmark/benchmark.h>
 

@@ -22,13 +22,14 @@
 #include "dh_tables.hpp"
 #include "kdl_peer.hpp"
 
-#include "refdyn/constraints.hpp"
-#include "refdyn/control.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
 #include "refdyn/models/paper_study.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 
 #include <benchmark/benchmark.h>
 

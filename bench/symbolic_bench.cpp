@@ -5,7 +5,7 @@
 #include "bench_report.hpp"
 
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/symbolic.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
 
 #include "arm/reference_dynamics.h"
 #include "paper/reference_dynamics.h"

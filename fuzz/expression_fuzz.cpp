@@ -2,8 +2,8 @@
 // then value, gradient and Hessian at a fixed point. refdyn::Error is the only expected
 // outcome of a bad text; any other exception, a crash, a leak or undefined behaviour (ASan,
 // UBSan) is a finding.
-#include "refdyn/error.hpp"
-#include "refdyn/expression.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/expression/expression.hpp"
 
 #include <cstddef>
 #include <cstdint>

@@ -2,9 +2,9 @@
 // evaluated, every name bound, the model compiled, the initial state checked or projected, the
 // partition chosen, the sweeps expanded). refdyn::Error is the only expected outcome of a bad
 // scenario; any other exception, a crash, a leak, undefined behaviour or a timeout is a finding.
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/problem.hpp"
+#include "refdyn/scenario/problem.hpp"
 
 #include <cstddef>
 #include <cstdint>

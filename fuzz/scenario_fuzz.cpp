@@ -1,7 +1,7 @@
 // libFuzzer target: the scenario parser (refdyn::io::parse_scenario) on arbitrary YAML text.
 // refdyn::Error is the only expected outcome of a bad scenario; any other exception, a crash,
 // a leak or undefined behaviour (ASan, UBSan) is a finding.
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/scenario.hpp"
 
 #include <cstddef>

@@ -9,17 +9,17 @@
 // Errors: refdyn::Error → refdyn.Error (a ValueError), refdyn::NumericalFailure →
 // refdyn.NumericalFailure (a refdyn.Error), message unchanged. Runs release the GIL.
 
-#include "refdyn/constraints.hpp"
-#include "refdyn/error.hpp"
-#include "refdyn/feasibility.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/simulate/feasibility.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/urdf.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/model.hpp"
-#include "refdyn/problem.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>

@@ -10,10 +10,10 @@
 // truncation h²|f'''|/6 ≲ 1e-10·|f'''| with |f'''| ≲ 1e2 along the path, rounding ε|f|/h ≲ 1e-10.
 // The tolerance 1e-7 (relative to the row's scale, with an absolute floor of 1e-7) keeps a
 // factor ~100 above both.
-#include "refdyn/constraints.hpp"
-#include "refdyn/error.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

@@ -1,10 +1,11 @@
 // Tracking: analytic closed-loop solutions, the exact-reference property, saturation, and the
 // feasibility report.
-#include "refdyn/control.hpp"
-#include "refdyn/feasibility.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
+#include "refdyn/simulate/feasibility.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "refdyn/models/paper_study.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

@@ -1,10 +1,10 @@
 // Every public entry point rejects bad input with a refdyn::Error (never a crash or a silent
 // garbage result), and the message says what was expected and what it got.
-#include "refdyn/error.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cstdio>

@@ -3,12 +3,13 @@
 // here (geometry, kinematics, closed-form solutions, momentum and energy balances), not against
 // numbers recorded from an earlier run. The paper scenario file must reproduce the built-in
 // paper example, and every example must also run through the refdyn command line.
-#include "refdyn/control.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

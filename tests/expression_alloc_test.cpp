@@ -1,6 +1,6 @@
 // Expression evaluation must not allocate: this executable replaces the global operator new
 // and counts the allocations made while evaluating.
-#include "refdyn/expression.hpp"
+#include "refdyn/expression/expression.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
 // Expression engine: values, gradients and Hessians against hand-written derivatives and central
 // finite differences, CSE, the quadratic kernel, syntax, and every error path.
-#include "refdyn/expression.hpp"
+#include "refdyn/expression/expression.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

@@ -2,10 +2,10 @@
 // exact ∂Q/∂q̇ against finite differences and its steady state; the flexible drive's sign (the
 // joint follows the drive displacement); damping, spring and effort elements; ForceSet
 // bookkeeping; parameter validation.
-#include "refdyn/error.hpp"
-#include "refdyn/force_elements.hpp"
-#include "refdyn/integrators.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

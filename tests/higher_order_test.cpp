@@ -8,11 +8,12 @@
 //    path; RK4's order 4 measured;
 //  - the projection and the Lagrange (KKT) routes agree; bad inputs are rejected by name.
 // Order p = 3 (jerk) is tested in tests/jerk_test.cpp.
-#include "refdyn/constraints.hpp"
-#include "refdyn/control.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/problem.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

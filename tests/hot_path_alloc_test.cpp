@@ -1,12 +1,13 @@
 // No heap allocation in the planner's and the closed loop's hot paths. Counts calls to malloc
 // itself (Eigen allocates with malloc, not operator new), through glibc's __libc_malloc.
-#include "refdyn/constraints.hpp"
-#include "refdyn/control.hpp"
-#include "refdyn/force_elements.hpp"
-#include "refdyn/reference_dynamics.hpp"
-#include "refdyn/time_function.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/expression/time_function.hpp"
 #include "refdyn/models/paper_example.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 
 #include <gtest/gtest.h>
 

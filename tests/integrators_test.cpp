@@ -1,9 +1,9 @@
 // Integrators: RK4's order of accuracy, Dormand–Prince's tolerance-level accuracy and dense
 // output at the requested times, summary bookkeeping, and how failures are reported (NaN,
 // NumericalFailure from the right-hand side, finite-time blow-up, observer stop, bad options).
-#include "refdyn/error.hpp"
-#include "refdyn/integrators.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

@@ -7,10 +7,10 @@
 //    on a straight line with s⃛ = J sin ωt; RK4's order 4 measured; reactions Q_c = Cᵀ m s̈ u;
 //  - consistent initial accelerations; bad expressions rejected by name.
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/jerk.hpp"
-#include "refdyn/problem.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/reference/jerk.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

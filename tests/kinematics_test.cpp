@@ -4,8 +4,8 @@
 // Finite-difference tolerances follow the error budget of a central difference with step h on
 // quantities of size ~|p| (a few metres for these chains): truncation ~h²|f'''|/6, rounding
 // ~ε|f|/h. With h = 1e-5 both are ~1e-10; the tolerances below leave a factor ~100 on top.
-#include "refdyn/kinematics.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <algorithm>

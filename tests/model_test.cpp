@@ -1,8 +1,8 @@
 // Model building: DH conventions, folding of fixed joints, trees, base transform,
 // pseudo-inertia and the validation of user input.
-#include "refdyn/error.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <algorithm>

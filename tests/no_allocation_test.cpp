@@ -5,10 +5,10 @@
 // every call. Each test warms up, then calls the functions many times on a preallocated Data
 // and asserts that nothing was allocated. Argument checks may build error strings only when
 // they fail; the success paths must not allocate.
-#include "refdyn/error.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

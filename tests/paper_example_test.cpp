@@ -2,11 +2,11 @@
 // dynamics, RK4 with h = 1e-3 over 0–5 s. Checks the constraint residuals after the Baumgarte
 // transient, the reference values at t = 1 s, the Lagrange solver and Dormand–Prince against
 // the same run, the end-effector path from the point kinematics, and the drive tracking.
-#include "refdyn/integrators.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

@@ -1,9 +1,9 @@
 // The paper's three-link manipulator (column ψ1, rotary arm ψ2, sliding link z3).
 #include "refdyn/models/paper_manipulator.hpp"
 
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <Eigen/Eigenvalues>

@@ -2,9 +2,9 @@
 // algorithm, energies): algebraic identities on random chains and trees of 1..60 DOF, Lagrangian
 // identities checked by finite differences, and closed-form oracles (planar 2R arm, pendulum,
 // sliders).
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <Eigen/Eigenvalues>

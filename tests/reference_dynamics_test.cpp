@@ -2,12 +2,12 @@
 // chains with random constraint mixes; Baumgarte error dynamics against their closed-form
 // solutions; closed-form rheonomic (bead on a spinning wire) and nonholonomic (knife edge)
 // motions; singular partitions; paper-literal forces; make_consistent.
-#include "refdyn/error.hpp"
-#include "refdyn/integrators.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <Eigen/Eigenvalues>

@@ -2,10 +2,10 @@
 // docs/scenario.md reference generated from them is current), unknown names answered with "did
 // you mean", and the kind added as one file (distance) checked against finite differences and a
 // closed-form motion.
-#include "refdyn/constraints.hpp"
+#include "refdyn/constraints/constraints.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/registry.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/scenario/registry.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>

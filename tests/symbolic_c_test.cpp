@@ -7,8 +7,8 @@
 // GiNaC-differentiated constraint formulas, the engine's
 // spatial-algebra RNEA/CRBA with analytic point kinematics and its own constraint code.
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 
 #include "every_kind/reference_dynamics.h"
 #include "four_bar/reference_dynamics.h"

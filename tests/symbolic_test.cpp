@@ -2,10 +2,10 @@
 // parameters kept symbolic, LaTeX structure (and a pdflatex run when it is installed), the
 // C writer's common-subexpression elimination, errors, and the `refdyn generate` command.
 // The generated C against the numeric engine: symbolic_c_test.cpp.
-#include "refdyn/expression.hpp"
+#include "refdyn/expression/expression.hpp"
 #include "refdyn/io/scenario.hpp"
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/symbolic.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
 
 #include "test_support.hpp"
 

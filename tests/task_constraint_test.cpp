@@ -1,6 +1,6 @@
 // Expression constraints against the hand-written ready-made kinds they replace.
-#include "refdyn/constraints.hpp"
-#include "refdyn/kinematics.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_example.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "test_support.hpp"

@@ -1,7 +1,7 @@
 #pragma once
 // Shared helpers for the test suite: seeded random models and states, and one tolerance check.
-#include "refdyn/error.hpp"
-#include "refdyn/model.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/model.hpp"
 
 #include <gtest/gtest.h>
 

@@ -4,8 +4,8 @@
 // FD budget: central difference with step h on |f| ~ 1..10: truncation h²|f'''|/6 ~ 1e-10·|f'''|,
 // rounding ε|f|/h ~ 1e-10. The tolerance 1e-7 (relative to max(|f'|, 1)) leaves ~100× margin
 // for the largest third derivatives used here (|f'''| ≲ 100).
-#include "refdyn/error.hpp"
-#include "refdyn/time_function.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/expression/time_function.hpp"
 #include "test_support.hpp"
 
 #include <cmath>

@@ -1,6 +1,6 @@
 // The paper's trace route against the recursive spatial-vector route.
-#include "refdyn/recursive_dynamics.hpp"
-#include "refdyn/trace_dynamics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/multibody/trace_dynamics.hpp"
 #include "test_support.hpp"
 
 using namespace refdyn;

@@ -3,9 +3,9 @@
 // order of links, and every error path with its message.
 #include "refdyn/io/urdf.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/kinematics.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"
 
 #include <console_bridge/console.h>

@@ -1,7 +1,8 @@
 // The C++ API in one page: plan the paper's motion (docs/paper_example.md §5) and write a CSV
 // with t, q, q̇, q̈, bristle states, E, Φ, Φ̇, drive torque and constraint forces.
 //   build/examples/plan_paper_motion [out.csv]
-#include "refdyn/control.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/models/paper_example.hpp"
 

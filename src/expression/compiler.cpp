@@ -3,7 +3,7 @@
 // interpreter runs; set-up of the closed-form quadratic kernel.
 #include "internal.hpp"
 
-#include "refdyn/text.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <algorithm>
 #include <bit>

@@ -2,8 +2,8 @@
 // accessors, evaluation entry points and diagnostics of refdyn::Expression.
 #include "internal.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <algorithm>
 #include <sstream>

@@ -7,7 +7,7 @@
 //                   quadratic kernel set-up
 //   interpreter.cpp interpreter loop and closed-form kernels
 //   expression.cpp  the public Expression API
-#include "refdyn/expression.hpp"
+#include "refdyn/expression/expression.hpp"
 
 #include <ginac/ginac.h>
 

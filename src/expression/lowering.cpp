@@ -5,8 +5,8 @@
 // exact one-sided derivatives.
 #include "internal.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <cln/float.h>
 #include <stdexcept>

@@ -4,8 +4,8 @@
 // first) for the lowering.
 #include "internal.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <algorithm>
 #include <cctype>

@@ -1,7 +1,7 @@
 #include "refdyn/io/output.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <cerrno>
 #include <cmath>

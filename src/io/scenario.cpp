@@ -2,10 +2,10 @@
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/urdf.hpp"
-#include "refdyn/registry.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/scenario/registry.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>

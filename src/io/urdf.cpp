@@ -1,7 +1,7 @@
 #include "refdyn/io/urdf.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <boost/property_tree/detail/rapidxml.hpp>
 #include <console_bridge/console.h>

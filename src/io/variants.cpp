@@ -1,9 +1,9 @@
 #include "refdyn/io/variants.hpp"
 
-#include "refdyn/error.hpp"
-#include "refdyn/problem.hpp"
-#include "refdyn/registry.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/scenario/registry.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -3,8 +3,8 @@
 #include "internal.hpp"
 
 #include "../expression/internal.hpp"
-#include "refdyn/json.hpp"
-#include "refdyn/text.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/common/text.hpp"
 
 #include <cmath>
 #include <cstdio>

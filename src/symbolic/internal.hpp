@@ -3,9 +3,9 @@
 //   model.cpp     symbolic kinematics and Newton–Euler dynamics (GiNaC) of a Model
 //   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
 //   emit.cpp      C99 (with common-subexpression elimination), LaTeX and JSON writers
-#include "refdyn/model.hpp"
-#include "refdyn/spec.hpp"
-#include "refdyn/symbolic.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/scenario/spec.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
 
 #include <ginac/ginac.h>
 

@@ -4,7 +4,7 @@
 // writer's common-subexpression elimination keeps them shared.
 #include "internal.hpp"
 
-#include "refdyn/error.hpp"
+#include "refdyn/common/error.hpp"
 
 #include <cln/float.h>
 

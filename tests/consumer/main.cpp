@@ -5,9 +5,9 @@
 // allocated by the library and freed here: the allocator-sensitive case). Prints
 // "refdyn consumer: OK ..." and exits 0 when everything agrees, else names the mismatch and
 // exits 1. Uses only the stable headers model.hpp, recursive_dynamics.hpp, kinematics.hpp.
-#include "refdyn/kinematics.hpp"
-#include "refdyn/model.hpp"
-#include "refdyn/recursive_dynamics.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
 
 #include <cmath>
 #include <cstdio>

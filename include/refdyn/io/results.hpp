@@ -9,10 +9,10 @@
 /// dynamics and controller, results bit-identical to one thread), or spread over MPI ranks
 /// (RunOptions::shard, apps/mpi_run.cpp).
 
-#include "refdyn/feasibility.hpp"
+#include "refdyn/simulate/feasibility.hpp"
 #include "refdyn/io/output.hpp"
-#include "refdyn/json.hpp"
-#include "refdyn/problem.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/scenario/problem.hpp"
 
 #include <filesystem>
 #include <functional>

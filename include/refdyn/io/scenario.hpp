@@ -7,8 +7,8 @@
 ///   arm.yaml:12: model.dh.joints[1].mass: expected a number >= 0, got -3
 /// docs/scenario.md documents every key.
 
-#include "refdyn/problem.hpp"
-#include "refdyn/spec.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/scenario/spec.hpp"
 
 #include <cstddef>
 #include <memory>

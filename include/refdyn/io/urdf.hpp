@@ -33,7 +33,7 @@
 /// with its line number. Any error urdfdom logs is fatal, even when it still returns a model.
 /// The result is validated with build_model, so a returned description always builds.
 
-#include "refdyn/model.hpp"
+#include "refdyn/multibody/model.hpp"
 
 #include <string>
 #include <vector>

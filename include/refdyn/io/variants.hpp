@@ -10,8 +10,8 @@
 ///   DIR/<variant>/{plan.csv, …} and VariantSummary ──▶ DIR/variants.csv, DIR/summary.json
 
 #include "refdyn/io/results.hpp"
-#include "refdyn/json.hpp"
-#include "refdyn/spec.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/scenario/spec.hpp"
 
 #include <filesystem>
 #include <functional>

@@ -6,11 +6,11 @@
 ///   Φ2 = z_E − z_a(t),  z_a = h1 + 0.5 sin 45° + Δz (1 − cos(2πt/T_z))/2, Δz = 0.1, T_z = 5
 /// with independent coordinate ψ1, dependent (ψ2, z3), Baumgarte α = 100, β = 50.
 
-#include "refdyn/constraints.hpp"
-#include "refdyn/force_elements.hpp"
-#include "refdyn/integrators.hpp"
-#include "refdyn/model.hpp"
-#include "refdyn/reference_dynamics.hpp"
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 
 #include <memory>
 #include <vector>

@@ -6,7 +6,7 @@
 ///   joint 2 revolute  θ=ψ2  d=0    a=0  α=−90°
 ///   joint 3 prismatic θ=0   d=z3   a=0  α=0
 
-#include "refdyn/model.hpp"
+#include "refdyn/multibody/model.hpp"
 
 namespace refdyn::models {
 

@@ -4,7 +4,8 @@
 /// unconstrained plant from the disturbed starts q(0) = [0, 270° − α0, 0.5], q̇(0) = 0 for
 /// α0 ∈ {45°, 60°, 70°, 80°}, without and with (unmodelled) LuGre friction in the plant.
 
-#include "refdyn/control.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
 #include "refdyn/models/paper_example.hpp"
 
 #include <memory>

@@ -1,0 +1,209 @@
+#pragma once
+/// Constraints on a model, material or programmed (task-based), in two orders:
+///  - holonomic (position) Φ(q, t) = 0, possibly rheonomic:
+///        Φ̇ = A q̇ + Φ_t,      Φ̈ = A q̈ + γ,      A = ∂Φ/∂q
+///  - first-order (velocity, nonholonomic or programmed speed) c(q, q̇, t) = 0:
+///        ċ = A q̈ + γ,        A = ∂c/∂q̇        (c linear in q̇ for the classical B q̇ + s)
+///  - acceleration-level (programmed, order p = 2; expression constraints only)
+///    B(t, q, q̇) q̈ + s(t, q, q̇) = 0:  A = B, γ = s, Φ = Φ̇ = 0 (no residual at the state level;
+///    the reference dynamics writes B q̈ + s there after each solve). See docs/higher_order.md.
+/// γ carries every velocity-product and time-derivative term (Φ_tt, ∂Φ_t/∂q q̇ included).
+/// Everything is exact: analytic kinematics (C, d of kinematics.hpp) chained with exact
+/// derivatives of the task functions.
+
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/expression/time_function.hpp"
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+enum class ConstraintOrigin { Material, Programmed };
+
+/// The order p of a constraint B q^(p) + s = 0 (paper eq. 2.1): 0 position (holonomic),
+/// 1 velocity (first order), 2 acceleration. (Jerk, p = 3, is not implemented.)
+enum class ConstraintOrder { Position = 0, Velocity = 1, Acceleration = 2 };
+const char* to_string(ConstraintOrigin o);
+
+/// World-frame kinematics of a point, computed once per evaluation and shared by constraints.
+struct PointState {
+  Vec3 r = Vec3::Zero();         ///< position
+  Vec3 v = Vec3::Zero();         ///< velocity C q̇
+  Vec3 d = Vec3::Zero();         ///< drift: acceleration − C q̈
+  Vec3 w = Vec3::Zero();         ///< angular velocity of the carrying body
+  Vec3 wd = Vec3::Zero();        ///< angular-acceleration drift of the carrying body
+  Mat3 R = Mat3::Identity();     ///< orientation of the carrying body
+  Eigen::Matrix<double, 3, Eigen::Dynamic> C;   ///< ∂r/∂q (3×n)
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jw;  ///< angular Jacobian of the body (3×n)
+};
+
+/// What a constraint reads: time, state, the states of the points it declared, and scratch
+/// memory of at least scratch_size() doubles owned by the caller's ConstraintEval (so that a
+/// constraint object holds no mutable state and one set can be evaluated from several threads,
+/// each with its own ConstraintEval).
+struct ConstraintInput {
+  double t;
+  const Eigen::VectorXd& q;
+  const Eigen::VectorXd& qd;
+  const std::vector<PointState>& points;  ///< indexed by model point index
+  double* scratch = nullptr;
+};
+
+class Constraint {
+ public:
+  virtual ~Constraint() = default;
+  virtual int rows() const = 0;
+  virtual bool first_order() const = 0;       ///< velocity-level constraint
+  /// 0 holonomic, 1 first order (velocity), 2 acceleration level (B q̈ + s = 0: the row's A is
+  /// B, γ is s, and Φ, Φ̇ are written as 0). Kinds that are not acceleration-level keep the default.
+  virtual int order() const { return first_order() ? 1 : 0; }
+  virtual bool rheonomic() const = 0;         ///< depends explicitly on time
+  virtual std::vector<int> points() const { return {}; }  ///< model points it reads
+  /// phi: Φ or c; phid: Φ̇ (holonomic; equals phi for first-order rows); A; gamma.
+  virtual void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi,
+                        Eigen::Ref<Eigen::VectorXd> phid, Eigen::Ref<Eigen::MatrixXd> A,
+                        Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
+  virtual std::string describe() const = 0;
+  /// Doubles of scratch memory evaluate() needs (ConstraintInput::scratch).
+  virtual int scratch_size() const { return 0; }
+  /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
+  /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
+  virtual const TimeFunction* target() const { return nullptr; }
+  /// The rows as texts of the expression language (symbolic_form.hpp): Φ(q, t) for holonomic
+  /// rows, c(q, q̇, t) for first-order ones; none for a kind without a closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+
+  std::string name;
+  ConstraintOrigin origin = ConstraintOrigin::Programmed;
+  std::string record_as;  ///< column name for target() in recorded trajectories; empty: none
+  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
+};
+using ConstraintPtr = std::shared_ptr<const Constraint>;
+
+/// Implicit surface f(r, t) = 0 in the world frame, with exact derivatives.
+class ImplicitSurface {
+ public:
+  virtual ~ImplicitSurface() = default;
+  struct Value {
+    double f = 0;
+    Vec3 grad = Vec3::Zero();     ///< ∂f/∂r
+    Mat3 hess = Mat3::Zero();     ///< ∂²f/∂r²
+    double ft = 0, ftt = 0;       ///< ∂f/∂t, ∂²f/∂t²
+    Vec3 grad_t = Vec3::Zero();   ///< ∂²f/∂r∂t
+  };
+  virtual Value eval(const Vec3& r, double t) const = 0;
+  virtual bool rheonomic() const { return false; }
+  virtual std::string describe() const = 0;
+  /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
+  virtual std::optional<SymbolicForm> symbolic(const std::string& /*point*/) const { return std::nullopt; }
+};
+using SurfacePtr = std::shared_ptr<const ImplicitSurface>;
+
+/// ((x − cx)/a)² + ((y − cy)/b)² − 1: the elliptic cylinder about the z axis (a curve in x–y).
+SurfacePtr elliptic_cylinder(double a, double b, double cx = 0.0, double cy = 0.0);
+/// |r − c|² − R²
+SurfacePtr sphere(const Vec3& center, double radius);
+/// n·r − h(t): a (moving) plane, n normalised.
+SurfacePtr plane(const Vec3& normal, TimeFunctionPtr offset);
+
+// ---- ready-made kinds (each binds names to indices now and throws on unknown names) ----
+
+/// A point on an implicit curve or surface: f(r_P, t) = 0.
+ConstraintPtr point_on_surface(const Model& model, const std::string& point, SurfacePtr surface,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// A point coordinate (axis 0: x, 1: y, 2: z) following a function of time: r_P,k − f(t) = 0.
+ConstraintPtr point_coordinate(const Model& model, const std::string& point, int axis, TimeFunctionPtr f,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// Prescribed joint motion: q_j − f(t) = 0.
+ConstraintPtr joint_trajectory(const Model& model, const std::string& joint, TimeFunctionPtr f,
+                               ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// Two joints coupled linearly (a gear pair, a URDF <mimic>): q_joint − ratio·q_leader − offset = 0.
+ConstraintPtr joint_coupling(const Model& model, const std::string& joint, const std::string& leader, double ratio,
+                             double offset = 0.0, ConstraintOrigin origin = ConstraintOrigin::Material);
+/// Two points coinciding (loop closure): r_P1 − r_P2 = 0 on the selected world axes
+/// (default all three; a planar loop uses {0, 1}).
+ConstraintPtr points_coincide(const Model& model, const std::string& p1, const std::string& p2,
+                              std::vector<int> axes = {0, 1, 2},
+                              ConstraintOrigin origin = ConstraintOrigin::Material);
+/// No lateral slip of a wheel or knife edge at point P: (R_b a)·v_P = 0, a fixed in the body
+/// carrying P (nonholonomic, first order).
+ConstraintPtr knife_edge(const Model& model, const std::string& point, const Vec3& lateral_axis_in_body,
+                         ConstraintOrigin origin = ConstraintOrigin::Material);
+/// Prescribed speed of a point along a fixed world direction u: u·v_P − s(t) = 0 (first order).
+ConstraintPtr point_speed(const Model& model, const std::string& point, const Vec3& direction,
+                          TimeFunctionPtr speed, ConstraintOrigin origin = ConstraintOrigin::Programmed);
+
+/// A constraint written as an expression over task quantities, differentiated exactly
+/// (GiNaC, compiled to a tape; see expression.hpp) and chained through the point kinematics:
+///   holonomic (first_order = false):  x(P), y(P), z(P)  world coordinates of point P,
+///                                      q(j)  joint coordinate, t, and named parameters;
+///   first order (first_order = true):  additionally vx(P), vy(P), vz(P) and qd(j).
+/// E.g. "(x(E)/a)^2 + (y(E)/b)^2 - 1" with parameters {a, b}, or
+/// "-(y(E))*vx(E) + x(E)*vy(E) - R*v0" for a prescribed speed along a circle.
+/// For a holonomic Φ = f(w): A = Σ f_w ∂w/∂q, Φ̇ = f_w ẇ, γ = f_w ẅ|_{q̈=0} + ẇᵀ f_ww ẇ.
+/// For a first-order c = f(w): A = Σ f_w ∂w/∂q̇, γ = Σ f_w ẇ|_{q̈=0}. Throws Error naming the
+/// constraint for an expression that does not parse or uses unknown names.
+ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                    bool first_order = false,
+                                    const std::map<std::string, double>& parameters = {},
+                                    ConstraintOrigin origin = ConstraintOrigin::Programmed);
+/// The same with the order given explicitly. ConstraintOrder::Acceleration (p = 2) adds
+/// ax(P), ay(P), az(P) (point accelerations) and qdd(j) to the variables; the expression
+/// must involve at least one of them and be linear in them (the form B(t, q, q̇) q̈ + s = 0
+/// of the paper's eq. 2.1; checked symbolically). Then B = Σ f_w ∂w/∂q̈ over the acceleration
+/// variables w and s = f evaluated with q̈ = 0 (point accelerations = their drifts d).
+ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+                                    ConstraintOrder order, const std::map<std::string, double>& parameters = {},
+                                    ConstraintOrigin origin = ConstraintOrigin::Programmed);
+
+/// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
+class ConstraintSet {
+ public:
+  void add(ConstraintPtr c);
+  int rows() const { return rows_; }
+  int size() const { return static_cast<int>(constraints_.size()); }
+  const std::vector<ConstraintPtr>& constraints() const { return constraints_; }
+  int row_offset(int k) const { return offsets_[k]; }
+  int row_owner(int row) const;
+  bool row_first_order(int row) const { return constraints_[row_owner(row)]->first_order(); }
+  int row_order(int row) const { return constraints_[row_owner(row)]->order(); }  ///< see Constraint::order
+  const std::vector<int>& points() const { return points_; }  ///< union of points read
+  std::string row_name(int row) const;                         ///< "name[i]" or "name"
+ private:
+  std::vector<ConstraintPtr> constraints_;
+  std::vector<int> offsets_;
+  std::vector<int> points_;
+  int rows_ = 0;
+};
+
+/// Workspace + result of evaluate_constraints, sized once for (model, set).
+struct ConstraintEval {
+  ConstraintEval(const Model& model, const ConstraintSet& set);
+  Eigen::VectorXd phi, phid, gamma;  ///< size m
+  Eigen::MatrixXd A;                 ///< m×n
+  std::vector<PointState> points;    ///< indexed by model point index
+  std::vector<double> scratch;       ///< for the constraints' evaluate() (largest scratch_size)
+};
+
+/// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and
+/// the point kinematics of every point the set reads. No heap allocation. Checks that data and
+/// ev belong to this model and set and the sizes of q, q̇ (finiteness is the caller's).
+void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev,
+                          double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+/// The same right after unchecked::crba + unchecked::rnea_reusing_placements(q, q̇, q̈ = none,
+/// gravity on) at this (q, q̇): reuses the joint placements data.liMi (only composes data.oMi)
+/// and the body velocities data.v and accelerations data.a that RNEA left (its accelerations
+/// are the drift accelerations plus the base acceleration −g, which is taken off). This skips a
+/// second velocity recursion; tests/constraints_test checks it against evaluate_constraints.
+void evaluate_constraints_after_bias_forces(const Model& model, Data& data, const ConstraintSet& set,
+                                            ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                            const Eigen::VectorXd& qd);
+
+/// Point kinematics of every listed point into `out` (FK must be done; uses data.v, data.a).
+void compute_point_states(const Model& model, Data& data, const std::vector<int>& points,
+                          const Eigen::VectorXd& qd, std::vector<PointState>& out);
+
+}  // namespace refdyn

@@ -1,0 +1,51 @@
+#pragma once
+/// Scalar functions of time with exact first and second derivatives: prescribed trajectories
+/// z_a(t), drive profiles ψ_dr(t), programmed speeds s(t), joint torques τ(t).
+
+#include "refdyn/expression/symbolic_form.hpp"
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+struct TimeValue {
+  double f = 0, df = 0, ddf = 0;  ///< f(t), f'(t), f''(t)
+};
+
+class TimeFunction {
+ public:
+  virtual ~TimeFunction() = default;
+  virtual TimeValue eval(double t) const = 0;
+  virtual std::string describe() const = 0;
+  /// f(t) as a text of the expression language in t (symbolic_form.hpp), for `refdyn generate`;
+  /// none if the function has no closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+};
+using TimeFunctionPtr = std::shared_ptr<const TimeFunction>;
+
+/// f(t) = c.
+TimeFunctionPtr constant(double c);
+/// f(t) = Σ c_k t^k (coefficients from t⁰ upward).
+TimeFunctionPtr polynomial(std::vector<double> coefficients);
+/// f(t) = offset + amplitude·sin(ω t + phase).
+TimeFunctionPtr sinusoid(double amplitude, double omega, double phase = 0.0, double offset = 0.0);
+/// Smooth raised-cosine excursion from f0 of height df and period T: f0 + df·(1 − cos(2πt/T))/2.
+/// Starts with zero velocity (the spec's z_a(t)).
+TimeFunctionPtr raised_cosine(double f0, double df, double period);
+/// Cycloidal rise of height `rise` over [t0, t0 + duration] from f0 (zero velocity and
+/// acceleration at both ends); constant before and after:
+/// f = f0 + rise·(τ − sin(2πτ)/(2π)), τ = (t − t0)/duration ∈ [0, 1].
+TimeFunctionPtr cycloidal(double rise, double duration, double f0 = 0.0, double t0 = 0.0);
+
+/// f(t) given as an expression in `t` and named parameters, e.g. "z0 + dz*(1 - cos(2*pi*t/T))/2";
+/// f' and f'' are exact (GiNaC). Syntax: expression.hpp, including abs, min, max, step, clamp and
+/// if(t < T, a, b), whose derivatives are finite one-sided values at the switching point (e.g.
+/// "(1 - cos(pi*min(t, 2)/2))/2" at t = 2). A parameter that cancels t (amp*sin(t), amp = 0)
+/// gives a constant function. Throws Error for a text that does not parse.
+TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters = {});
+
+}  // namespace refdyn

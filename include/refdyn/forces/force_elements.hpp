@@ -1,0 +1,137 @@
+#pragma once
+/// Force elements: generalized forces Q(t, q, q̇, z) acting in the joints, some with internal
+/// states z (LuGre bristles) integrated as part of the state vector x = [q, q̇, z].
+/// Sign convention: M q̈ + c + g = Q (+ controls, + constraint forces); Q is what the element
+/// applies to the joint (a friction torque opposes the motion: Q = −(…)).
+
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/expression/time_function.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+class ForceElement {
+ public:
+  virtual ~ForceElement() = default;
+  virtual std::string name() const = 0;
+  virtual int num_states() const { return 0; }
+  /// Adds the element's generalized force to Q (size nq). z: its states, zdot: their
+  /// derivatives (written). dQ_dqd (nq×nq, optional): adds ∂Q/∂q̇ (exact).
+  virtual void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                     Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const = 0;
+  /// Adds the rate of the element's force along the motion, Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈
+  /// (exact), to Qdot and returns true; the default provides none and returns false. Needed by
+  /// jerk-level problems (p = 3, jerk.hpp), which reject elements without it (and elements with
+  /// states). Damping, spring, effort and the flexible drive provide it.
+  virtual bool add_rate(double /*t*/, const Eigen::VectorXd& /*q*/, const Eigen::VectorXd& /*qd*/,
+                        const Eigen::VectorXd& /*qdd*/, Eigen::VectorXd& /*Qdot*/) const {
+    return false;
+  }
+  /// Name of each state (for CSV headers).
+  virtual std::vector<std::string> state_names() const { return {}; }
+  /// True for actuators (drives, prescribed efforts): their force is delivered by the joint's
+  /// motor and counts in the feasibility report's required effort.
+  virtual bool actuator() const { return false; }
+  /// Named quantities recorded in trajectories besides the force (e.g. a drive's ψ_dr and
+  /// torque), and their values at (t, q, q̇, z) written to out[0 .. signal_names().size()).
+  virtual std::vector<std::string> signal_names() const { return {}; }
+  virtual void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                       double* out) const {}
+
+  /// Q as texts of the expression language (symbolic_form.hpp): `rows` with their `joints`, the
+  /// states' `state_rates`; none for an element without a closed form.
+  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+  /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
+  std::string label;
+  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
+};
+using ForceElementPtr = std::shared_ptr<const ForceElement>;
+
+/// τ = −b q̇_j.
+ForceElementPtr joint_damping(const Model& model, const std::string& joint, double b);
+/// τ = −k (q_j − q_rest).
+ForceElementPtr joint_spring(const Model& model, const std::string& joint, double k, double q_rest = 0.0);
+/// τ = f(t): a prescribed joint torque or force.
+ForceElementPtr joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f);
+
+/// Flexible drive (paper (4.6)): τ = s (ψ_dr(t) − q_j) + d (ψ̇_dr(t) − q̇_j), with the sign that
+/// makes q_j follow the drive displacement ψ_dr.
+struct FlexibleDriveParams {
+  double stiffness = 1e4;   ///< s [Nm/rad or N/m]
+  double damping = 70.0;    ///< d [Nms/rad or Ns/m]
+};
+class FlexibleDrive final : public ForceElement {
+ public:
+  FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p, TimeFunctionPtr profile);
+  std::string name() const override { return "flexible_drive(" + joint_name_ + ")"; }
+  bool actuator() const override { return true; }
+  void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+             Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const override;
+  /// The drive torque alone.
+  double torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
+  /// psi_dr (the drive displacement ψ_dr(t)) and tau_drive (its torque), suffixed "_<label>".
+  std::vector<std::string> signal_names() const override;
+  void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+               double* out) const override;
+  std::optional<SymbolicForm> symbolic() const override;
+  const TimeFunction& profile() const { return *profile_; }
+  int joint() const { return j_; }
+ private:
+  int j_;
+  std::string joint_name_;
+  FlexibleDriveParams p_;
+  TimeFunctionPtr profile_;
+};
+
+/// LuGre friction (paper (4.7)–(4.8)) in one joint, bristle deflection z as state:
+///   ż = q̇ − σ0 |q̇| z / g(q̇),  g(q̇) = μk + (μs − μk) exp(−(q̇/q̇_S)²)
+///   τ = −(σ0 z + σ1 ż + σ2 q̇)
+struct LuGreParams {
+  double mu_s = 0.1, mu_k = 0.2;      ///< static and kinetic friction levels [Nm or N]
+  double sigma0 = 5.0, sigma1 = 0.025, sigma2 = 0.0;
+  double v_stribeck = 0.175;          ///< Stribeck velocity q̇_S
+};
+class LuGreFriction final : public ForceElement {
+ public:
+  LuGreFriction(const Model& model, const std::string& joint, LuGreParams p);
+  std::string name() const override { return "lugre(" + joint_name_ + ")"; }
+  int num_states() const override { return 1; }
+  std::vector<std::string> state_names() const override { return {"z_" + joint_name_}; }
+  void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+             Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  std::optional<SymbolicForm> symbolic() const override;
+  const LuGreParams& params() const { return p_; }
+  int joint() const { return j_; }
+ private:
+  int j_;
+  std::string joint_name_;
+  LuGreParams p_;
+};
+
+/// An ordered set of force elements; their states are concatenated in order.
+class ForceSet {
+ public:
+  ForceSet() = default;
+  void add(ForceElementPtr e);
+  int num_states() const { return nz_; }
+  const std::vector<ForceElementPtr>& elements() const { return elements_; }
+  std::vector<std::string> state_names() const;
+  /// Q = Σ elements (Q is overwritten), zdot for all states; dQ_dqd overwritten when given.
+  void evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z, Eigen::VectorXd& Q,
+                double* zdot, Eigen::MatrixXd* dQ_dqd = nullptr) const;
+  /// Generalized force of element k alone (allocates; for reporting).
+  Eigen::VectorXd element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                const double* z) const;
+  int state_offset(int k) const { return offsets_[k]; }
+ private:
+  std::vector<ForceElementPtr> elements_;
+  std::vector<int> offsets_;
+  int nz_ = 0;
+};
+
+}  // namespace refdyn

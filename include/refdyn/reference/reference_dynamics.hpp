@@ -1,0 +1,202 @@
+#pragma once
+/// Reference dynamics (the generalized programmed motion equations, GPME, in the computational
+/// form of Jarzębowska et al. 2024, eqs. (2.5)–(2.6), (4.9)): the model's unconstrained
+/// dynamics M q̈ = F, F = Q − c − g, merged with all constraints (ConstraintSet) into one
+/// system free of reaction forces.
+///
+/// Projection (default, the paper's method). The user partitions the velocities into
+/// independent q̇_ic (the control inputs) and dependent q̇_dc. With A = [K_ic K_dc],
+///     ∂q̇_dc/∂q̇_ic = −K_dc⁻¹ K_ic,   N = ∂q̇/∂q̇_ic  (n × (n−m)),
+/// and the reduced equations are stacked with the stabilized constraints:
+///     Nᵀ (M q̈ − F) = 0                             (n − m rows)
+///     A q̈ = −γ − 2α Φ̇ − β² Φ      holonomic rows   (Baumgarte: Φ̈ + 2αΦ̇ + β²Φ = 0)
+///     A q̈ = −γ − β₁ c              first-order rows (ċ + β₁ c = 0)
+/// solved by the null-space method (q̈ = q̈_p + N u with A q̈_p = rhs, (NᵀMN) u = Nᵀ(F − M q̈_p)),
+/// which is the same system with an (n−m)×(n−m) SPD solve.
+/// Lagrange (KKT) form, the independent check: [[M, Aᵀ],[A, 0]] [q̈; λ] = [F; rhs], i.e.
+///     M q̈ = F − Aᵀ λ,
+/// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
+/// programmed motion. Both give the same q̈ (to rounding) for any valid partition.
+///
+/// Acceleration-level rows (programmed constraints of order p = 2, B(t, q, q̇) q̈ + s = 0, see
+/// docs/higher_order.md): the paper's GPME (2.4) for p = 2 reduce, by Tsenov's identity, to the
+/// same projection Nᵀ(M q̈ − F) = 0 with N spanning the null space of the stacked rows, so such
+/// a row enters the stack as it is: A = B, rhs = −s (no Baumgarte term: nothing to stabilize,
+/// the row is satisfied algebraically at every evaluation). After each solve its Φ and Φ̇ in
+/// constraints() hold the residual B q̈ + s.
+///
+/// Paper-literal forces (option): (2.5) adds Σ_k q̇_k ∂Q_k/∂q̇_i to the projected forces,
+/// i.e. uses Nᵀ(Q + (∂Q/∂q̇)ᵀ q̇). That is not what Lagrange's equations give when Q depends
+/// on q̇ (damping, friction, drives); it is available for comparison with the paper only.
+
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/multibody/model.hpp"
+
+#include <Eigen/LU>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+/// Thrown by ReferenceDynamics::derivative when the equations cannot be formed (a singular
+/// partition); integrators catch it and report it in their Summary.
+class NumericalFailure : public Error {
+ public:
+  NumericalFailure(double t, const std::string& msg) : Error(msg), time(t) {}
+  double time;
+};
+
+/// Projection (the paper's reduced form), Lagrange (KKT), or Automatic: resolved by the
+/// ReferenceDynamics constructor to automatic_reference_solver(nq, rows) (options() then holds
+/// the resolved solver).
+enum class ReferenceSolver { Projection, Lagrange, Automatic };
+
+/// Models with at least this many coordinates take the Lagrange (KKT) solver under
+/// ReferenceSolver::Automatic; smaller ones the projection. Measured with
+/// `dynamics_bench --benchmark_filter=CFD` (bench/README.md, "Forward dynamics"; one evaluation
+/// with 4 constraint rows, CPU-time medians of projection over Lagrange with its ABA
+/// factorization, two runs 2026-11-25): 0.73/0.74 at 7, 0.88/0.88 at 10, 0.99/1.01 at 15,
+/// 1.05/1.08 at 20, 1.11/1.15 at 24, 1.31/1.31 at 30, 2.16/2.21 at 60 DOF: the crossover is at
+/// 15, where the two tie (the paper's 3-DOF example: projection 1.35× faster, bench/README.md,
+/// reference_dynamics_bench).
+inline constexpr int kLagrangeFrom = 16;
+
+/// From this many coordinates the Lagrange (KKT) solver factors M by the articulated-body
+/// algorithm instead of forming it: u = M⁻¹F by ABA, M⁻¹Aᵀ by its O(n) solves
+/// (unchecked::aba_solve), Q_c = −Aᵀλ; mass() is then not filled. Measured with
+/// `dynamics_bench --benchmark_filter=CFD` (4 rows, CPU-time medians, 2026-11-25; M + dense
+/// Cholesky KKT in one run → ABA KKT in two later runs): 1349 → 1297/1296 ns at 7, 1868 →
+/// 1757/1780 ns at 10, 2906 → 2604/2614 ns at 15, 3780 → 3462/3484 ns at 20, 6603 → 5220/5225 ns
+/// at 30, 19.9 → 10.3/10.5 µs at 60 DOF: faster at every size measured (from 7; the CFD
+/// benchmark has 4 rows), so from 7 on; below, the fixed-size dense kernels stay.
+inline constexpr int kAbaLagrangeFrom = 7;
+
+/// The solver ReferenceSolver::Automatic stands for with nq coordinates and `rows` constraint
+/// rows: Lagrange from kLagrangeFrom coordinates on, else Projection (the paper's 3-DOF example
+/// keeps the projection).
+constexpr ReferenceSolver automatic_reference_solver(int nq, int /*rows*/) {
+  return nq >= kLagrangeFrom ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
+}
+
+struct ReferenceDynamicsOptions {
+  double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
+  double beta = 50.0;                ///< Baumgarte β [1/s] (holonomic rows)
+  double beta_first_order = 50.0;    ///< β₁ [1/s] for first-order rows: ċ + β₁ c = 0
+  ReferenceSolver solver = ReferenceSolver::Projection;
+  /// Independent (control-input) coordinates by joint name; n − m of them. Empty: chosen
+  /// automatically (best-conditioned K_dc) at the first evaluation.
+  std::vector<std::string> independent;
+  /// Re-choose the partition automatically when K_dc becomes ill-conditioned instead of
+  /// stopping with an error.
+  bool automatic_partition = false;
+  double max_condition = 1e8;        ///< largest accepted κ = ‖A‖₁‖K_dc⁻¹‖₁ (see partition_condition)
+  bool paper_literal_forces = false; ///< see the header comment
+  /// Throws refdyn::Error naming the bad field.
+  void validate() const;
+};
+
+class ReferenceDynamics {
+ public:
+  /// Keeps references to model, forces and constraints: they must outlive this object.
+  ReferenceDynamics(const Model& model, const ForceSet& forces, const ConstraintSet& constraints,
+                    ReferenceDynamicsOptions options = {});
+
+  int nq() const { return n_; }
+  int num_constraints() const { return m_; }
+  int num_force_states() const { return forces_.num_states(); }
+  int state_size() const { return 2 * n_ + forces_.num_states(); }
+  const Model& model() const { return model_; }
+  const ForceSet& forces() const { return forces_; }
+  const ConstraintSet& constraint_set() const { return constraints_; }
+  const ReferenceDynamicsOptions& options() const { return opt_; }
+
+  /// State x = [q; q̇; z] from q, q̇ and zero force-element states.
+  Eigen::VectorXd make_state(const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
+
+  /// ẋ = [q̇; q̈; ż] at (t, x). No heap allocation (after the first call with an automatic
+  /// partition). Throws NumericalFailure on a singular partition, Error on bad sizes.
+  /// Without constraint rows, from kAbaFrom coordinates on (recursive_dynamics.hpp), q̈ comes
+  /// from the articulated-body algorithm: mass() and bias() are then not filled and Q_c = 0.
+  /// With the Lagrange solver from kAbaLagrangeFrom coordinates on, mass() is not filled.
+  void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
+
+  // ---- results of the last derivative() call ----
+  const Eigen::VectorXd& qdd() const { return qdd_; }
+  const Eigen::VectorXd& lambda() const { return lambda_; }
+  /// Q_c = M q̈ − F = −Aᵀλ: what the joints must add to realize the constraints.
+  const Eigen::VectorXd& constraint_force() const { return Qc_; }
+  const Eigen::VectorXd& applied_force() const { return Q_; }      ///< Q of the force elements
+  const Eigen::VectorXd& bias() const { return data_.nle; }        ///< c + g (see derivative())
+  const Eigen::MatrixXd& mass() const { return data_.M; }          ///< M (see derivative())
+  const ConstraintEval& constraints() const { return ev_; }
+  /// κ = ‖A‖₁ ‖K_dc⁻¹‖₁ at the last evaluation: K_dc's conditioning measured against the whole
+  /// constraint Jacobian (so a tiny K_dc next to a large K_ic counts as ill-conditioned).
+  double partition_condition() const { return cond_; }
+  const std::vector<int>& independent() const { return ind_; }
+  const std::vector<int>& dependent() const { return dep_; }
+  Data& data() { return data_; }
+
+  /// Sets the partition by coordinate indices (n − m independent ones). Throws on a bad set.
+  void set_independent(const std::vector<int>& independent);
+  /// Chooses the dependent set with the best-conditioned K_dc at (t, q) (exhaustive when
+  /// there are at most 500 candidate sets, else by column-pivoted QR). Returns cond(K_dc).
+  double choose_partition(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd);
+
+  /// Makes (q, q̇) consistent with the constraints at time t by Newton projection on the
+  /// dependent coordinates (position rows, then velocity rows). Reports the correction.
+  struct Consistency {
+    Eigen::VectorXd q, qd;               ///< corrected
+    Eigen::VectorXd dq, dqd;             ///< corrections applied
+    double residual_before = 0, residual_after = 0;  ///< max |Φ|, |Φ̇|, |c| before/after
+    int iterations = 0;
+    bool converged = false;
+  };
+  Consistency make_consistent(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double tol = 1e-12,
+                              int max_iterations = 50);
+
+  /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order);
+  /// with acceleration rows, also |B q̈ + s| (then it evaluates derivative() once).
+  double residual(double t, const Eigen::VectorXd& x);
+
+ private:
+  void write_derivative(Eigen::VectorXd& xdot) const;  // ẋ = [q̇; q̈; ż] from the workspaces
+  void solve_projection(double t);
+  void solve_lagrange(double t);
+  void solve_lagrange_aba(double t);  // the KKT solve with ABA's factorization (kAbaLagrangeFrom)
+  bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
+  template <int N, int Mr>
+  bool factor_partition_sized();  // N = 0: sizes at run time
+  template <int N, int Mr>
+  void solve_projection_sized(double t);
+  template <int N, int Mr>
+  void solve_lagrange_sized(double t);
+  std::string partition_message(double t) const;
+
+  const Model& model_;
+  const ForceSet& forces_;
+  const ConstraintSet& constraints_;
+  ReferenceDynamicsOptions opt_;
+  int n_, m_;
+  Data data_;
+  ConstraintEval ev_;
+  std::vector<int> ind_, dep_;
+  std::vector<char> first_order_row_;  ///< per constraint row: velocity-level (ċ + β₁c) or not
+  std::vector<char> acceleration_row_;  ///< per constraint row: acceleration level (B q̈ + s = 0)
+  bool has_acceleration_rows_ = false;
+  bool aba_ = false;  ///< no constraint rows and a large model: derivative() takes the ABA route
+  bool aba_lagrange_ = false;  ///< Lagrange solver from kAbaLagrangeFrom coordinates: KKT by ABA
+  void acceleration_residuals();  // Φ = Φ̇ = B q̈ + s on acceleration rows after a solve
+  Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
+  bool partition_set_ = false;
+  // workspaces
+  Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
+  Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, Y_, Smm_, MN_, NMN_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
+  Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
+  Eigen::VectorXd rk_;
+  double cond_ = 1.0;
+};
+
+}  // namespace refdyn

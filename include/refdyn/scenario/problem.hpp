@@ -1,0 +1,123 @@
+#pragma once
+/// A Problem is a scenario built: the model, its constraints and forces, the reference-dynamics
+/// options, a consistent initial state, the integrator and the closed-loop experiments, every
+/// number evaluated and every name bound. build_problem(spec) makes one from a ScenarioSpec
+/// (spec.hpp) and checks everything a run needs at t0 (constraint residuals, the partition),
+/// so that a Problem that exists can be planned.
+///
+///   ScenarioSpec ──build_problem──▶ Problem ──plan_problem──▶ Plan (a Trajectory)
+///                                          └──track_experiment──▶ ClosedLoopResult (a Trajectory)
+
+#include "refdyn/constraints/constraints.hpp"
+#include "refdyn/simulate/closed_loop.hpp"
+#include "refdyn/simulate/plan.hpp"
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/reference/jerk.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/scenario/registry.hpp"
+#include "refdyn/scenario/spec.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+/// Resource limits checked by build_problem before any work, so that a scenario that would run
+/// for hours or exhaust memory is rejected at once with the key to change (scenario `limits:`).
+struct Limits {
+  long max_steps = 2'000'000;    ///< integration steps of one run (RK4: (t1 − t0)/step; DOPRI5: a stop)
+  long max_samples = 1'000'000;  ///< recorded output samples of one run
+  long max_runs = 10'000;        ///< closed-loop runs (or variants) after expanding sweeps, grids and Monte Carlo samples; at most kMaxRunsCeiling
+};
+
+/// The largest limits.max_runs a scenario may set (building 100,000 runs takes ~5 s, ~0.3 GB).
+inline constexpr long kMaxRunsCeiling = 100'000;
+
+/// One closed-loop run of a scenario (one value of a sweep, one point of a grid, one Monte Carlo
+/// sample, or an experiment with none of them). Everything a run needs is fixed here, by
+/// build_problem, so runs may be executed in any order or in parallel with the same results.
+struct Experiment {
+  std::string name;
+  /// The run's own parameters and their values, in the order written: the sweep parameter, the
+  /// grid's parameters, or the Monte Carlo distributions (values as drawn). Empty: none.
+  std::vector<std::pair<std::string, double>> sweep;
+  long sample = -1;                         ///< Monte Carlo: the sample index 0 … samples − 1; −1: not Monte Carlo
+  std::uint64_t seed = 0;                   ///< Monte Carlo: the experiment's seed (0 when sample < 0)
+  Eigen::VectorXd q0, qd0;                  ///< plant initial state
+  ForceSet plant_forces;                    ///< the plant's own force elements
+  std::string controller_type;
+  ControllerFactory make_controller;        ///< builds the controller for a model
+};
+
+/// A built scenario. Not movable: ReferenceDynamics objects made from it refer to its members.
+struct Problem {
+  explicit Problem(Model m) : model(std::move(m)) {}
+  Problem(const Problem&) = delete;
+  Problem& operator=(const Problem&) = delete;
+
+  std::string file;
+  std::string name;
+  std::map<std::string, double> parameters;
+  const Model model;
+  ForceSet forces;
+  ConstraintSet constraints;
+  ReferenceDynamicsOptions options;         ///< with the partition fixed (chosen at t0 when automatic)
+  bool automatic_independent = false;       ///< the partition was chosen automatically
+  Eigen::VectorXd q0, qd0;                  ///< consistent reference initial state
+  bool project_initial = false;             ///< (q0, qd0) were projected onto the constraints
+  double initial_tolerance = 1e-8;
+  Eigen::VectorXd initial_dq, initial_dqd;  ///< the projection's correction (zeros if none)
+  IntegratorOptions integrator;
+  double residual_from = 0.0;               ///< report max residual over t >= this
+  Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
+  std::vector<std::unique_ptr<Experiment>> experiments;
+  std::vector<std::string> report_points;   ///< points recorded in trajectories
+  /// The scenario's `model:` section as written (numbers as expressions of the parameters), for
+  /// generate_symbolic, which keeps the parameters symbolic; null for a Problem built in C++.
+  SpecValue model_spec;
+  Limits limits;
+  /// Jerk-level problems (constraints of `order: jerk`, docs/higher_order.md): their rows (then
+  /// every row of `constraints` is one), the gain κ and the initial-acceleration hint. They are
+  /// planned by JerkDynamics (state [q; q̇; q̈]) with `forces` (stateless elements with a rate);
+  /// `options` and the partition are not used.
+  std::vector<JerkConstraintPtr> jerk_constraints;
+  double kappa = 50.0;
+  Eigen::VectorXd qdd0;                     ///< the hint (initial.qdd); empty: the free acceleration
+  bool is_jerk_problem() const { return !jerk_constraints.empty(); }
+
+  std::vector<int> report_point_indices() const;
+  /// A reference dynamics of this problem (refers to its members).
+  std::unique_ptr<ReferenceDynamics> make_reference_dynamics() const;
+};
+
+/// A SpecReader of the scenario's file with its parameters evaluated (in order; each may use
+/// the ones before it) and `deg`: what build_problem starts from.
+SpecReader parameter_reader(const ScenarioSpec& spec);
+
+/// A name that becomes part of a file or folder name (an experiment's track_<name>.csv, a
+/// variant's folder): printable, letters, digits and . _ - + = only, not starting with . or -.
+/// Fails with "… the <what> name '…' …".
+void check_output_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name,
+                       const std::string& what);
+/// `{parameter}` in a name template replaced by the value (printf %g).
+std::string substitute_value(std::string name_template, const std::string& parameter, double value);
+
+/// Builds and checks a Problem. Throws Error "FILE:LINE: KEY: message" naming the offending key.
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec);
+
+/// Plans the problem's reference motion (plan_motion with the problem's integrator, residual
+/// window and recorded points). `rd` must be made by problem.make_reference_dynamics(). A jerk
+/// problem is planned by plan_jerk_motion instead (`rd` is not used).
+Plan plan_problem(const Problem& problem, ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
+
+/// Runs one experiment on the unconstrained plant tracking `plan`.
+ClosedLoopResult track_experiment(const Problem& problem, const Experiment& experiment, const Plan& plan,
+                                  ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
+
+}  // namespace refdyn

@@ -1,0 +1,50 @@
+#pragma once
+/// Tracking control of a planned motion on the unconstrained plant (paper section 3):
+/// simulate_closed_loop runs a Controller (controllers.hpp) against a Plan (trajectory.hpp).
+///
+/// Controller interface: time, plant state (q, q̇) and reference (q̂, q̂̇, q̂̈) in, joint
+/// torques/forces τ out. The plant is the unconstrained model with its own force elements
+/// and initial state:  M(q) q̈ + c(q, q̇) + g(q) = τ + Q_plant(t, q, q̇, z).
+///
+/// Reference at every integrator stage. The reference dynamics is autonomous (it does not
+/// depend on the plant), so integrating [reference; plant] jointly with RK4 is identical to
+/// recording the reference's own RK4 stage values (q̂, q̂̇, q̂̈ at t, t+h/2, t+h/2, t+h of every
+/// step) once, and replaying them to each plant. simulate_closed_loop does the latter for RK4
+/// (the reference is computed once for any number of closed loops) and the joint integration
+/// for Dormand–Prince. Either way the controller never sees a stale or interpolated sample.
+
+#include "refdyn/forces/force_elements.hpp"
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/simulate/controllers.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/simulate/trajectory.hpp"
+
+#include <functional>
+#include <vector>
+
+namespace refdyn {
+
+struct ClosedLoopOptions {
+  IntegratorOptions integrator;      ///< must match the plan's RK4 grid when method is RK4
+  Eigen::VectorXd effort_limit;      ///< optional per-joint |τ| limit (saturation); empty: none
+  std::function<void(double)> progress;  ///< optional: called with the time of every sample
+  std::vector<int> points;           ///< model points whose positions are recorded
+};
+
+/// A closed-loop run: x = [q; q̇; z_plant; xc] (xc: the controller's states), τ, q̂, q̂̇.
+struct ClosedLoopResult : Trajectory {
+  IntegrationSummary summary;
+  long saturated_samples = 0;        ///< samples where at least one joint was saturated
+};
+
+/// Simulates the plant (model + plant_forces) under `controller` tracking `plan` from x0_plant
+/// = [q; q̇; z_plant] (the controller's states, if any, start at zero; x0_plant may also carry
+/// them). RK4: replays plan.stages through the integrator's stage hook (options.integrator must
+/// have the same t0, step, and t1 ≤ the plan's end). Dormand–Prince: integrates the reference
+/// jointly (needs `rd`).
+ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
+                                      const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,
+                                      const ClosedLoopOptions& options);
+
+}  // namespace refdyn

@@ -1,0 +1,32 @@
+#pragma once
+/// Planning: the reference dynamics (of order ≤ 2, or the jerk dynamics of order 3) integrated
+/// from a consistent initial state and recorded as a Plan (trajectory.hpp).
+
+#include "refdyn/reference/jerk.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/simulate/integrators.hpp"
+#include "refdyn/simulate/trajectory.hpp"
+
+#include <functional>
+
+namespace refdyn {
+
+/// Solves the reference dynamics from x0 with the given integrator and records it: at every
+/// output sample one evaluation of the reference dynamics gives q̈, Φ, Φ̇, λ, Q_c, the efforts,
+/// the recorded points and signals; for RK4 the integrator's stage hook also records the stage
+/// values used by simulate_closed_loop. summary.max_constraint_residual is the largest |Φ| / |c|
+/// over the samples with t >= residual_from. `progress`, when given, is called with the time
+/// of every sample (e.g. for a progress bar).
+Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
+                 double residual_from = 0.0, const std::function<void(double)>& progress = {},
+                 const RecordOptions& record = {});
+
+/// Integrates a JerkDynamics from x0 = [q; q̇; q̈] and records it like plan_motion: x (with
+/// state_names "acc_<joint>" for the q̈ part), q̈, Φ and Φ̇ (both: the jerk rows' residual
+/// B q⃛ + s), λ, Q_c = M q̈ − F, the actuator effort (Q_c, the rows being programmed, plus the
+/// actuator force elements), points.
+/// summary.max_constraint_residual: the largest dynamics residual ‖R − Bᵀλ‖∞ over the samples.
+Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
+                      const RecordOptions& record = {}, const std::function<void(double)>& progress = {});
+
+}  // namespace refdyn

@@ -1,0 +1,71 @@
+#pragma once
+/// Generated reference dynamics: the equations of a Problem as formulas and as code.
+///
+/// generate_symbolic(problem) builds, with GiNaC, exact symbolic expressions of
+///   M(q)                   mass matrix (Newton–Euler with unit accelerations)
+///   c(q, q̇), g(q)          velocity-product and gravity terms (Newton–Euler)
+///   Q(t, q, q̇, z), ż        generalized forces of the force elements and their states' rates
+///   Φ (or c), Φ̇, A, γ       every constraint row: Φ̈ = A q̈ + γ (holonomic), ċ = A q̈ + γ (first
+///                          order), A = ∂Φ/∂q or ∂c/∂q̇, γ = d/dt(A) q̇ + … by differentiation
+///   K_ic, K_dc             the columns of A of the independent / dependent coordinates
+/// in the symbols t, q_i, q̇_i, z_k and the scenario parameters the constraints and forces
+/// name (kept symbolic; their values are the defaults of the generated code). Each constraint,
+/// force element and function of time supplies its formula as a SymbolicForm
+/// (symbolic_form.hpp); kinds without one are reported by name.
+///
+/// Writers:
+///   c_header(), c_source()  C99, only <math.h>: the blocks above with common-subexpression
+///                           elimination, and PREFIX_rhs(t, x, p, xdot): ẋ = f(t, x) of the
+///                           reference dynamics with x = [q, q̇, z], q̈ from the projected
+///                           equations Nᵀ(M q̈ − F) = 0, A q̈ = −γ − 2αΦ̇ − β²Φ (holonomic rows),
+///                           −γ − β₁c (first-order rows) by the null-space method (as
+///                           ReferenceDynamics); returns 1 if K_dc or NᵀMN is singular.
+///   latex()                 a standalone LaTeX document (article class, amsmath only).
+///   json()                  the expressions as texts (GiNaC syntax: ^ for powers; the
+///                           piecewise functions print as rd_abs, rd_min, … of expression.hpp).
+/// The paper-literal force option (ReferenceDynamicsOptions::paper_literal_forces) is not
+/// supported (Error).
+#include "refdyn/scenario/problem.hpp"
+
+#include <memory>
+#include <string>
+
+namespace refdyn {
+
+struct SymbolicOptions {
+  /// Prefix of the C identifiers (functions, types, macros); empty: "rd_" + the problem's name
+  /// made an identifier. Must be a C identifier.
+  std::string prefix;
+  /// Common-subexpression elimination in the C code (off: every expression printed whole; for
+  /// measuring the gain).
+  bool cse = true;
+};
+
+struct SymbolicSummary {
+  int nq = 0, nz = 0, constraints = 0, parameters = 0;
+  double seconds = 0;            ///< generation time (symbolic work, not writing)
+  long c_temporaries = 0;        ///< CSE temporaries in the C source (set by c_source())
+  long c_operations = 0;         ///< arithmetic operations and calls in the C source (set by c_source())
+};
+
+class SymbolicReferenceDynamics {
+ public:
+  std::string c_header() const;
+  std::string c_source() const;
+  std::string latex() const;
+  std::string json() const;
+  /// The C identifier prefix.
+  const std::string& prefix() const;
+  const SymbolicSummary& summary() const;
+
+  struct Impl;
+  explicit SymbolicReferenceDynamics(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+ private:
+  std::shared_ptr<Impl> impl_;
+};
+
+/// Throws Error naming the constraint, force element or option that has no symbolic form.
+SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const SymbolicOptions& options = {});
+
+}  // namespace refdyn

@@ -1,0 +1,499 @@
+#include "refdyn/constraints/constraints.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/common/text.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace refdyn {
+
+const char* to_string(ConstraintOrigin o) { return o == ConstraintOrigin::Material ? "material" : "programmed"; }
+
+namespace {
+
+// ---------------- surfaces ----------------
+class EllipticCylinder final : public ImplicitSurface {
+ public:
+  EllipticCylinder(double a, double b, double cx, double cy) : ia2_(1 / (a * a)), ib2_(1 / (b * b)), a_(a), b_(b), cx_(cx), cy_(cy) {}
+  Value eval(const Vec3& r, double) const override {
+    const double x = r.x() - cx_, y = r.y() - cy_;
+    Value v;
+    v.f = x * x * ia2_ + y * y * ib2_ - 1.0;
+    v.grad = Vec3(2 * x * ia2_, 2 * y * ib2_, 0);
+    v.hess(0, 0) = 2 * ia2_;
+    v.hess(1, 1) = 2 * ib2_;
+    return v;
+  }
+  std::string describe() const override {
+    return "((x - " + fmt(cx_) + ")/" + fmt(a_) + ")^2 + ((y - " + fmt(cy_) + ")/" + fmt(b_) + ")^2 - 1";
+  }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    return symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" + P +
+                         ") - " + symbolic_number(cy_) + ")/" + symbolic_number(b_) + ")^2 - 1"});
+  }
+ private:
+  double ia2_, ib2_, a_, b_, cx_, cy_;
+};
+
+class Sphere final : public ImplicitSurface {
+ public:
+  Sphere(const Vec3& c, double R) : c_(c), R_(R) {}
+  Value eval(const Vec3& r, double) const override {
+    Value v;
+    const Vec3 e = r - c_;
+    v.f = e.squaredNorm() - R_ * R_;
+    v.grad = 2 * e;
+    v.hess = 2 * Mat3::Identity();
+    return v;
+  }
+  std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    std::string s;
+    for (int k = 0; k < 3; ++k)
+      s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_[k]) + ")^2";
+    return symbolic_rows({s + " - " + symbolic_number(R_) + "^2"});
+  }
+ private:
+  Vec3 c_;
+  double R_;
+};
+
+class Plane final : public ImplicitSurface {
+ public:
+  Plane(const Vec3& n, TimeFunctionPtr h) : n_(n.normalized()), h_(std::move(h)) {}
+  Value eval(const Vec3& r, double t) const override {
+    const TimeValue h = h_->eval(t);
+    Value v;
+    v.f = n_.dot(r) - h.f;
+    v.grad = n_;
+    v.ft = -h.df;
+    v.ftt = -h.ddf;
+    return v;
+  }
+  bool rheonomic() const override { return true; }
+  std::string describe() const override { return "n.r - (" + h_->describe() + ")"; }
+  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
+    std::optional<SymbolicForm> h = h_->symbolic();
+    if (!h) return std::nullopt;
+    std::string s;
+    for (int k = 0; k < 3; ++k) s += std::string(k ? " + " : "") + symbolic_number(n_[k]) + "*" + "xyz"[k] + "(" + P + ")";
+    h->rows[0] = s + " - (" + h->rows[0] + ")";
+    return h;
+  }
+ private:
+  Vec3 n_;
+  TimeFunctionPtr h_;
+};
+
+// ---------------- constraint kinds ----------------
+/// before + f(t) + after, with f's parameters; none if f has no symbolic form.
+std::optional<SymbolicForm> with_function(const std::string& before, const TimeFunction& f, const std::string& after) {
+  std::optional<SymbolicForm> s = f.symbolic();
+  if (!s) return std::nullopt;
+  s->rows[0] = before + s->rows[0] + after;
+  return s;
+}
+
+class PointOnSurface final : public Constraint {
+ public:
+  PointOnSurface(int p, std::string pn, SurfacePtr s) : p_(p), pn_(std::move(pn)), s_(std::move(s)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return s_->rheonomic(); }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const ImplicitSurface::Value f = s_->eval(P.r, in.t);
+    phi[0] = f.f;
+    phid[0] = f.grad.dot(P.v) + f.ft;
+    A.row(0).noalias() = f.grad.transpose().lazyProduct(P.C);
+    gamma[0] = f.grad.dot(P.d) + P.v.dot(f.hess * P.v) + 2 * f.grad_t.dot(P.v) + f.ftt;
+  }
+  std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
+  std::optional<SymbolicForm> symbolic() const override { return s_->symbolic(pn_); }
+ private:
+  int p_;
+  std::string pn_;
+  SurfacePtr s_;
+};
+
+class PointCoordinate final : public Constraint {
+ public:
+  PointCoordinate(int p, std::string pn, int k, TimeFunctionPtr f) : p_(p), k_(k), pn_(std::move(pn)), f_(std::move(f)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = P.r[k_] - f.f;
+    phid[0] = P.v[k_] - f.df;
+    A.row(0) = P.C.row(k_);
+    gamma[0] = P.d[k_] - f.ddf;
+  }
+  std::string describe() const override {
+    return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    return with_function(std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (", *f_, ")");
+  }
+  const TimeFunction* target() const override { return f_.get(); }
+ private:
+  int p_, k_;
+  std::string pn_;
+  TimeFunctionPtr f_;
+};
+
+class JointTrajectory final : public Constraint {
+ public:
+  JointTrajectory(int j, std::string jn, TimeFunctionPtr f) : j_(j), jn_(std::move(jn)), f_(std::move(f)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return true; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = in.q[j_] - f.f;
+    phid[0] = in.qd[j_] - f.df;
+    A.row(0).setZero();
+    A(0, j_) = 1.0;
+    gamma[0] = -f.ddf;
+  }
+  std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override { return with_function("q(" + jn_ + ") - (", *f_, ")"); }
+  const TimeFunction* target() const override { return f_.get(); }
+ private:
+  int j_;
+  std::string jn_;
+  TimeFunctionPtr f_;
+};
+
+class JointCoupling final : public Constraint {
+ public:
+  JointCoupling(int j, int l, std::string jn, std::string ln, double ratio, double offset)
+      : j_(j), l_(l), jn_(std::move(jn)), ln_(std::move(ln)), ratio_(ratio), offset_(offset) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return false; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    phi[0] = in.q[j_] - ratio_ * in.q[l_] - offset_;
+    phid[0] = in.qd[j_] - ratio_ * in.qd[l_];
+    A.row(0).setZero();
+    A(0, j_) = 1.0;
+    A(0, l_) = -ratio_;
+    gamma[0] = 0.0;
+  }
+  std::string describe() const override {
+    return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    return symbolic_rows({"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)});
+  }
+ private:
+  int j_, l_;
+  std::string jn_, ln_;
+  double ratio_, offset_;
+};
+
+class PointsCoincide final : public Constraint {
+ public:
+  PointsCoincide(int p1, int p2, std::string n1, std::string n2, std::vector<int> axes)
+      : p1_(p1), p2_(p2), n1_(std::move(n1)), n2_(std::move(n2)), axes_(std::move(axes)) {}
+  int rows() const override { return static_cast<int>(axes_.size()); }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return false; }
+  std::vector<int> points() const override { return {p1_, p2_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p1_];
+    const PointState& Q = in.points[p2_];
+    for (size_t i = 0; i < axes_.size(); ++i) {
+      const int k = axes_[i];
+      phi[i] = P.r[k] - Q.r[k];
+      phid[i] = P.v[k] - Q.v[k];
+      A.row(i) = P.C.row(k) - Q.C.row(k);
+      gamma[i] = P.d[k] - Q.d[k];
+    }
+  }
+  std::string describe() const override { return "r(" + n1_ + ") - r(" + n2_ + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    for (int k : axes_) {
+      const std::string a(1, "xyz"[k]);
+      f.rows.push_back(a + "(" + n1_ + ") - " + a + "(" + n2_ + ")");
+    }
+    return f;
+  }
+ private:
+  int p1_, p2_;
+  std::string n1_, n2_;
+  std::vector<int> axes_;
+};
+
+class KnifeEdge final : public Constraint {
+ public:
+  KnifeEdge(int p, std::string pn, const Vec3& a) : p_(p), pn_(std::move(pn)), a_(a.normalized()) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return true; }
+  bool rheonomic() const override { return false; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const Vec3 n = P.R * a_;
+    phi[0] = n.dot(P.v);
+    phid[0] = phi[0];
+    A.row(0).noalias() = n.transpose().lazyProduct(P.C);
+    gamma[0] = P.w.cross(n).dot(P.v) + n.dot(P.d);
+  }
+  std::string describe() const override { return "no lateral slip at " + pn_; }
+  std::optional<SymbolicForm> symbolic() const override {
+    // (R a)·v_P
+    std::string s;
+    for (int r = 0; r < 3; ++r) {
+      std::string nr;
+      for (int c = 0; c < 3; ++c)
+        if (a_[c] != 0.0)
+          nr += std::string(nr.empty() ? "" : " + ") + "R" + std::to_string(r + 1) + std::to_string(c + 1) + "(" + pn_ +
+                ")*" + symbolic_number(a_[c]);
+      if (!nr.empty()) s += std::string(s.empty() ? "" : " + ") + "(" + nr + ")*v" + "xyz"[r] + "(" + pn_ + ")";
+    }
+    return symbolic_rows({s.empty() ? "0" : s});
+  }
+ private:
+  int p_;
+  std::string pn_;
+  Vec3 a_;
+};
+
+class PointSpeed final : public Constraint {
+ public:
+  PointSpeed(int p, std::string pn, const Vec3& u, TimeFunctionPtr s) : p_(p), pn_(std::move(pn)), u_(u.normalized()), s_(std::move(s)) {}
+  int rows() const override { return 1; }
+  bool first_order() const override { return true; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {p_}; }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[p_];
+    const TimeValue s = s_->eval(in.t);
+    phi[0] = u_.dot(P.v) - s.f;
+    phid[0] = phi[0];
+    A.row(0).noalias() = u_.transpose().lazyProduct(P.C);
+    gamma[0] = u_.dot(P.d) - s.df;
+  }
+  std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::string s;
+    for (int k = 0; k < 3; ++k)
+      if (u_[k] != 0.0) s += std::string(s.empty() ? "" : " + ") + symbolic_number(u_[k]) + "*v" + "xyz"[k] + "(" + pn_ + ")";
+    return with_function((s.empty() ? "0" : s) + " - (", *s_, ")");
+  }
+  const TimeFunction* target() const override { return s_.get(); }
+ private:
+  int p_;
+  std::string pn_;
+  Vec3 u_;
+  TimeFunctionPtr s_;
+};
+
+template <typename T>
+std::shared_ptr<T> named(std::shared_ptr<T> c, std::string name, ConstraintOrigin o) {
+  c->name = std::move(name);
+  c->origin = o;
+  return c;
+}
+
+void need_axis(int axis, const char* what) {
+  if (axis < 0 || axis > 2) throw Error(expected_got(what, "0 (x), 1 (y) or 2 (z)", std::to_string(axis)));
+}
+void need_vec(const Vec3& v, const std::string& what) {
+  if (!v.allFinite() || v.norm() < 1e-12) throw Error(expected_got(what, "a finite non-zero vector", "zero or NaN"));
+}
+
+}  // namespace
+
+SurfacePtr elliptic_cylinder(double a, double b, double cx, double cy) {
+  if (!(std::isfinite(a) && a > 0) || !(std::isfinite(b) && b > 0))
+    throw Error(expected_got("ellipse half-axes", "finite values > 0", fmt(a) + ", " + fmt(b)));
+  if (!std::isfinite(cx) || !std::isfinite(cy)) throw Error("ellipse centre must be finite");
+  return std::make_shared<EllipticCylinder>(a, b, cx, cy);
+}
+SurfacePtr sphere(const Vec3& c, double R) {
+  if (!c.allFinite() || !(std::isfinite(R) && R > 0))
+    throw Error(expected_got("sphere", "a finite centre and radius > 0", fmt(R)));
+  return std::make_shared<Sphere>(c, R);
+}
+SurfacePtr plane(const Vec3& n, TimeFunctionPtr h) {
+  need_vec(n, "plane normal");
+  if (!h) throw Error("plane: expected an offset function, got none");
+  return std::make_shared<Plane>(n, std::move(h));
+}
+
+ConstraintPtr point_on_surface(const Model& m, const std::string& point, SurfacePtr s, ConstraintOrigin o) {
+  if (!s) throw Error("point_on_surface: expected a surface, got none");
+  return named(std::make_shared<PointOnSurface>(m.point_index(point), point, std::move(s)), point + "_on_surface", o);
+}
+ConstraintPtr point_coordinate(const Model& m, const std::string& point, int axis, TimeFunctionPtr f,
+                               ConstraintOrigin o) {
+  need_axis(axis, "point_coordinate axis");
+  if (!f) throw Error("point_coordinate: expected a time function, got none");
+  return named(std::make_shared<PointCoordinate>(m.point_index(point), point, axis, std::move(f)),
+               std::string("xyz").substr(axis, 1) + "_" + point, o);
+}
+ConstraintPtr joint_trajectory(const Model& m, const std::string& joint, TimeFunctionPtr f, ConstraintOrigin o) {
+  if (!f) throw Error("joint_trajectory: expected a time function, got none");
+  return named(std::make_shared<JointTrajectory>(m.joint_index(joint), joint, std::move(f)), "q_" + joint, o);
+}
+ConstraintPtr joint_coupling(const Model& m, const std::string& joint, const std::string& leader, double ratio,
+                             double offset, ConstraintOrigin o) {
+  if (!std::isfinite(ratio) || !std::isfinite(offset))
+    throw Error(expected_got("joint_coupling ratio and offset", "finite numbers", fmt(ratio) + ", " + fmt(offset)));
+  const int j = m.joint_index(joint), l = m.joint_index(leader);
+  if (j == l) throw Error("joint_coupling: joint '" + joint + "' cannot be coupled to itself (hint: name another leader)");
+  return named(std::make_shared<JointCoupling>(j, l, joint, leader, ratio, offset), joint + "_from_" + leader, o);
+}
+ConstraintPtr points_coincide(const Model& m, const std::string& p1, const std::string& p2, std::vector<int> axes,
+                              ConstraintOrigin o) {
+  if (axes.empty()) throw Error("points_coincide: expected at least one axis, got none");
+  for (int a : axes) need_axis(a, "points_coincide axis");
+  const int i1 = m.point_index(p1), i2 = m.point_index(p2);
+  if (i1 == i2) throw Error("points_coincide: the two points are the same ('" + p1 + "')");
+  return named(std::make_shared<PointsCoincide>(i1, i2, p1, p2, std::move(axes)), p1 + "_at_" + p2, o);
+}
+ConstraintPtr knife_edge(const Model& m, const std::string& point, const Vec3& a, ConstraintOrigin o) {
+  need_vec(a, "knife_edge lateral axis");
+  return named(std::make_shared<KnifeEdge>(m.point_index(point), point, a), "no_slip_" + point, o);
+}
+ConstraintPtr point_speed(const Model& m, const std::string& point, const Vec3& u, TimeFunctionPtr s,
+                          ConstraintOrigin o) {
+  need_vec(u, "point_speed direction");
+  if (!s) throw Error("point_speed: expected a speed function, got none");
+  return named(std::make_shared<PointSpeed>(m.point_index(point), point, u, std::move(s)), "speed_" + point, o);
+}
+
+// ---------------- set and evaluation ----------------
+void ConstraintSet::add(ConstraintPtr c) {
+  if (!c) throw Error("ConstraintSet::add: expected a constraint, got none");
+  for (const auto& e : constraints_)
+    if (e->name == c->name)
+      throw Error("constraint '" + c->name + "' is defined twice (hint: give each constraint its own name)");
+  offsets_.push_back(rows_);
+  rows_ += c->rows();
+  for (int p : c->points())
+    if (std::find(points_.begin(), points_.end(), p) == points_.end()) points_.push_back(p);
+  constraints_.push_back(std::move(c));
+}
+
+int ConstraintSet::row_owner(int row) const {
+  int k = 0;
+  while (k + 1 < size() && offsets_[k + 1] <= row) ++k;
+  return k;
+}
+
+std::string ConstraintSet::row_name(int row) const {
+  const int k = row_owner(row);
+  const auto& c = constraints_[k];
+  return c->rows() == 1 ? c->name : c->name + "[" + std::to_string(row - offsets_[k]) + "]";
+}
+
+ConstraintEval::ConstraintEval(const Model& model, const ConstraintSet& set)
+    : phi(Eigen::VectorXd::Zero(set.rows())), phid(Eigen::VectorXd::Zero(set.rows())),
+      gamma(Eigen::VectorXd::Zero(set.rows())), A(Eigen::MatrixXd::Zero(set.rows(), model.nv)),
+      points(model.point_name.size()) {
+  int most = 0;
+  for (const auto& c : set.constraints()) most = std::max(most, c->scratch_size());
+  scratch.assign(static_cast<size_t>(most), 0.0);
+  for (auto& p : points) {
+    p.C = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
+    p.Jw = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, model.nv);
+  }
+}
+
+namespace {
+/// Point states from body motions already in data.v, data.a (and data.oMi). `a_offset` is
+/// subtracted from every world-frame drift: the base acceleration data.a was propagated with.
+void point_states_from_body_motion(const Model& model, const Data& data, const std::vector<int>& pts,
+                                   const Vec3& a_offset, std::vector<PointState>& out) {
+  for (int k : pts) {
+    PointState& P = out[k];
+    const int b = model.point_body[k];
+    if (b < 0) {
+      P.r = model.point_position[k];
+      P.v.setZero();
+      P.d.setZero();
+      P.w.setZero();
+      P.wd.setZero();
+      P.R.setIdentity();
+      P.C.setZero();
+      P.Jw.setZero();
+      continue;
+    }
+    const PointDrift pd = kinematics_detail::point_drift_on_body(data, b, model.point_position[k]);
+    P.r = data.oMi[b].act_point(model.point_position[k]);
+    P.R = data.oMi[b].R;
+    P.v = pd.velocity;
+    P.d = pd.drift - a_offset;
+    P.w = pd.omega;
+    P.wd = pd.omega_drift;
+    kinematics_detail::point_jacobian_at(model, data, b, P.r, P.C, P.Jw);
+  }
+}
+
+void compose_world_placements(const Model& model, Data& data) {
+  for (int i = 0; i < model.nq; ++i) {
+    const int p = model.parent[i];
+    data.oMi[i] = p < 0 ? data.liMi[i] : data.oMi[p] * data.liMi[i];
+  }
+}
+}  // namespace
+
+void compute_point_states(const Model& model, Data& data, const std::vector<int>& pts, const Eigen::VectorXd& qd,
+                          std::vector<PointState>& out) {
+  // Body velocities and drift accelerations (q̈ = 0), body frames.
+  for (int i = 0; i < model.nq; ++i) kinematics_detail::propagate_velocity_drift(model, data, i, qd);
+  point_states_from_body_motion(model, data, pts, Vec3::Zero(), out);
+}
+
+namespace {
+void evaluate_rows(const ConstraintSet& set, ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                   const Eigen::VectorXd& qd) {
+  const ConstraintInput in{t, q, qd, ev.points, ev.scratch.data()};
+  for (int k = 0; k < set.size(); ++k) {
+    const auto& c = set.constraints()[k];
+    const int r = set.row_offset(k), m = c->rows();
+    c->evaluate(in, ev.phi.segment(r, m), ev.phid.segment(r, m), ev.A.middleRows(r, m), ev.gamma.segment(r, m));
+  }
+}
+}  // namespace
+
+void evaluate_constraints(const Model& model, Data& data, const ConstraintSet& set, ConstraintEval& ev, double t,
+                          const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  check_data(model, data);
+  if (q.size() != model.nq) model.check_q(q);
+  if (qd.size() != model.nv) check_vector("qd", qd, model.nv);
+  if (ev.phi.size() != set.rows() || ev.A.cols() != model.nv || ev.points.size() != model.point_name.size())
+    throw Error("evaluate_constraints: the ConstraintEval was built for another model or constraint set (hint: "
+                "ConstraintEval ev(model, set) with the same model and set)");
+  unchecked::forward_kinematics(model, data, q);
+  compute_point_states(model, data, set.points(), qd, ev.points);
+  evaluate_rows(set, ev, t, q, qd);
+}
+
+void evaluate_constraints_after_bias_forces(const Model& model, Data& data, const ConstraintSet& set,
+                                            ConstraintEval& ev, double t, const Eigen::VectorXd& q,
+                                            const Eigen::VectorXd& qd) {
+  compose_world_placements(model, data);
+  // RNEA with q̈ = 0 left the drift accelerations plus the base acceleration −g, carried into
+  // every body as a pure translation: subtract it in the world frame.
+  point_states_from_body_motion(model, data, set.points(), -model.gravity, ev.points);
+  evaluate_rows(set, ev, t, q, qd);
+}
+
+}  // namespace refdyn

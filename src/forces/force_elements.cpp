@@ -1,0 +1,229 @@
+#include "refdyn/forces/force_elements.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
+
+#include <cmath>
+
+namespace refdyn {
+
+namespace {
+
+void need(bool ok, const std::string& what, const std::string& expected, double got) {
+  if (!ok) throw Error(expected_got(what, expected, fmt(got)));
+}
+
+class JointDamping final : public ForceElement {
+ public:
+  JointDamping(int j, std::string n, double b) : j_(j), n_(std::move(n)), b_(b) {}
+  std::string name() const override { return "damping(" + n_ + ")"; }
+  void apply(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const double*, Eigen::VectorXd& Q,
+             double*, Eigen::MatrixXd* dQ) const override {
+    Q[j_] -= b_ * qd[j_];
+    if (dQ) (*dQ)(j_, j_) -= b_;
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    f.rows = {"-" + symbolic_number(b_) + "*qd(" + n_ + ")"};
+    f.joints = {j_};
+    return f;
+  }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= b_ * qdd[j_];
+    return true;
+  }
+ private:
+  int j_;
+  std::string n_;
+  double b_;
+};
+
+class JointSpring final : public ForceElement {
+ public:
+  JointSpring(int j, std::string n, double k, double r) : j_(j), n_(std::move(n)), k_(k), r_(r) {}
+  std::string name() const override { return "spring(" + n_ + ")"; }
+  void apply(double, const Eigen::VectorXd& q, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
+             Eigen::MatrixXd*) const override {
+    Q[j_] -= k_ * (q[j_] - r_);
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    SymbolicForm f;
+    f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
+    f.joints = {j_};
+    return f;
+  }
+  bool add_rate(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] -= k_ * qd[j_];
+    return true;
+  }
+ private:
+  int j_;
+  std::string n_;
+  double k_, r_;
+};
+
+class JointEffort final : public ForceElement {
+ public:
+  JointEffort(int j, std::string n, TimeFunctionPtr f) : j_(j), n_(std::move(n)), f_(std::move(f)) {}
+  std::string name() const override { return "effort(" + n_ + ")"; }
+  bool actuator() const override { return true; }
+  void apply(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
+             Eigen::MatrixXd*) const override {
+    Q[j_] += f_->eval(t).f;
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::optional<SymbolicForm> f = f_->symbolic();
+    if (!f) return std::nullopt;
+    f->functions = {{"effort", f->rows[0]}};
+    f->rows = {"effort"};
+    f->joints = {j_};
+    return f;
+  }
+  bool add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd&,
+                Eigen::VectorXd& Qdot) const override {
+    Qdot[j_] += f_->eval(t).df;
+    return true;
+  }
+ private:
+  int j_;
+  std::string n_;
+  TimeFunctionPtr f_;
+};
+
+}  // namespace
+
+ForceElementPtr joint_damping(const Model& model, const std::string& joint, double b) {
+  need(std::isfinite(b) && b >= 0, "damping coefficient of joint '" + joint + "'", "a finite value >= 0", b);
+  return std::make_shared<JointDamping>(model.joint_index(joint), joint, b);
+}
+ForceElementPtr joint_spring(const Model& model, const std::string& joint, double k, double q_rest) {
+  need(std::isfinite(k) && k >= 0, "spring stiffness of joint '" + joint + "'", "a finite value >= 0", k);
+  need(std::isfinite(q_rest), "spring rest position of joint '" + joint + "'", "a finite value", q_rest);
+  return std::make_shared<JointSpring>(model.joint_index(joint), joint, k, q_rest);
+}
+ForceElementPtr joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f) {
+  if (!f) throw Error("joint_effort: expected a time function, got none");
+  return std::make_shared<JointEffort>(model.joint_index(joint), joint, std::move(f));
+}
+
+FlexibleDrive::FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p,
+                             TimeFunctionPtr profile)
+    : j_(model.joint_index(joint)), joint_name_(joint), p_(p), profile_(std::move(profile)) {
+  need(std::isfinite(p.stiffness) && p.stiffness >= 0, "flexible drive stiffness", "a finite value >= 0", p.stiffness);
+  need(std::isfinite(p.damping) && p.damping >= 0, "flexible drive damping", "a finite value >= 0", p.damping);
+  if (!profile_) throw Error("flexible drive: expected a displacement profile, got none");
+}
+
+std::vector<std::string> FlexibleDrive::signal_names() const {
+  const std::string suffix = label.empty() ? "" : "_" + label;
+  return {"psi_dr" + suffix, "tau_drive" + suffix};
+}
+
+void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,
+                            double* out) const {
+  out[0] = profile_->eval(t).f;
+  out[1] = torque(t, q, qd);
+}
+
+double FlexibleDrive::torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
+  const TimeValue psi = profile_->eval(t);
+  return p_.stiffness * (psi.f - q[j_]) + p_.damping * (psi.df - qd[j_]);
+}
+
+bool FlexibleDrive::add_rate(double t, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                            Eigen::VectorXd& Qdot) const {
+  const TimeValue psi = profile_->eval(t);
+  Qdot[j_] += p_.stiffness * (psi.df - qd[j_]) + p_.damping * (psi.ddf - qdd[j_]);
+  return true;
+}
+
+void FlexibleDrive::apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,
+                          Eigen::VectorXd& Q, double*, Eigen::MatrixXd* dQ) const {
+  Q[j_] += torque(t, q, qd);
+  if (dQ) (*dQ)(j_, j_) -= p_.damping;
+}
+
+LuGreFriction::LuGreFriction(const Model& model, const std::string& joint, LuGreParams p)
+    : j_(model.joint_index(joint)), joint_name_(joint), p_(p) {
+  const std::string w = "LuGre friction of joint '" + joint + "': ";
+  need(std::isfinite(p.mu_s) && p.mu_s > 0, w + "mu_s", "a finite value > 0", p.mu_s);
+  need(std::isfinite(p.mu_k) && p.mu_k > 0, w + "mu_k", "a finite value > 0", p.mu_k);
+  need(std::isfinite(p.sigma0) && p.sigma0 >= 0, w + "sigma0", "a finite value >= 0", p.sigma0);
+  need(std::isfinite(p.sigma1) && p.sigma1 >= 0, w + "sigma1", "a finite value >= 0", p.sigma1);
+  need(std::isfinite(p.sigma2) && p.sigma2 >= 0, w + "sigma2", "a finite value >= 0", p.sigma2);
+  need(std::isfinite(p.v_stribeck) && p.v_stribeck > 0, w + "Stribeck velocity", "a finite value > 0", p.v_stribeck);
+}
+
+std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
+  std::optional<SymbolicForm> f = profile_->symbolic();
+  if (!f) return std::nullopt;
+  f->functions = {{"psi_dr", f->rows[0]}};
+  f->rows = {symbolic_number(p_.stiffness) + "*(psi_dr - q(" + joint_name_ + ")) + " + symbolic_number(p_.damping) +
+             "*(d_psi_dr - qd(" + joint_name_ + "))"};
+  f->joints = {j_};
+  return f;
+}
+
+std::optional<SymbolicForm> LuGreFriction::symbolic() const {
+  const std::string v = "qd(" + joint_name_ + ")";
+  const std::string g = "(" + symbolic_number(p_.mu_k) + " + (" + symbolic_number(p_.mu_s) + " - " +
+                        symbolic_number(p_.mu_k) + ")*exp(-(" + v + "/" + symbolic_number(p_.v_stribeck) + ")^2))";
+  SymbolicForm f;
+  f.state_rates = {v + " - " + symbolic_number(p_.sigma0) + "*abs(" + v + ")*z(0)/" + g};
+  f.rows = {"-(" + symbolic_number(p_.sigma0) + "*z(0) + " + symbolic_number(p_.sigma1) + "*zdot(0) + " +
+            symbolic_number(p_.sigma2) + "*" + v + ")"};
+  f.joints = {j_};
+  return f;
+}
+
+void LuGreFriction::apply(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const double* z,
+                          Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ) const {
+  const double v = qd[j_];
+  const double r = v / p_.v_stribeck;
+  const double e = std::exp(-r * r);
+  const double g = p_.mu_k + (p_.mu_s - p_.mu_k) * e;
+  const double av = std::abs(v);
+  const double zd = v - p_.sigma0 * av * z[0] / g;
+  zdot[0] = zd;
+  Q[j_] -= p_.sigma0 * z[0] + p_.sigma1 * zd + p_.sigma2 * v;
+  if (dQ) {
+    const double sgn = (v > 0) - (v < 0);
+    const double dg = (p_.mu_s - p_.mu_k) * e * (-2.0 * v / (p_.v_stribeck * p_.v_stribeck));
+    const double dzd = 1.0 - p_.sigma0 * z[0] * (sgn * g - av * dg) / (g * g);
+    (*dQ)(j_, j_) -= p_.sigma1 * dzd + p_.sigma2;
+  }
+}
+
+void ForceSet::add(ForceElementPtr e) {
+  if (!e) throw Error("ForceSet::add: expected a force element, got none");
+  offsets_.push_back(nz_);
+  nz_ += e->num_states();
+  elements_.push_back(std::move(e));
+}
+
+std::vector<std::string> ForceSet::state_names() const {
+  std::vector<std::string> n;
+  for (const auto& e : elements_)
+    for (auto& s : e->state_names()) n.push_back(s);
+  return n;
+}
+
+void ForceSet::evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                        Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ) const {
+  Q.setZero();
+  if (dQ) dQ->setZero();
+  for (size_t k = 0; k < elements_.size(); ++k)
+    elements_[k]->apply(t, q, qd, z + offsets_[k], Q, zdot + offsets_[k], dQ);
+}
+
+Eigen::VectorXd ForceSet::element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                        const double* z) const {
+  Eigen::VectorXd Q = Eigen::VectorXd::Zero(q.size());
+  std::vector<double> zd(std::max(1, elements_[k]->num_states()));
+  elements_[k]->apply(t, q, qd, z + offsets_[k], Q, zd.data(), nullptr);
+  return Q;
+}
+
+}  // namespace refdyn

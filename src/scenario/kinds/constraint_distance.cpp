@@ -1,0 +1,86 @@
+// The distance between two points follows a function of time: |r_A − r_B| − d(t) = 0.
+// A kind added as one file plus one line in kinds.def (the README's "adding a kind").
+//
+// With Δ = r_A − r_B, ρ = |Δ|, u = Δ/ρ and Δ̇ = v_A − v_B:
+//   Φ = ρ − d,   Φ̇ = u·Δ̇ − ḋ,   A = uᵀ (C_A − C_B),
+//   Φ̈ = A q̈ + γ,   γ = u·(d_A − d_B) + (|Δ̇|² − (u·Δ̇)²)/ρ − d̈
+// (d_P: the drift acceleration of P, the part of its acceleration that does not depend on q̈).
+// The constraint is undefined when the points coincide (ρ = 0): evaluation stops there.
+#include "kinds.hpp"
+
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/common/text.hpp"
+
+namespace refdyn::kinds {
+
+namespace {
+
+class Distance final : public Constraint {
+ public:
+  Distance(const Model& m, const std::string& a, const std::string& b, TimeFunctionPtr d)
+      : a_(m.point_index(a)), b_(m.point_index(b)), an_(a), bn_(b), d_(std::move(d)) {
+    if (a_ == b_) throw Error("distance: expected two different points, got '" + a + "' twice");
+  }
+  int rows() const override { return 1; }
+  bool first_order() const override { return false; }
+  bool rheonomic() const override { return true; }
+  std::vector<int> points() const override { return {a_, b_}; }
+  const TimeFunction* target() const override { return d_.get(); }
+  std::string describe() const override {
+    return "|r(" + an_ + ") - r(" + bn_ + ")| - (" + d_->describe() + ") = 0";
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::optional<SymbolicForm> d = d_->symbolic();
+    if (!d) return std::nullopt;
+    d->rows[0] = "sqrt((x(" + an_ + ") - x(" + bn_ + "))^2 + (y(" + an_ + ") - y(" + bn_ + "))^2 + (z(" + an_ + ") - z(" +
+                 bn_ + "))^2) - (" + d->rows[0] + ")";
+    return d;
+  }
+  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
+                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
+    const PointState& P = in.points[a_];
+    const PointState& Q = in.points[b_];
+    const Vec3 delta = P.r - Q.r, delta_dot = P.v - Q.v;
+    const double rho = delta.norm();
+    if (!(rho > 1e-12))
+      throw NumericalFailure(in.t, "at t = " + fmt(in.t) + " s the points '" + an_ + "' and '" + bn_ +
+                                       "' of distance constraint '" + name +
+                                       "' coincide: the distance has no direction there");
+    const Vec3 u = delta / rho;
+    const TimeValue d = d_->eval(in.t);
+    const double ud = u.dot(delta_dot);
+    phi[0] = rho - d.f;
+    phid[0] = ud - d.df;
+    A.row(0).noalias() = u.transpose().lazyProduct(P.C - Q.C);
+    gamma[0] = u.dot(P.d - Q.d) + (delta_dot.squaredNorm() - ud * ud) / rho - d.ddf;
+  }
+
+ private:
+  int a_, b_;
+  std::string an_, bn_;
+  TimeFunctionPtr d_;
+};
+
+}  // namespace
+
+ConstraintKind constraint_distance() {
+  ConstraintKind k;
+  k.name = "distance";
+  k.doc = "the distance between two points follows a function of time: |r_A − r_B| − d(t) = 0 (a rod, a cable "
+          "length, a telescoping task)";
+  k.keys = {{"points", "[A, B]", true, "", "the two points"},
+            {"length", "function of t", true, "", "d(t) [m], > 0"},
+            {"record", "name", false, "", "record d(t) in plan.csv under this column name"}};
+  k.build = [](const EntryArgs& a, ConstraintOrigin origin) -> ConstraintPtr {
+    const SpecValue& ps = a.reader.need(a.entry.fields, "points", a.entry.key);
+    if (!ps.is_list() || ps.size() != 2) a.fail("points", "expected two point names [A, B]");
+    const std::string p0 = a.reader.point(ps[0], a.key("points"), a.model);
+    const std::string p1 = a.reader.point(ps[1], a.key("points"), a.model);
+    auto c = std::make_shared<Distance>(a.model, p0, p1, a.function("length"));
+    c->origin = origin;
+    return c;
+  };
+  return k;
+}
+
+}  // namespace refdyn::kinds

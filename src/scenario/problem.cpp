@@ -1,0 +1,942 @@
+// build_problem: a ScenarioSpec (as written) becomes a checked Problem.
+#include "refdyn/scenario/problem.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/common/text.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <numbers>
+#include <random>
+#include <set>
+
+namespace refdyn {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+LinkInertia read_inertia(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  LinkInertia in;
+  if (n["mass"]) in.mass = c.number(n["mass"], key + ".mass");
+  if (in.mass < 0) c.fail(n["mass"], key + ".mass", "expected a number >= 0 [kg], got " + fmt(in.mass));
+  if (n["com"]) in.com = c.vec3(n["com"], key + ".com");
+  if (const SpecValue& I = n["inertia"]) {
+    const std::string k = key + ".inertia";
+    if (!I.is_list()) c.fail(I, k, "expected [Ixx, Iyy, Izz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] or a 3x3 list, got " + I.describe());
+    if (I.size() == 3 && I[0].is_list()) {
+      for (int r = 0; r < 3; ++r) {
+        const Vec3 row = c.vec3(I[r], k + "[" + std::to_string(r) + "]");
+        in.I_com.row(r) = row.transpose();
+      }
+    } else if (I.size() == 3) {
+      in.I_com = c.vec3(I, k).asDiagonal();
+    } else if (I.size() == 6) {
+      double v[6];
+      for (int i = 0; i < 6; ++i) v[i] = c.number(I[i], k + "[" + std::to_string(i) + "]");
+      in.I_com << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
+    } else {
+      c.fail(I, k, "expected 3 (diagonal), 6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or 3x3 values, got " + std::to_string(I.size()));
+    }
+  }
+  return in;
+}
+
+JointLimits read_limits(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  JointLimits l;
+  if (!n) return l;
+  c.keys(n, key, {"lower", "upper", "velocity", "effort"});
+  l.lower = c.number_or(n, "lower", key, l.lower);
+  l.upper = c.number_or(n, "upper", key, l.upper);
+  l.velocity = c.number_or(n, "velocity", key, l.velocity);
+  l.effort = c.number_or(n, "effort", key, l.effort);
+  return l;
+}
+
+JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  const std::string t = c.choice(n, key, {"revolute", "prismatic", "fixed"});
+  return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
+}
+
+ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
+                            std::map<std::string, int>& link_lines) {
+  const std::string key = "model";
+  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
+  const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
+  if (sources != 1) c.fail(m, key, "expected exactly one of 'dh', 'links' or 'urdf', got " + std::to_string(sources));
+  ModelDescription d;
+  if (const SpecValue& dh = m["dh"]) {
+    c.keys(dh, "model.dh", {"convention", "joints"});
+    DHConvention conv = DHConvention::Standard;
+    if (dh["convention"]) conv = c.choice(dh["convention"], "model.dh.convention", {"standard", "modified"}) == "standard"
+                                     ? DHConvention::Standard : DHConvention::Modified;
+    const SpecValue& js = c.need(dh, "joints", "model.dh");
+    if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
+    std::vector<DHRow> rows;
+    std::vector<std::string> link_names;
+    for (size_t i = 0; i < js.size(); ++i) {
+      const SpecValue& j = js[i];
+      const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
+      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits"});
+      DHRow r;
+      r.name = c.string(c.need(j, "name", k), k + ".name");
+      r.type = read_joint_type(c, c.need(j, "type", k), k + ".type");
+      r.theta = c.number_or(j, "theta", k, 0.0);
+      r.d = c.number_or(j, "d", k, 0.0);
+      r.a = c.number_or(j, "a", k, 0.0);
+      r.alpha = c.number_or(j, "alpha", k, 0.0);
+      r.inertia = read_inertia(c, j, k);
+      r.limits = read_limits(c, j["limits"], k + ".limits");
+      rows.push_back(r);
+      link_names.push_back(j["link"] ? c.string(j["link"], k + ".link") : r.name);
+      link_lines[link_names.back()] = j.where.line;
+    }
+    d = from_dh(rows, conv);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      d.links[i].name = link_names[i];
+      d.links[i].joint_name = rows[i].name;
+    }
+  } else if (const SpecValue& ls = m["links"]) {
+    if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
+    std::map<std::string, int> index;
+    for (size_t i = 0; i < ls.size(); ++i) {
+      const SpecValue& l = ls[i];
+      const std::string k = "model.links[" + std::to_string(i) + "]";
+      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits"});
+      LinkSpec s;
+      s.name = c.string(c.need(l, "name", k), k + ".name");
+      s.joint_name = l["joint"] ? c.string(l["joint"], k + ".joint") : s.name;
+      if (l["parent"]) {
+        const std::string p = c.string(l["parent"], k + ".parent");
+        if (p != "base" && p != "world") {
+          auto it = index.find(p);
+          if (it == index.end()) {
+            std::vector<std::string> names;
+            for (auto& [nm, ix] : index) names.push_back(nm);
+            c.fail(l["parent"], k + ".parent", "unknown parent link '" + p + "' (links must be listed after their parent)" + did_you_mean(p, names));
+          }
+          s.parent = it->second;
+        }
+      }
+      s.type = read_joint_type(c, c.need(l, "type", k), k + ".type");
+      if (l["axis"]) s.axis = c.vec3(l["axis"], k + ".axis");
+      if (s.axis.norm() < 1e-12) c.fail(l["axis"], k + ".axis", "expected a non-zero vector");
+      if (l["origin"]) s.placement = c.pose(l["origin"], k + ".origin");
+      if (l["link_offset"]) s.link_offset = c.pose(l["link_offset"], k + ".link_offset");
+      s.offset = c.number_or(l, "offset", k, 0.0);
+      s.inertia = read_inertia(c, l, k);
+      s.limits = read_limits(c, l["limits"], k + ".limits");
+      index[s.name] = static_cast<int>(d.links.size());
+      link_lines[s.name] = l.where.line;
+      d.add_link(s);
+    }
+  } else {
+    if (!urdf) c.fail(m["urdf"], "model.urdf", "the URDF file was not loaded (hint: load the scenario with io::load_scenario)");
+    d = *urdf;
+  }
+  if (m["name"]) d.name = c.string(m["name"], "model.name");
+  if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
+  if (m["base"]) d.base = c.pose(m["base"], "model.base");
+  if (const SpecValue& ps = m["points"]) {
+    if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
+    for (const auto& kv : ps.entries) {
+      const std::string& name = kv.key;
+      const std::string k = "model.points." + name;
+      c.keys(kv.value, k, {"link", "position"});
+      const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
+      Vec3 pos = Vec3::Zero();
+      if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
+      bool known = link == "world" || link == "base";
+      std::vector<std::string> names;
+      for (const auto& l : d.links) {
+        names.push_back(l.name);
+        known = known || l.name == link;
+      }
+      if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
+      // A point named like an existing one (e.g. URDF link points) replaces it.
+      std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
+      d.add_point(name, link, pos);
+    }
+  }
+  return d;
+}
+
+
+std::string substitute(std::string s, const std::string& var, double v) {
+  const std::string pat = "{" + var + "}";
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  for (size_t pos; (pos = s.find(pat)) != std::string::npos;) s.replace(pos, pat.size(), b);
+  return s;
+}
+
+/// Portable random numbers for monte_carlo experiments (docs/scenario.md, "experiments"): the
+/// engine std::mt19937_64 is specified exactly by the standard, its distributions are not, so
+/// the distributions are ours. u = (top 53 bits of the next output) · 2^−53, in [0, 1).
+double uniform01(std::mt19937_64& g) { return static_cast<double>(g() >> 11) * 0x1.0p-53; }
+
+/// Box–Muller with two uniforms u1, u2 (drawn in that order); 1 − u1 is in (0, 1], so the
+/// logarithm is finite. The second value of the pair is not used: each normal takes two draws.
+double standard_normal(std::mt19937_64& g) {
+  const double u1 = uniform01(g);
+  const double u2 = uniform01(g);
+  return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(2.0 * std::numbers::pi * u2);
+}
+
+/// x + y·z with the product rounded on its own: compilers may contract x + y*z into a fused
+/// multiply-add (GCC does with -march=native, even in ISO mode), which rounds once and would
+/// make the drawn values depend on the machine. The volatile keeps them the same everywhere.
+double add_product(double x, double y, double z) {
+  volatile double p = y * z;
+  return x + p;
+}
+
+/// Runs an experiment expands into, as a double (a grid's product may exceed every integer).
+/// Checks a Monte Carlo experiment's `samples`: a whole number >= 1.
+double experiment_runs(const SpecReader& c, const ExperimentSpec& e) {
+  if (!e.sweep_parameter.empty()) return static_cast<double>(e.sweep_values.size());
+  if (!e.grid.empty()) {
+    double n = 1;
+    for (const auto& axis : e.grid) n *= static_cast<double>(axis.second.size());
+    return n;
+  }
+  if (e.monte_carlo) {
+    const std::string key = e.key + ".monte_carlo.samples";
+    const double x = c.number(e.monte_carlo->samples, key);
+    if (!(x >= 1 && x <= 9e15 && x == std::floor(x)))
+      c.fail(e.monte_carlo->samples, key, "expected a whole number >= 1 of samples, got " + fmt(x));
+    return x;
+  }
+  return 1;
+}
+
+/// A Monte Carlo seed: an unsigned 64-bit integer written in digits (no expression: a double
+/// would round seeds above 2^53).
+std::uint64_t read_seed(const SpecReader& c, const SpecValue& v, const std::string& key) {
+  std::uint64_t seed = 0;
+  const std::string& t = v.text;
+  const auto r = std::from_chars(t.data(), t.data() + t.size(), seed);
+  if (!v.is_scalar() || t.empty() || r.ec != std::errc() || r.ptr != t.data() + t.size())
+    c.fail(v, key, "expected a whole number 0 to 18446744073709551615 written in digits, got " + v.describe());
+  return seed;
+}
+
+/// Builds one registry entry; errors from the factory that carry no location get the entry's.
+template <class Kind, class Build>
+auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec& e, const std::string& kind_key,
+                 const Build& build) {
+  const Kind* k = reg.find(e.kind);
+  if (!k)
+    c.fail(e.fields[kind_key].is_null() ? e.fields : e.fields[kind_key], e.key + "." + kind_key,
+           "got '" + e.kind + "', expected one of the " + reg.what() + "s" + did_you_mean(e.kind, reg.names()));
+  try {
+    return build(*k);
+  } catch (const Error& err) {
+    const std::string w = err.what();
+    if (w.rfind(c.file(), 0) == 0) throw;  // already located
+    c.fail(e.fields, e.key, w);
+  }
+}
+
+void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
+  std::set<std::string> signal_names;
+  for (const EntrySpec& e : entries) {
+    std::vector<std::pair<double, std::string>> recorded;
+    c.recorder = &recorded;
+    ForceElementPtr f;
+    try {
+      f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
+    } catch (...) {
+      c.recorder = nullptr;
+      throw;
+    }
+    c.recorder = nullptr;
+    std::const_pointer_cast<ForceElement>(f)->label = e.name;
+    std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
+    for (const auto& s : f->signal_names())
+      if (!signal_names.insert(s).second)
+        c.fail(e.fields, e.key, "two force elements record '" + s + "' (give each a different 'name:')");
+    out.add(f);
+  }
+}
+
+ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {
+  return build_entry(c, controller_kinds(), e, "type", [&](const ControllerKind& k) {
+    return k.build(EntryArgs{c, e, m});
+  });
+}
+
+/// A count for messages: a whole number when it fits, else in exponent form.
+std::string count_text(double x) {
+  return x < 9e15 ? std::to_string(static_cast<long long>(x)) : fmt(x);
+}
+
+/// Names become CSV headers, JSON strings and (experiments) file names: printable UTF-8.
+void check_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
+  if (name.empty()) c.fail(at, key, "expected a name, got an empty one");
+  if (name.size() > 200) c.fail(at, key, "a name of " + std::to_string(name.size()) + " bytes; at most 200");
+  if (!valid_utf8(name)) c.fail(at, key, "the name is not valid UTF-8 text (hint: save the file as UTF-8)");
+  for (unsigned char ch : name)
+    if (ch < 0x20 || ch == 0x7f) c.fail(at, key, "the name contains a control character");
+}
+
+/// An experiment's name is part of a file name (track_<name>.csv): letters, digits and . _ - + =
+/// only, not starting with a dot.
+void check_file_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
+  check_output_name(c, at, key, name, "experiment");
+}
+
+/// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
+/// error naming the constraint (or section) responsible.
+void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p) {
+  const Model& m = p.model;
+  const ConstraintSet& cs = p.constraints;
+  const double t0 = p.integrator.t0;
+  const int nmimic = cs.size() - static_cast<int>(spec.constraints.size());
+  auto entry_of = [&](int row) -> std::pair<const SpecValue*, std::string> {
+    const int k = cs.row_owner(row);
+    if (k < nmimic) return {&spec.model.value, "model.urdf"};
+    const EntrySpec& e = spec.constraints[k - nmimic];
+    return {&e.fields, e.key};
+  };
+  Data data(m);
+  ConstraintEval ev(m, cs);
+  try {
+    evaluate_constraints(m, data, cs, ev, t0, p.q0, p.qd0);
+  } catch (const Error& e) {
+    c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
+  }
+  for (int row = 0; row < cs.rows(); ++row)
+    if (!std::isfinite(ev.phi[row]) || !std::isfinite(ev.phid[row]) || !std::isfinite(ev.gamma[row]) ||
+        !ev.A.row(row).allFinite()) {
+      const auto [at, key] = entry_of(row);
+      c.fail(*at, key,
+             "constraint row '" + cs.row_name(row) + "' is not finite at t0 = " + fmt(t0) + " s (Phi = " +
+                 fmt(ev.phi[row]) + ", gamma = " + fmt(ev.gamma[row]) +
+                 "): check its domain at the initial state (a square root or logarithm of a negative number, a "
+                 "division by zero)");
+    }
+  // Independent rows: add them one by one; a row that does not raise the rank is redundant.
+  if (cs.rows() > 0) {
+    Eigen::MatrixXd A = ev.A;  // rows normalised: the test is on directions, not on units
+    for (int row = 0; row < cs.rows(); ++row)
+      if (A.row(row).norm() > 0) A.row(row).normalize();
+    for (int row = 0; row < cs.rows(); ++row) {
+      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(row + 1, m.nv);
+      qr.setThreshold(1e-9);
+      qr.compute(A.topRows(row + 1));
+      if (A.row(row).norm() == 0 && cs.row_order(row) == 2) {
+        const auto [at, key] = entry_of(row);
+        c.fail(*at, key,
+               "acceleration constraint row '" + cs.row_name(row) + "' does not act on the accelerations at t0 = " +
+                   fmt(t0) + " s (B = d/dqdd of the expression is zero there): it cannot be imposed; start where "
+                   "it involves qdd, or write it differently");
+      }
+      if (A.row(row).norm() == 0 || qr.rank() < row + 1) {
+        const auto [at, key] = entry_of(row);
+        c.fail(*at, key,
+               "constraint row '" + cs.row_name(row) + "' depends linearly on the rows before it at t0 = " + fmt(t0) +
+                   " s (the constraint Jacobian has rank " + std::to_string(A.row(row).norm() == 0 ? row : qr.rank()) +
+                   " < " + std::to_string(row + 1) + "): the constraints are redundant or singular there; remove one "
+                   "or start elsewhere");
+      }
+    }
+  }
+  {  // A joint that moves no mass makes M singular: name it.
+    const Eigen::MatrixXd M = mass_matrix(m, data, p.q0);
+    const Eigen::LLT<Eigen::MatrixXd> llt(M);
+    const double tiny = 1e-12 * std::max(1.0, M.diagonal().cwiseAbs().maxCoeff());
+    if (llt.info() != Eigen::Success || !M.allFinite() || (M.diagonal().array() <= tiny).any()) {
+      int j = 0;
+      for (int i = 0; i < m.nv; ++i)
+        if (!(M(i, i) > tiny)) {
+          j = i;
+          break;
+        }
+      c.fail(spec.model.value, "model",
+             "the mass matrix is singular at the initial state: joint '" + m.joint_name[j] +
+                 "' moves no mass or inertia (hint: give the links it carries a mass and an inertia)");
+    }
+  }
+  Eigen::VectorXd Q(m.nv), zdot(std::max(1, p.forces.num_states()));
+  const Eigen::VectorXd z = Eigen::VectorXd::Zero(std::max(1, p.forces.num_states()));
+  p.forces.evaluate(t0, p.q0, p.qd0, z.data(), Q, zdot.data());
+  for (size_t k = 0; k < p.forces.elements().size(); ++k) {
+    const Eigen::VectorXd f = p.forces.element_force(static_cast<int>(k), t0, p.q0, p.qd0, z.data());
+    if (!f.allFinite() && k < spec.forces.size())
+      c.fail(spec.forces[k].fields, spec.forces[k].key,
+             "the force of '" + p.forces.elements()[k]->name() + "' is not finite at t0 = " + fmt(t0) + " s");
+  }
+}
+
+}  // namespace
+
+std::vector<int> Problem::report_point_indices() const {
+  std::vector<int> idx;
+  for (const auto& p : report_points) idx.push_back(model.point_index(p));
+  return idx;
+}
+
+std::unique_ptr<ReferenceDynamics> Problem::make_reference_dynamics() const {
+  return std::make_unique<ReferenceDynamics>(model, forces, constraints, options);
+}
+
+void check_output_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name,
+                       const std::string& what) {
+  check_name(c, at, key, name);
+  for (unsigned char ch : name)
+    if (!(std::isalnum(ch) || ch == '.' || ch == '_' || ch == '-' || ch == '+' || ch == '='))
+      c.fail(at, key,
+             "the " + what + " name '" + name + "' is used in a file name and may contain only letters, digits and . _ - + "
+             "= (got '" + std::string(1, static_cast<char>(ch)) + "')");
+  if (name[0] == '.' || name[0] == '-') c.fail(at, key, "the " + what + " name '" + name + "' may not start with '.' or '-'");
+}
+
+std::string substitute_value(std::string name_template, const std::string& parameter, double value) {
+  return substitute(std::move(name_template), parameter, value);
+}
+
+SpecReader parameter_reader(const ScenarioSpec& spec) {
+  SpecReader c(spec.file, {});
+  c.params["deg"] = std::numbers::pi / 180.0;
+  for (const auto& [name, value] : spec.parameters) {
+    if (name == "pi" || name == "e" || name == "deg" || name == "t")
+      c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
+    c.params[name] = c.number(value, "parameters." + name);
+  }
+  return c;
+}
+
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
+  const std::string& source = spec.file;
+  SpecReader c = parameter_reader(spec);
+
+  std::map<std::string, int> link_lines;
+  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines);
+  if (!spec.model.value["name"]) description.name = spec.name;
+  std::unique_ptr<Problem> s;
+  try {
+    s = std::make_unique<Problem>(build_model(description));
+  } catch (const Error& e) {
+    // Locate the link the message names, if any.
+    const std::string w = e.what();
+    for (const auto& [name, line] : link_lines)
+      if (w.find("'" + name + "'") != std::string::npos) c.fail(SourceLocation{source, line}, "model", w);
+    c.fail(spec.model.value, "model", w);
+  }
+  s->file = source;
+  s->name = spec.name;
+  check_name(c, spec.root["name"] ? spec.root["name"] : spec.root, "name", spec.name);
+  {
+    const Model& mm = s->model;
+    for (const auto* names : {&mm.joint_name, &mm.body_name, &mm.point_name})
+      for (const auto& nm : *names) {
+        const auto it = link_lines.find(nm);
+        check_name(c, it != link_lines.end() ? SpecValue::scalar(nm, {source, it->second}) : spec.model.value, "model", nm);
+      }
+    std::set<std::string> joints;
+    for (const auto& j : mm.joint_name)
+      if (!joints.insert(j).second) {
+        const auto it = link_lines.find(j);
+        c.fail(it != link_lines.end() ? SpecValue::scalar(j, {source, it->second}) : spec.model.value, "model",
+               "two joints are named '" + j + "' (joint names must be unique: they name columns, gains and constraints)");
+      }
+  }
+  s->parameters = c.params;
+  s->model_spec = spec.model.value;
+  const Model& m = s->model;
+
+  // URDF <mimic> joints: material couplings, before the file's own constraints.
+  for (const MimicSpec& mm : spec.model.mimics) {
+    try {
+      ConstraintPtr con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
+      std::const_pointer_cast<Constraint>(con)->name = "mimic_" + mm.joint;
+      s->constraints.add(con);
+    } catch (const Error& e) {
+      c.fail(spec.model.value["urdf"], "model.urdf", e.what());
+    }
+  }
+  for (const EntrySpec& e : spec.constraints) {
+    const ConstraintKind* kind = constraint_kinds().find(e.kind);
+    ConstraintOrigin origin = kind ? kind->default_origin : ConstraintOrigin::Programmed;
+    if (e.fields["origin"])
+      origin = c.choice(e.fields["origin"], e.key + ".origin", {"material", "programmed"}) == "material"
+                   ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
+    std::vector<std::pair<double, std::string>> recorded;
+    c.recorder = &recorded;
+    ConstraintPtr con;
+    try {
+      con = build_entry(c, constraint_kinds(), e, "kind",
+                        [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
+    } catch (...) {
+      c.recorder = nullptr;
+      throw;
+    }
+    c.recorder = nullptr;
+    check_name(c, e.fields["name"], e.key + ".name", e.name);
+    auto mut = std::const_pointer_cast<Constraint>(con);
+    mut->name = e.name;
+    mut->symbolic_inputs = {std::move(recorded), c.params};
+    if (e.fields["record"]) {
+      mut->record_as = c.string(e.fields["record"], e.key + ".record");
+      if (!con->target()) c.fail(e.fields["record"], e.key + ".record", "this constraint prescribes no function of time to record");
+    }
+    try {
+      s->constraints.add(con);
+    } catch (const Error& err) {
+      c.fail(e.fields, e.key, err.what());
+    }
+  }
+  read_forces(c, spec.forces, m, s->forces);
+
+  // Jerk-level constraints (order: jerk, p = 3): planned by JerkDynamics, which supports only
+  // jerk rows and no force elements (their time derivatives are not provided).
+  {
+    const int nmimic = s->constraints.size() - static_cast<int>(spec.constraints.size());
+    for (int k = 0; k < s->constraints.size(); ++k)
+      if (JerkConstraintPtr j = jerk_constraint_of(*s->constraints.constraints()[k])) s->jerk_constraints.push_back(j);
+    if (s->is_jerk_problem()) {
+      for (int k = 0; k < s->constraints.size(); ++k) {
+        if (s->constraints.constraints()[k]->order() == 3) continue;
+        const SpecValue& at = k < nmimic ? spec.model.value : spec.constraints[k - nmimic].fields;
+        c.fail(at, k < nmimic ? "model.urdf" : spec.constraints[k - nmimic].key,
+               "constraint '" + s->constraints.constraints()[k]->name +
+                   "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
+                   "contain only jerk rows (docs/higher_order.md)");
+      }
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
+      Eigen::VectorXd rate = zero;
+      for (size_t k = 0; k < spec.forces.size(); ++k) {
+        const ForceElement& f = *s->forces.elements()[k];
+        if (f.num_states() > 0 || !f.add_rate(0.0, zero, zero, zero, rate))
+          c.fail(spec.forces[k].fields, spec.forces[k].key,
+                 "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
+                 "reference dynamics needs the time derivative of every force, which this element " +
+                     (f.num_states() > 0 ? std::string("(it has states) ") : std::string()) +
+                     "does not provide (damping, spring, effort and flexible_drive do); remove it or state the task "
+                     "at the acceleration level");
+      }
+      if (!spec.experiments.empty())
+        c.fail(spec.experiments_value, "experiments",
+               "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
+    }
+  }
+
+  {
+    const BaumgarteSpec& b = spec.baumgarte;
+    if (b.alpha) s->options.alpha = c.number(b.alpha, "baumgarte.alpha");
+    if (b.beta) s->options.beta = c.number(b.beta, "baumgarte.beta");
+    if (b.beta_first_order) s->options.beta_first_order = c.number(b.beta_first_order, "baumgarte.beta_first_order");
+    try {
+      s->options.validate();
+    } catch (const Error& e) {
+      c.fail(b.value, "baumgarte", e.what());
+    }
+  }
+  s->options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange
+                      : spec.solver == "auto"   ? automatic_reference_solver(m.nq, s->constraints.rows())
+                                                : ReferenceSolver::Projection;
+  s->options.paper_literal_forces = spec.paper_literal_forces;
+
+  const int nrows = s->constraints.rows();
+  if (nrows > m.nq)
+    c.fail(spec.constraints_value, "constraints",
+           "expected at most " + std::to_string(m.nq) + " constraint rows (one per coordinate), got " + std::to_string(nrows));
+  const PartitionSpec& part = spec.partition;
+  s->automatic_independent = part.automatic;
+  if (!part.automatic) {
+    const SpecValue& ind = part.independent_value;
+    if (static_cast<int>(part.independent.size()) != m.nq - nrows)
+      c.fail(ind, "partition.independent",
+             "expected " + std::to_string(m.nq - nrows) + " independent coordinates (" + std::to_string(m.nq) +
+                 " coordinates minus " + std::to_string(nrows) + " constraint rows), got " +
+                 std::to_string(part.independent.size()) + " (joints: " + SpecReader::joint_list(m) + ")");
+    for (size_t i = 0; i < part.independent.size(); ++i) {
+      const std::string& j = part.independent[i];
+      c.joint(ind[i], "partition.independent", m);
+      if (std::find(s->options.independent.begin(), s->options.independent.end(), j) != s->options.independent.end())
+        c.fail(ind[i], "partition.independent", "joint '" + j + "' is listed twice");
+      s->options.independent.push_back(j);
+    }
+  }
+  if (part.automatic_switch) s->options.automatic_partition = c.boolean(part.automatic_switch, "partition.automatic_switch");
+  if (part.max_condition) {
+    s->options.max_condition = c.number(part.max_condition, "partition.max_condition");
+    if (!(s->options.max_condition > 1)) c.fail(part.max_condition, "partition.max_condition", "expected a value > 1");
+  }
+
+  const InitialSpec& ini = spec.initial;
+  s->q0 = c.joint_vector(c.need(ini.value, "q", "initial"), "initial.q", m, true, 0.0);
+  s->qd0 = ini.qd ? c.joint_vector(ini.qd, "initial.qd", m, false, 0.0) : Eigen::VectorXd::Zero(m.nq);
+  s->project_initial = ini.project;
+  if (ini.tolerance) {
+    s->initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
+    if (!(s->initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
+  }
+  if (ini.qdd) {
+    if (!s->is_jerk_problem())
+      c.fail(ini.qdd, "initial.qdd",
+             "an initial acceleration is part of the state only in problems with jerk constraints (order: jerk); "
+             "elsewhere q̈0 follows from the dynamics (remove it)");
+    s->qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+  }
+  if (const SpecValue& k = spec.baumgarte.kappa) {
+    if (!s->is_jerk_problem())
+      c.fail(k, "baumgarte.kappa", "kappa is the gain of problems with jerk constraints (order: jerk); remove it");
+    s->kappa = c.number(k, "baumgarte.kappa");
+    if (!(std::isfinite(s->kappa) && s->kappa >= 0))
+      c.fail(k, "baumgarte.kappa", "expected a finite value >= 0 [1/s], got " + fmt(s->kappa));
+  }
+  if (s->is_jerk_problem()) {  // no partition: JerkDynamics solves a KKT system
+    s->options.independent.clear();
+    s->automatic_independent = false;
+  }
+
+  {
+    const IntegratorSpec& in = spec.integrator;
+    IntegratorOptions& o = s->integrator;
+    o.method = in.method == "dopri5" ? IntegratorMethod::DormandPrince45 : IntegratorMethod::RK4;
+    if (in.step) o.step = c.number(in.step, "integrator.step");
+    if (in.t0) o.t0 = c.number(in.t0, "integrator.t0");
+    if (in.t1) o.t1 = c.number(in.t1, "integrator.t1");
+    if (in.rtol) o.rtol = c.number(in.rtol, "integrator.rtol");
+    if (in.atol) o.atol = c.number(in.atol, "integrator.atol");
+    if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
+    o.min_step = in.min_step ? c.number(in.min_step, "integrator.min_step") : std::min(o.min_step, 0.5 * o.step);
+    if (in.residual_from) s->residual_from = c.number(in.residual_from, "integrator.residual_from");
+    try {
+      o.validate();
+    } catch (const Error& e) {
+      c.fail(in.value, "integrator", e.what());
+    }
+  }
+
+  // Limits, before any work: steps and samples of a run, number of runs.
+  {
+    Limits& lim = s->limits;
+    auto count = [&](const char* k, long& v) {
+      if (const SpecValue& n = spec.limits[k]) {
+        const double x = c.number(n, std::string("limits.") + k);
+        if (!(x >= 1 && x <= 9e15 && x == std::floor(x))) c.fail(n, std::string("limits.") + k, "expected a whole number >= 1, got " + fmt(x));
+        v = static_cast<long>(x);
+      }
+    };
+    count("max_steps", lim.max_steps);
+    count("max_samples", lim.max_samples);
+    count("max_runs", lim.max_runs);
+    // Every run is built here (its values drawn, its controller and forces made): a ceiling that
+    // keeps the build of a scenario within seconds and a few hundred MB whatever the file says.
+    if (lim.max_runs > kMaxRunsCeiling)
+      c.fail(spec.limits["max_runs"], "limits.max_runs",
+             "at most " + std::to_string(kMaxRunsCeiling) + " runs per scenario, got " + std::to_string(lim.max_runs) +
+                 " (hint: split the study into several scenarios, e.g. Monte Carlo with other seeds)");
+    IntegratorOptions& o = s->integrator;
+    const double span = o.t1 - o.t0;
+    const SpecValue& at = spec.integrator.value ? spec.integrator.value : spec.root;
+    double samples;
+    if (o.method == IntegratorMethod::RK4) {
+      const double steps = std::ceil(span / o.step - 1e-9);
+      if (steps > static_cast<double>(lim.max_steps))
+        c.fail(at, "integrator",
+               "(t1 - t0)/step = " + count_text(steps) + " steps, more than limits.max_steps = " + std::to_string(lim.max_steps) +
+                   " (hint: a larger step or a shorter span; or raise limits.max_steps)");
+      const double every = o.output_interval > 0 ? std::max(1.0, std::round(o.output_interval / (span / steps))) : 1.0;
+      samples = std::floor(steps / every) + 2;
+    } else {
+      samples = std::floor(span / (o.output_interval > 0 ? o.output_interval : o.step)) + 2;
+    }
+    o.max_steps = lim.max_steps;
+    if (samples > static_cast<double>(lim.max_samples))
+      c.fail(at, "integrator",
+             count_text(samples) + " output samples, more than limits.max_samples = " + std::to_string(lim.max_samples) +
+                 " (hint: set integrator.output_interval, shorten the span, or raise limits.max_samples)");
+    // Counted (in double: no overflow) before anything is expanded or drawn.
+    double runs = 0, largest = 0;
+    const ExperimentSpec* biggest = nullptr;
+    for (const ExperimentSpec& e : spec.experiments) {
+      const double n = experiment_runs(c, e);
+      runs += n;
+      if (n > largest) {
+        largest = n;
+        biggest = &e;
+      }
+    }
+    if (runs > static_cast<double>(lim.max_runs))
+      c.fail(spec.experiments_value, "experiments",
+             count_text(runs) + " runs after expanding the sweeps, grids and Monte Carlo samples" +
+                 (biggest && largest < runs ? " (" + biggest->key + " gives " + count_text(largest) + ")" : "") +
+                 ", more than limits.max_runs = " + std::to_string(lim.max_runs) +
+                 " (hint: fewer sweep or grid values or samples, or raise limits.max_runs)");
+  }
+
+  // Initial consistency and partition at t0.
+  s->initial_dq = Eigen::VectorXd::Zero(m.nq);
+  s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
+  if (s->is_jerk_problem()) {
+    // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
+    // the jerk-level system once at t0: every row regular and finite.
+    const double t0 = s->integrator.t0;
+    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa}, &s->forces);
+    try {
+      const Eigen::VectorXd x0 = jd.initial_state(t0, s->q0, s->qd0, s->qdd0.size() ? &s->qdd0 : nullptr);
+      Eigen::VectorXd dx(x0.size());
+      jd.derivative(t0, x0, dx);
+      if (!dx.allFinite()) throw NumericalFailure(t0, "the jerk-level equations are not finite at t0 = " + fmt(t0) + " s");
+      for (int r = 0; r < nrows; ++r)
+        if (jd.B().row(r).norm() == 0) {
+          const EntrySpec& e = spec.constraints[r];
+          c.fail(e.fields, e.key,
+                 "jerk constraint row '" + s->constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
+                     " s (B = d/dqddd of the expression is zero there)");
+        }
+    } catch (const NumericalFailure& e) {
+      c.fail(spec.constraints_value, "constraints", e.what());
+    } catch (const Error& e) {
+      const std::string w = e.what();
+      if (w.rfind(c.file(), 0) == 0) throw;
+      c.fail(spec.constraints_value, "constraints", std::string("at t0: ") + w);
+    }
+  } else {
+    ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
+    const double t0 = s->integrator.t0;
+    const SpecValue& where_part = part.value ? part.value : spec.root;
+    check_at_t0(c, spec, *s);
+    try {
+      if (s->automatic_independent) {
+        rd.choose_partition(t0, s->q0, s->qd0);
+        s->options.independent.clear();
+        for (int i : rd.independent()) s->options.independent.push_back(m.joint_name[i]);
+      }
+    } catch (const NumericalFailure& e) {
+      c.fail(where_part, "partition", e.what());
+    }
+    if (s->project_initial) {
+      const auto cons = rd.make_consistent(t0, s->q0, s->qd0, 1e-12);
+      if (!cons.converged)
+        c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
+                                         fmt(cons.residual_after) + "); start closer to a consistent configuration");
+      s->q0 = cons.q;
+      s->qd0 = cons.qd;
+      s->initial_dq = cons.dq;
+      s->initial_dqd = cons.dqd;
+    }
+    Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
+    try {
+      rd.residual(t0, x);  // with acceleration rows this solves the dynamics once
+    } catch (const NumericalFailure& e) {
+      c.fail(where_part, "partition", e.what());
+    }
+    const ConstraintEval& ev = rd.constraints();
+    for (int row = 0; row < nrows; ++row) {
+      const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
+      if (!(v <= s->initial_tolerance))
+        c.fail(ini.value, "initial",
+               "the initial state violates constraint '" + s->constraints.row_name(row) + "' by " + fmt(v) +
+                   " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s->initial_tolerance) +
+                   " (hint: set initial.consistency: project, or correct q/qd)");
+    }
+    if (s->options.solver == ReferenceSolver::Projection && nrows > 0) {
+      try {
+        rd.derivative(t0, x, dx);
+      } catch (const NumericalFailure& e) {
+        c.fail(where_part, "partition", e.what());
+      }
+    }
+  }
+
+  // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
+  // its sweep parameter).
+  ControllerFactory top_controller;
+  std::string top_type;
+  if (spec.controller) {
+    top_controller = read_controller(c, *spec.controller, m);
+    top_type = spec.controller->kind;
+  }
+  if (spec.effort_limit) {
+    s->effort_limit = c.joint_vector(spec.effort_limit, "effort_limit", m, false, std::numeric_limits<double>::infinity());
+    for (int i = 0; i < m.nq; ++i)
+      if (!(s->effort_limit[i] >= 0))
+        c.fail(spec.effort_limit, "effort_limit." + m.joint_name[i],
+               "expected a limit >= 0 [N m or N], got " + fmt(s->effort_limit[i]));
+  }
+  std::set<std::string> experiment_names;
+  for (const ExperimentSpec& e : spec.experiments) {
+    const std::string& k = e.key;
+    if (!spec.controller && !e.controller)
+      c.fail(e.value, "controller",
+             "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
+    // The experiment's own parameters, in the order written: the sweep's, the grid's (first
+    // slowest) or the Monte Carlo distributions (drawn per sample in this order).
+    struct Axis {
+      std::string name, key;
+      const SpecValue* at;
+      std::vector<double> values;  // sweep, grid
+      bool normal = false;         // Monte Carlo: normal(a = mean, b = std) or uniform(a = low, b = high)
+      double a = 0, b = 0;
+    };
+    std::vector<Axis> axes;
+    std::string what = "sweep";
+    if (!e.sweep_parameter.empty()) axes.push_back({e.sweep_parameter, k + ".sweep." + e.sweep_parameter, &e.sweep, {}});
+    for (const auto& [name, values] : e.grid) {
+      what = "grid";
+      axes.push_back({name, k + ".grid." + name, &e.grid_value[name], {}});
+    }
+    if (e.monte_carlo)
+      for (const DistributionSpec& d : e.monte_carlo->distributions) {
+        what = "Monte Carlo";
+        axes.push_back({d.parameter, k + ".monte_carlo.distributions." + d.parameter, &d.value, {}});
+      }
+    for (const Axis& a : axes) {
+      if (c.params.count(a.name) || a.name == "pi" || a.name == "e" || a.name == "t")
+        c.fail(*a.at, a.key,
+               "the " + what + " parameter '" + a.name + "' has the name of a parameter (or a constant); choose another name");
+      if (e.monte_carlo && a.name == "sample")
+        c.fail(*a.at, a.key, "'sample' is reserved in a Monte Carlo experiment ({sample} in the name is the sample index); "
+                             "choose another name");
+    }
+    if (!e.sweep_parameter.empty())
+      for (const SpecValue& v : e.sweep_values) axes[0].values.push_back(c.number(v, axes[0].key));
+    for (size_t i = 0; i < e.grid.size(); ++i)
+      for (const SpecValue& v : e.grid[i].second) axes[i].values.push_back(c.number(v, axes[i].key));
+    std::mt19937_64 generator;
+    std::uint64_t seed = 0;
+    if (e.monte_carlo) {
+      seed = read_seed(c, e.monte_carlo->seed, k + ".monte_carlo.seed");
+      generator.seed(seed);
+      for (size_t i = 0; i < axes.size(); ++i) {
+        const DistributionSpec& d = e.monte_carlo->distributions[i];
+        const std::string dk = axes[i].key + "." + d.kind;
+        Axis& a = axes[i];
+        a.normal = d.kind == "normal";
+        a.a = c.number(d.a, dk + (a.normal ? ".mean" : ".low"));
+        a.b = c.number(d.b, dk + (a.normal ? ".std" : ".high"));
+        if (a.normal && !(a.b >= 0))
+          c.fail(d.b, dk + ".std", "expected a standard deviation >= 0, got " + fmt(a.b));
+        if (!a.normal && !(a.a <= a.b))
+          c.fail(d.value[d.kind], dk, "expected low <= high, got low = " + fmt(a.a) + " > high = " + fmt(a.b));
+        if (!a.normal && !std::isfinite(a.b - a.a))
+          c.fail(d.value[d.kind], dk, "high - low = " + fmt(a.b - a.a) + " is not a finite number");
+      }
+    }
+    // Counted and checked against limits.max_runs above.
+    const long runs = static_cast<long>(experiment_runs(c, e));
+    const size_t width = std::to_string(runs - 1).size();
+    const auto padded = [width](long i) {
+      const std::string d = std::to_string(i);
+      return std::string(width - std::min(width, d.size()), '0') + d;
+    };
+    const std::string index = k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
+    std::string available;  // the placeholders this experiment's names may use
+    for (const Axis& a : axes) available += (available.empty() ? "{" : ", {") + a.name + "}";
+    if (e.monte_carlo) available += ", {sample}";
+    const std::string placeholders = e.monte_carlo ? "{sample}" : available.empty() ? "{param}" : available;
+    std::vector<double> values(axes.size());
+    for (long run = 0; run < runs; ++run) {
+      if (e.monte_carlo) {
+        for (size_t i = 0; i < axes.size(); ++i) {
+          const Axis& a = axes[i];
+          values[i] = a.normal ? add_product(a.a, a.b, standard_normal(generator))
+                               : add_product(a.a, a.b - a.a, uniform01(generator));
+          if (!std::isfinite(values[i]))
+            c.fail(*a.at, a.key, "sample " + std::to_string(run) + " drew " + fmt(values[i]) + ", not a finite number");
+        }
+      } else {
+        long rest = run;  // row-major: the last parameter varies fastest
+        for (size_t i = axes.size(); i-- > 0;) {
+          const long n = static_cast<long>(axes[i].values.size());
+          values[i] = axes[i].values[rest % n];
+          rest /= n;
+        }
+      }
+      SpecReader ce = c;  // the run's parameters are visible in its values
+      auto exp = std::make_unique<Experiment>();
+      std::string name = e.named ? e.name : runs == 1 ? "run" + index : "run" + index + "_" + padded(run);
+      for (size_t i = 0; i < axes.size(); ++i) {
+        ce.params[axes[i].name] = values[i];
+        exp->sweep.emplace_back(axes[i].name, values[i]);
+        if (e.named) name = substitute(name, axes[i].name, values[i]);
+      }
+      if (e.monte_carlo) {
+        exp->sample = run;
+        exp->seed = seed;
+        if (e.named)
+          for (size_t pos; (pos = name.find("{sample}")) != std::string::npos;) name.replace(pos, 8, padded(run));
+      }
+      if (const size_t open = name.find('{'); open != std::string::npos && name.find('}', open) != std::string::npos)
+        c.fail(e.value["name"], k + ".name",
+               "the name has the placeholder '" + name.substr(open, name.find('}', open) - open + 1) +
+                   "', which is not a parameter of this experiment (" +
+                   (available.empty() ? std::string("it has none") : "it has " + available) + ")");
+      exp->name = std::move(name);
+      check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
+      if (!experiment_names.insert(exp->name).second)
+          c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
+                 "duplicate experiment name '" + exp->name + "' (use " + placeholders + " in the name)");
+      exp->q0 = s->q0;
+      exp->qd0 = Eigen::VectorXd::Zero(m.nq);
+      if (e.initial_q) {
+        const Eigen::VectorXd given = ce.joint_vector(e.initial_q, k + ".initial.q", m, false, std::nan(""));
+        for (int j = 0; j < m.nq; ++j)
+          if (!std::isnan(given[j])) exp->q0[j] = given[j];
+      }
+      if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
+      if (e.plant_forces)
+        read_forces(ce, *e.plant_forces, m, exp->plant_forces);
+      else if (spec.plant_forces)
+        read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
+      if (e.controller) {
+        exp->make_controller = read_controller(ce, *e.controller, m);
+        exp->controller_type = e.controller->kind;
+      } else {
+        exp->make_controller = top_controller;
+        exp->controller_type = top_type;
+      }
+      s->experiments.push_back(std::move(exp));
+    }
+  }
+  if (spec.output_points) {
+    for (const SpecValue& p : *spec.output_points) s->report_points.push_back(c.point(p, "outputs.points", m));
+  } else {
+    s->report_points = m.point_name;
+  }
+  return s;
+}
+
+Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
+  if (p.is_jerk_problem()) {
+    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa}, &p.forces);
+    const Eigen::VectorXd x0 = jd.initial_state(p.integrator.t0, p.q0, p.qd0, p.qdd0.size() ? &p.qdd0 : nullptr);
+    return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
+  }
+  const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
+  return plan_motion(rd, x0, p.integrator, p.residual_from, progress, RecordOptions{p.report_point_indices()});
+}
+
+ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const Plan& plan, ReferenceDynamics& rd,
+                                  const std::function<void(double)>& progress) {
+  const Model& m = p.model;
+  const int n = m.nv;
+  std::unique_ptr<Controller> ctrl = ex.make_controller(m);
+  ClosedLoopOptions o;
+  o.integrator = p.integrator;
+  o.integrator.t1 = std::min(p.integrator.t1, plan.summary.t_end);
+  o.effort_limit = p.effort_limit;
+  o.progress = progress;
+  o.points = p.report_point_indices();
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
+  x0.head(n) = ex.q0;
+  x0.segment(n, n) = ex.qd0;
+  return simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &rd, x0, o);
+}
+
+}  // namespace refdyn

@@ -1,0 +1,227 @@
+#include "refdyn/simulate/integrators.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
+#include "refdyn/common/text.hpp"
+
+#include <boost/numeric/odeint.hpp>
+#include <boost/numeric/odeint/external/eigen/eigen.hpp>
+#include <chrono>
+#include <cmath>
+
+namespace refdyn {
+
+const char* to_string(IntegratorMethod m) {
+  return m == IntegratorMethod::RK4 ? "rk4" : "dopri5";
+}
+
+const char* to_string(IntegrationStatus s) {
+  switch (s) {
+    case IntegrationStatus::Success: return "success";
+    case IntegrationStatus::NonFinite: return "non-finite state";
+    case IntegrationStatus::StepSizeCollapse: return "step-size collapse";
+    case IntegrationStatus::NumericalFailure: return "numerical failure";
+    case IntegrationStatus::MaxSteps: return "maximum number of steps";
+    case IntegrationStatus::Stopped: return "stopped by observer";
+  }
+  return "?";
+}
+
+void IntegratorOptions::validate() const {
+  auto need = [](bool ok, const char* what, const std::string& expected, double got) {
+    if (!ok) throw Error(expected_got(std::string("integrator option ") + what, expected, fmt(got)));
+  };
+  need(std::isfinite(t0), "t0", "a finite time", t0);
+  need(std::isfinite(t1) && t1 > t0, "t1", "a finite time > t0 = " + fmt(t0), t1);
+  need(std::isfinite(step) && step > 0, "step", "a finite value > 0 [s]", step);
+  need(std::isfinite(output_interval) && output_interval >= 0, "output_interval", "a finite value >= 0 [s]",
+       output_interval);
+  need(rtol > 0 && std::isfinite(rtol), "rtol", "a finite value > 0", rtol);
+  need(atol > 0 && std::isfinite(atol), "atol", "a finite value > 0", atol);
+  need(min_step > 0 && min_step < step, "min_step", "a value in (0, step)", min_step);
+  need(max_steps > 0, "max_steps", "a positive count", static_cast<double>(max_steps));
+  const double span = t1 - t0;
+  need(std::isfinite(span), "t1", "a time span t1 - t0 that is a finite number", span);
+  // The step count must be a number the integrator can count to (1e-300 over 1e300 is not).
+  const double steps = span / step;
+  need(std::isfinite(steps) && steps < 9e15, "step", "a step giving a countable number of steps over [t0, t1]",
+       step);
+}
+
+Rk4Workspace::Rk4Workspace(Eigen::Index n) : k1(n), k2(n), k3(n), k4(n), tmp(n) {}
+
+namespace {
+// One RK4 step; f(stage, t, x, dx) with stage 0..3.
+template <class F>
+void rk4_stages(const F& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
+  f(0, t, x, w.k1);
+  w.tmp = x + (0.5 * h) * w.k1;
+  f(1, t + 0.5 * h, w.tmp, w.k2);
+  w.tmp = x + (0.5 * h) * w.k2;
+  f(2, t + 0.5 * h, w.tmp, w.k3);
+  w.tmp = x + h * w.k3;
+  f(3, t + h, w.tmp, w.k4);
+  x += (h / 6.0) * (w.k1 + 2.0 * w.k2 + 2.0 * w.k3 + w.k4);
+}
+}  // namespace
+
+void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
+  rk4_stages([&f](int, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(tt, xx, dx); }, t, h, x, w);
+}
+
+namespace {
+
+IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+                                 const OdeObserver& obs) {
+  IntegrationSummary s;
+  const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+  const double h = (o.t1 - o.t0) / nsteps;  // exact landing on t1
+  const long every = o.output_interval > 0 ? std::max(1L, std::lround(o.output_interval / h)) : 1L;
+  Rk4Workspace w(x.size());
+  Eigen::VectorXd x_prev = x;
+  s.t_end = o.t0;
+  if (obs && !obs(o.t0, x)) {
+    s.status = IntegrationStatus::Stopped;
+    s.message = "stopped by the observer at t = " + fmt(o.t0) + " s";
+    return s;
+  }
+  for (long k = 0; k < nsteps; ++k) {
+    if (k >= o.max_steps) {
+      s.status = IntegrationStatus::MaxSteps;
+      s.message = "stopped at t = " + fmt(s.t_end) + " s after max_steps = " + std::to_string(o.max_steps);
+      return s;
+    }
+    const double t = o.t0 + k * h;
+    x_prev = x;
+    try {
+      rk4_stages([&f, k](int stage, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) {
+        f(Stage{k, stage}, tt, xx, dx);
+      }, t, h, x, w);
+    } catch (const NumericalFailure& e) {
+      x = x_prev;
+      s.status = IntegrationStatus::NumericalFailure;
+      s.message = e.what();
+      return s;
+    }
+    s.rhs_evaluations += 4;
+    if (!x.allFinite()) {
+      x = x_prev;
+      s.status = IntegrationStatus::NonFinite;
+      s.message = "the state became NaN or infinite in the step from t = " + fmt(t) + " s to " + fmt(t + h) +
+                  " s (the run diverged; reduce the step or check the model)";
+      return s;
+    }
+    ++s.steps;
+    s.t_end = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
+    if (obs && ((k + 1) % every == 0 || k + 1 == nsteps) && !obs(s.t_end, x)) {
+      s.status = IntegrationStatus::Stopped;
+      s.message = "stopped by the observer at t = " + fmt(s.t_end) + " s";
+      return s;
+    }
+  }
+  return s;
+}
+
+IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+                                   const OdeObserver& obs) {
+  namespace ode = boost::numeric::odeint;
+  using Stepper = ode::runge_kutta_dopri5<Eigen::VectorXd, double, Eigen::VectorXd, double, ode::vector_space_algebra>;
+  IntegrationSummary s;
+  long evals = 0;
+  auto sys = [&](const Eigen::VectorXd& xx, Eigen::VectorXd& dx, double t) {
+    ++evals;
+    f(Stage{}, t, xx, dx);
+  };
+  auto stepper = ode::make_dense_output(o.atol, o.rtol, Stepper());
+  const double dt_out = o.output_interval > 0 ? o.output_interval : o.step;
+  s.t_end = o.t0;
+  if (obs && !obs(o.t0, x)) {
+    s.status = IntegrationStatus::Stopped;
+    s.message = "stopped by the observer at t = " + fmt(o.t0) + " s";
+    return s;
+  }
+  Eigen::VectorXd xs(x.size());
+  long next_out = 1;
+  try {
+    stepper.initialize(x, o.t0, std::min(o.step, o.t1 - o.t0));
+    while (stepper.current_time() < o.t1 - 1e-15 * std::max(1.0, std::abs(o.t1))) {
+      if (s.steps >= o.max_steps) {
+        s.status = IntegrationStatus::MaxSteps;
+        s.message = "stopped at t = " + fmt(s.t_end) + " s after max_steps = " + std::to_string(o.max_steps);
+        break;
+      }
+      if (stepper.current_time_step() < o.min_step) {
+        s.status = IntegrationStatus::StepSizeCollapse;
+        s.message = "the adaptive step fell to " + fmt(stepper.current_time_step()) + " s < min_step = " +
+                    fmt(o.min_step) + " s at t = " + fmt(stepper.current_time()) +
+                    " s (the solution is stiff or singular there)";
+        break;
+      }
+      // Do not step past t1: shrink the proposed step.
+      if (stepper.current_time() + stepper.current_time_step() > o.t1)
+        stepper.initialize(stepper.current_state(), stepper.current_time(), o.t1 - stepper.current_time());
+      const long before = evals;
+      const auto span = stepper.do_step(sys);
+      const long used = evals - before;
+      s.rejected_steps += std::max(0L, used / 6 - 1);
+      if (!stepper.current_state().allFinite()) {
+        s.status = IntegrationStatus::NonFinite;
+        s.message = "the state became NaN or infinite between t = " + fmt(span.first) + " s and " +
+                    fmt(span.second) + " s (the run diverged)";
+        break;  // x still holds the last valid state
+
+      }
+      ++s.steps;
+      bool stop = false;
+      while (obs && !stop) {
+        const double tout = std::min(o.t0 + next_out * dt_out, o.t1);
+        if (tout > span.second + 1e-12 * dt_out) break;
+        stepper.calc_state(tout, xs);
+        stop = !obs(tout, xs);
+        if (tout >= o.t1) break;
+        ++next_out;
+      }
+      x = stepper.current_state();
+      s.t_end = span.second;
+      if (stop) {
+        s.status = IntegrationStatus::Stopped;
+        s.message = "stopped by the observer at t = " + fmt(s.t_end) + " s";
+        break;
+      }
+    }
+  } catch (const NumericalFailure& e) {
+    s.status = IntegrationStatus::NumericalFailure;
+    s.message = e.what();
+    x = stepper.current_state();
+  } catch (const ode::step_adjustment_error& e) {
+    s.status = IntegrationStatus::StepSizeCollapse;
+    s.message = std::string("the adaptive step could not be adjusted at t = ") + fmt(stepper.current_time()) +
+                " s: " + e.what();
+    x = stepper.current_state();
+  }
+  s.rhs_evaluations = evals;
+  return s;
+}
+
+}  // namespace
+
+IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+                             const OdeObserver& observer) {
+  if (!f) throw Error("integrate: expected a right-hand side function, got none");
+  return integrate_staged([&f](const Stage&, double t, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(t, xx, dx); },
+                          x, o, observer);
+}
+
+IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
+                                    const OdeObserver& observer) {
+  o.validate();
+  if (!f) throw Error("integrate: expected a right-hand side function, got none");
+  check_finite("initial state x0", x);
+  const auto start = std::chrono::steady_clock::now();
+  IntegrationSummary s = o.method == IntegratorMethod::RK4 ? integrate_rk4(f, x, o, observer)
+                                                          : integrate_dopri(f, x, o, observer);
+  s.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return s;
+}
+
+}  // namespace refdyn
