@@ -18,6 +18,7 @@
 #include "refdyn/reference_dynamics.hpp"
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -175,6 +176,10 @@ struct Plan : Trajectory {
 /// What plan_motion records besides the state (model point indices, e.g. a scenario's outputs).
 struct RecordOptions {
   std::vector<int> points;
+  /// The plan stops at the first output sample (t >= residual_from) whose constraint residual
+  /// max |Phi| exceeds this (or is not a number): that sample is not recorded, the plan ends at
+  /// the one before with status ResidualExceeded. Infinity: no check (the library default).
+  double residual_tolerance = std::numeric_limits<double>::infinity();
 };
 
 /// Solves the reference dynamics from x0 with the given integrator and records it: at every
