@@ -641,6 +641,10 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (in.residual_from) s->residual_from = c.number(in.residual_from, "integrator.residual_from");
     if (in.residual_tolerance) {
       const SpecValue& rt = in.residual_tolerance;
+      if (s->is_jerk_problem())
+        c.fail(rt, "integrator.residual_tolerance",
+               "not for problems with jerk constraints (order: jerk): their plan's residual is that of the dynamics "
+               "and is not checked against a tolerance (docs/higher_order.md); remove it");
       if (rt.is_scalar() && (rt.text == "none" || rt.text == "off")) {
         s->residual_tolerance = std::numeric_limits<double>::infinity();
       } else {

@@ -719,6 +719,18 @@ TEST(Trust, OneDofModelsAreCheckedPlannedAndTracked) {
   EXPECT_EQ(r.code, 2) << describe(r);
   EXPECT_TRUE(one_error_line(r, free.string() + ": experiments: an empty list")) << describe(r);
   EXPECT_FALSE(fs::exists(s.root() / "free_track"));
+  // No constraint, but experiments: the plan is the free fall, tracked exactly.
+  std::string text = read_text(free);
+  text.replace(text.find("experiments: []"), 15,
+               "controller: {type: computed_torque_pd, delta: [10]}\nexperiments: [{name: a}, {}]");
+  const fs::path tracked = s.root() / "free_track.yaml";
+  std::ofstream(tracked) << text;
+  r = run(s, "track " + quote(tracked) + " -q -o " + quote(s.root() / "free_track") + " --report");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  const auto runs = lines_of(read_text(s.root() / "free_track" / "sweep.csv"));
+  ASSERT_EQ(runs.size(), 3u);
+  EXPECT_EQ(csv_cells(runs[1]).at(1), "a");
+  EXPECT_EQ(csv_cells(runs[2]).at(2), "success") << runs[2];
 }
 
 TEST(Trust, ZeroDofModelIsOneLocatedError) {
