@@ -211,7 +211,8 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   };
   double worst = 0;
   // The first sample (t >= residual_from) whose residual exceeds the tolerance (or is not a
-  // number) is not recorded: the plan ends at the sample before, its last trustworthy one.
+  // number) is not recorded: the plan ends at the sample before, its last trustworthy one. The
+  // initial state is always recorded (build_problem checked it against initial.tolerance).
   const double tol = record.residual_tolerance;
   bool cut = false;
   double cut_t = 0, cut_residual = 0;
@@ -226,11 +227,11 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
         r = std::nan("");
         cut_why = e.what();
       }
-      if (!(r <= tol)) {
+      if (!(r <= tol) && !plan.t.empty()) {
         cut = true, cut_t = t, cut_residual = r;
         return false;
       }
-      worst = std::max(worst, r);
+      if (!std::isnan(r)) worst = std::max(worst, r);
     }
     plan.t.push_back(t);
     plan.x.push_back(x);
