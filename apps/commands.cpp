@@ -169,7 +169,9 @@ int run_check(const std::string& file, const InputOptions& in) {
     std::printf("  %-20s |Phi| = %.3e   |dPhi/dt| = %.3e\n", s.constraints.row_name(r).c_str(),
                 std::abs(rd.constraints().phi[r]), std::abs(rd.constraints().phid[r]));
   std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
-            << s.integrator.t0 << ", " << s.integrator.t1 << "] s\n";
+            << s.integrator.t0 << ", " << s.integrator.t1 << "] s; the plan stops where max |Phi| > "
+            << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))
+            << " (integrator.residual_tolerance)\n";
   std::cout << "experiments: " << s.experiments.size() << " runs\n";
   if (!variants.empty()) {
     std::cout << "variants: " << variants.size() << " (";

@@ -834,6 +834,7 @@ TEST(Trust, CheckSaysWhichNormTheConditionNumberUses) {
   EXPECT_EQ(r.code, 0) << describe(r);
   EXPECT_TRUE(contains(r.out, "cond(K_dc) = ")) << describe(r);
   EXPECT_TRUE(contains(r.out, "(1-norm: ||A||_1 ||K_dc^-1||_1")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "the plan stops where max |Phi| > 0.001 (integrator.residual_tolerance)")) << describe(r);
 }
 
 }  // namespace
