@@ -83,9 +83,16 @@ bool error_output() { return g_error_output; }
 void report_stopped(const io::Results& r) {
   if (!r.plan.summary.ok())
     std::fprintf(stderr, "refdyn: error: the plan stopped early: %s\n", r.plan.summary.message.c_str());
-  size_t stopped = 0;
+  size_t stopped = 0, on_stopped_plan = 0;
   for (const auto& run : r.runs)
-    if (!run.summary.ok() && ++stopped <= kPrintedRuns)
+    on_stopped_plan += run.summary.status == IntegrationStatus::ReferenceStopped;
+  if (on_stopped_plan)  // one line for them all: they share the plan's end and reason
+    std::fprintf(stderr,
+                 "refdyn: error: %zu of %zu runs tracked the plan only up to where it stopped (t = %s s): none is a "
+                 "success (status 'reference stopped early')\n",
+                 on_stopped_plan, r.runs.size(), fmt(r.plan.summary.t_end).c_str());
+  for (const auto& run : r.runs)
+    if (!run.summary.ok() && run.summary.status != IntegrationStatus::ReferenceStopped && ++stopped <= kPrintedRuns)
       std::fprintf(stderr, "refdyn: error: experiment '%s' stopped early: %s\n", run.experiment->name.c_str(),
                    run.summary.message.c_str());
   if (stopped > kPrintedRuns)
@@ -148,7 +155,7 @@ int run_check(const std::string& file, const InputOptions& in) {
   std::cout << "], dependent [";
   for (size_t i = 0; i < rd.dependent().size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[rd.dependent()[i]];
   std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
-            << rd.partition_condition() << " at t0\n";
+            << rd.partition_condition() << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
   if (s.project_initial) {
     std::cout << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
     for (int j = 0; j < m.nq; ++j)
@@ -162,7 +169,9 @@ int run_check(const std::string& file, const InputOptions& in) {
     std::printf("  %-20s |Phi| = %.3e   |dPhi/dt| = %.3e\n", s.constraints.row_name(r).c_str(),
                 std::abs(rd.constraints().phi[r]), std::abs(rd.constraints().phid[r]));
   std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
-            << s.integrator.t0 << ", " << s.integrator.t1 << "] s\n";
+            << s.integrator.t0 << ", " << s.integrator.t1 << "] s; the plan stops where max |Phi| > "
+            << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))
+            << " (integrator.residual_tolerance)\n";
   std::cout << "experiments: " << s.experiments.size() << " runs\n";
   if (!variants.empty()) {
     std::cout << "variants: " << variants.size() << " (";
@@ -258,7 +267,8 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
     problem = build_problem(spec);  // validates before anything is written
     variants = io::expand_variants(spec);
     if (track && problem->experiments.empty())
-      throw Error(file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+      throw Error(file + ": experiments: " + (spec.experiments_value ? "an empty list" : "missing") +
+                  " (track needs at least one experiment; see docs/scenario.md)");
     if (!variants.empty() && cfg.report)
       throw Error("--report: not for a family of variants (hint: refdyn report DIR/<variant> --scenario FILE draws one)");
   });

@@ -163,7 +163,7 @@ struct PyResults {
 std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bool track, const py::object& progress,
                                int jobs) {
   if (track && problem->experiments.empty())
-    throw Error(problem->file + ": experiments: missing (track needs at least one experiment; see docs/scenario.md)");
+    throw Error(problem->file + ": experiments: missing or an empty list (track needs at least one experiment; see docs/scenario.md)");
   io::RunOptions o;
   o.track = track;
   o.progress = progress_factory(progress);

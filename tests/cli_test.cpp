@@ -635,4 +635,206 @@ TEST(Limits, InputFilesAreBoundedAndDevicesRefused) {
   EXPECT_TRUE(contains(r.err, "limit of 100 bytes")) << describe(r);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Trust in results (issue 24): size-0 and size-1 scenarios, a plan that misses its task, tracking
+// on a plan that stopped early, and the printed condition number.
+
+const fs::path kGoodDir = kSource / "tests/data/good";
+const fs::path kStoppedDir = kSource / "tests/data/stopped";
+
+/// The cells of one CSV line (RFC 4180 quotes).
+std::vector<std::string> csv_cells(const std::string& line) {
+  std::vector<std::string> cells(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (quoted) {
+      if (ch == '"' && i + 1 < line.size() && line[i + 1] == '"') cells.back() += '"', ++i;
+      else if (ch == '"') quoted = false;
+      else cells.back() += ch;
+    } else if (ch == '"') {
+      quoted = true;
+    } else if (ch == ',') {
+      cells.emplace_back();
+    } else {
+      cells.back() += ch;
+    }
+  }
+  return cells;
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) out.push_back(l);
+  return out;
+}
+
+size_t count_of(const std::string& text, const std::string& part) {
+  size_t n = 0;
+  for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + part.size())) ++n;
+  return n;
+}
+
+/// The largest |value| of the columns whose header starts with `prefix` (every column: "").
+double max_abs_column(const std::string& csv, const std::string& prefix) {
+  const auto ls = lines_of(csv);
+  if (ls.empty()) return std::nan("");
+  const auto head = csv_cells(ls[0]);
+  double m = 0;
+  for (size_t k = 1; k < ls.size(); ++k) {
+    const auto cells = csv_cells(ls[k]);
+    for (size_t c = 0; c < head.size() && c < cells.size(); ++c)
+      if (head[c].rfind(prefix, 0) == 0) {
+        const double v = std::strtod(cells[c].c_str(), nullptr);
+        if (!(std::abs(v) <= m)) m = std::abs(v);  // NaN propagates
+      }
+  }
+  return m;
+}
+
+TEST(Trust, OneDofModelsAreCheckedPlannedAndTracked) {
+  Scratch s;
+  const fs::path one = kGoodDir / "one_dof.yaml", free = kGoodDir / "free_one_dof.yaml";
+  Result r = run(s, "check " + quote(one));
+  EXPECT_EQ(r.code, 0) << describe(r);
+  EXPECT_TRUE(contains(r.out, "valid")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "independent []")) << describe(r);
+  r = run(s, "track " + quote(one) + " -q -o " + quote(s.root() / "one") + " --report");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  const auto sweep = lines_of(read_text(s.root() / "one" / "sweep.csv"));
+  ASSERT_EQ(sweep.size(), 3u);
+  for (size_t k = 1; k < sweep.size(); ++k) EXPECT_EQ(csv_cells(sweep[k]).at(2), "success") << sweep[k];
+  EXPECT_TRUE(fs::exists(s.root() / "one" / "report.html"));
+  // No constraint, no recorded point, an empty experiments list.
+  r = run(s, "check " + quote(free));
+  EXPECT_EQ(r.code, 0) << describe(r);
+  r = run(s, "plan " + quote(free) + " -q -o " + quote(s.root() / "free") + " --report");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  const std::string plan = read_text(s.root() / "free" / "plan.csv");
+  EXPECT_FALSE(contains(plan.substr(0, plan.find('\n')), "phi_")) << plan.substr(0, 200);
+  EXPECT_EQ(lines_of(plan).size(), 302u) << "a header and 301 samples";
+  EXPECT_TRUE(fs::exists(s.root() / "free" / "report.html"));
+  r = run(s, "track " + quote(free) + " -o " + quote(s.root() / "free_track"));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, free.string() + ": experiments: an empty list")) << describe(r);
+  EXPECT_FALSE(fs::exists(s.root() / "free_track"));
+  // No constraint, but experiments: the plan is the free fall, tracked exactly.
+  std::string text = read_text(free);
+  text.replace(text.find("experiments: []"), 15,
+               "controller: {type: computed_torque_pd, delta: [10]}\nexperiments: [{name: a}, {}]");
+  const fs::path tracked = s.root() / "free_track.yaml";
+  std::ofstream(tracked) << text;
+  r = run(s, "track " + quote(tracked) + " -q -o " + quote(s.root() / "free_track") + " --report");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  const auto runs = lines_of(read_text(s.root() / "free_track" / "sweep.csv"));
+  ASSERT_EQ(runs.size(), 3u);
+  EXPECT_EQ(csv_cells(runs[1]).at(1), "a");
+  EXPECT_EQ(csv_cells(runs[2]).at(2), "success") << runs[2];
+}
+
+TEST(Trust, ZeroDofModelIsOneLocatedError) {
+  Scratch s;
+  const fs::path f = kBadDir / "model_zero_dof.yaml";
+  for (const std::string cmd : {"check ", "plan ", "track "}) {
+    const Result r = run(s, cmd + quote(f) + (cmd == "check " ? "" : " -o " + quote(s.root() / "out")));
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_TRUE(one_error_line(r, f.string() + ":")) << describe(r);
+    EXPECT_TRUE(contains(r.err, "the model has no moving joint: nothing to plan")) << describe(r);
+  }
+}
+
+TEST(Trust, PlanThatMissesItsTaskStopsWithItsReasonAndTime) {
+  Scratch s;
+  // Two RK4 steps of 0.25 s over the 0.5 s motion: without the check the plan "succeeds" with
+  // its constraint violated by 0.67; the default tolerance (1e-3) stops it after t0.
+  const fs::path f = variant(s, "coarse.yaml", "step: 1e-3", "step: 0.25");
+  const fs::path out = s.root() / "out";
+  Result r = run(s, "plan " + quote(f) + " -q -o " + quote(out) + " --report");
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_TRUE(one_error_line(r, "the plan stopped early: at t = 0.25 s the constraint residual")) << describe(r);
+  EXPECT_TRUE(contains(r.err, "exceeds integrator.residual_tolerance = 0.001")) << describe(r);
+  const std::string summary = read_text(out / "summary.json");
+  EXPECT_TRUE(contains(summary, "\"status\": \"residual above tolerance\"")) << summary.substr(0, 600);
+  EXPECT_TRUE(contains(summary, "\"residual_tolerance\": 0.001")) << summary.substr(0, 600);
+  EXPECT_TRUE(contains(summary, "\"t_end\": 0,")) << summary.substr(0, 600);
+  EXPECT_TRUE(contains(read_text(out / "feasibility.json"), "\"feasible\": false"));
+  EXPECT_EQ(lines_of(read_text(out / "plan.csv")).size(), 2u) << "the header and t0: the only trustworthy sample";
+  EXPECT_TRUE(contains(read_text(out / "report.html"), "residual above tolerance"));
+  const fs::path off = variant(s, "coarse_off.yaml", "step: 1e-3", "step: 0.25, residual_tolerance: none");
+  r = run(s, "plan " + quote(off) + " -q -o " + quote(s.root() / "off"));
+  EXPECT_EQ(r.code, 0) << describe(r);
+  EXPECT_GT(max_abs_column(read_text(s.root() / "off" / "plan.csv"), "phi_"), 0.5);
+  EXPECT_TRUE(contains(read_text(s.root() / "off" / "summary.json"), "\"residual_tolerance\": null"));
+
+  // Steps of 0.02 s: the plan diverges (NaN at t = 0.2 s) and, unchecked, first records a
+  // residual of 0.72; checked, it ends before the first sample beyond the tolerance.
+  const fs::path div = variant(s, "diverging.yaml", "step: 1e-3", "step: 0.02");
+  r = run(s, "plan " + quote(div) + " -q -o " + quote(s.root() / "div"));
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_TRUE(contains(r.err, "residual_tolerance")) << describe(r);
+  EXPECT_LE(max_abs_column(read_text(s.root() / "div" / "plan.csv"), "phi_"), 1e-3);
+  const fs::path div_off = variant(s, "diverging_off.yaml", "step: 1e-3", "step: 0.02, residual_tolerance: none");
+  r = run(s, "plan " + quote(div_off) + " -q -o " + quote(s.root() / "div_off"));
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_TRUE(contains(r.err, "not finite")) << describe(r);
+  EXPECT_GT(max_abs_column(read_text(s.root() / "div_off" / "plan.csv"), "phi_"), 0.1);
+
+  // A step longer than the span is no plan at all: a located error (exit 2).
+  const fs::path big = variant(s, "big.yaml", "step: 1e-3", "step: 1");
+  r = run(s, "plan " + quote(big) + " -q -o " + quote(s.root() / "big"));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(one_error_line(r, big.string() + ":35: integrator.step: the step 1 s is longer than the time span"))
+      << describe(r);
+}
+
+TEST(Trust, TrackingAPlanThatLeftTheWorkspaceIsNeverASuccess) {
+  Scratch s;
+  const fs::path f = kStoppedDir / "planar_3r_leaves_workspace.yaml";
+  const fs::path out = s.root() / "out";
+  const Result r = run(s, "track " + quote(f) + " -q -o " + quote(out) + " --report");
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_TRUE(contains(r.err, "refdyn: error: the plan stopped early: at t = ")) << describe(r);
+  EXPECT_TRUE(contains(r.err, "refdyn: error: 40 of 40 runs tracked the plan only up to where it stopped")) << describe(r);
+  EXPECT_EQ(count_lines(r.err), 2) << "one line for the plan, one for its runs" << describe(r);
+  const std::string summary = read_text(out / "summary.json");
+  EXPECT_TRUE(contains(summary, "\"status\": \"residual above tolerance\"")) << summary.substr(0, 800);
+  EXPECT_EQ(count_of(summary, "\"status\": \"success\""), 0u);
+  EXPECT_EQ(count_of(summary, "\"status\": \"reference stopped early\""), 40u);
+  EXPECT_TRUE(contains(summary, "\"completed\": 0,")) << summary.substr(summary.find("\"statistics\""), 200);
+  // The plan holds only trustworthy samples: no exploding values, its constraints within 1e-3.
+  const std::string plan = read_text(out / "plan.csv");
+  EXPECT_LE(max_abs_column(plan, "phi_"), 1e-3);
+  EXPECT_LT(max_abs_column(plan, "q_"), 10.0);
+  const auto plan_lines = lines_of(plan);
+  const double t_end = std::strtod(csv_cells(plan_lines.back()).at(0).c_str(), nullptr);
+  EXPECT_GT(t_end, 0.5);
+  EXPECT_LT(t_end, 2.0);
+  // Every run: its status, its time (the plan's end) and the reason, in sweep.csv.
+  const auto sweep = lines_of(read_text(out / "sweep.csv"));
+  ASSERT_EQ(sweep.size(), 41u);
+  const auto head = csv_cells(sweep[0]);
+  ASSERT_EQ(head.back(), "message");
+  const size_t t_col = std::find(head.begin(), head.end(), "t_end") - head.begin();
+  ASSERT_LT(t_col, head.size());
+  for (size_t k = 1; k < sweep.size(); ++k) {
+    const auto cells = csv_cells(sweep[k]);
+    ASSERT_EQ(cells.size(), head.size()) << sweep[k];
+    EXPECT_EQ(cells[2], "reference stopped early") << sweep[k];
+    EXPECT_NEAR(std::strtod(cells[t_col].c_str(), nullptr), t_end, 1e-9) << sweep[k];
+    EXPECT_TRUE(contains(cells.back(), "where the plan stopped (residual above tolerance")) << sweep[k];
+  }
+  const std::string report = read_text(out / "report.html");
+  EXPECT_TRUE(contains(report, "reference stopped early"));  // from summary.json, shown in the runs table
+}
+
+TEST(Trust, CheckSaysWhichNormTheConditionNumberUses) {
+  Scratch s;
+  const Result r = run(s, "check " + quote(kGood));
+  EXPECT_EQ(r.code, 0) << describe(r);
+  EXPECT_TRUE(contains(r.out, "cond(K_dc) = ")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "(1-norm: ||A||_1 ||K_dc^-1||_1")) << describe(r);
+  EXPECT_TRUE(contains(r.out, "the plan stops where max |Phi| > 0.001 (integrator.residual_tolerance)")) << describe(r);
+}
+
 }  // namespace

@@ -4,6 +4,7 @@
 // --jobs and --run-csv write the files one thread writes.
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/common/text.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -273,4 +274,71 @@ TEST(ParallelRuns, ForEachIndexVisitsTheShardOnceAndRethrowsTheFirstFailure) {
         },
         {"index 40"});
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A plan that leaves its task (issue 24): the sweep scenario with the tip driven out of reach
+// (near t = 0.8 s). No run on a plan that stopped early is a success: a run that reaches the
+// plan's end says "reference stopped early", with the plan's end as its t_end (summary.json,
+// sweep.csv). With RK4 and a tolerance of 1e-4 the plan is cut at its last sample within it.
+std::string stopped_scenario(const std::string& method, const std::string& tolerance) {
+  std::string text = test::read_file(kScenario);
+  auto replace = [&text](const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) text.replace(at, from.size(), to);
+  };
+  replace("x(E) - (L1 + 0.1*(1 - cos(2*pi*t))/2)", "x(E) - (L1 + 0.5*t)");
+  replace("method: dopri5", "method: " + method);
+  replace("t1: 0.6", "t1: 1.2" + (tolerance.empty() ? std::string() : ", residual_tolerance: " + tolerance));
+  replace("  q: {j1: 0, j2: 90*deg}", "  q: {j1: 0, j2: 90*deg}\n  consistency: project");
+  return text;
+}
+
+TEST(StoppedPlan, RunsOnAStoppedPlanAreNeverASuccess) {
+  const auto p = io::parse_problem(stopped_scenario("dopri5", ""), "stopped.yaml");
+  EXPECT_EQ(p->residual_tolerance, kDefaultResidualTolerance);
+  const io::Results r = run(*p, 2);
+  const IntegrationSummary& ps = r.plan.summary;
+  ASSERT_FALSE(ps.ok());
+  EXPECT_GT(ps.t_end, 0.5);
+  EXPECT_LT(ps.t_end, 1.2);
+  EXPECT_FALSE(r.feasibility.complete);
+  ASSERT_EQ(r.runs.size(), 6u);
+  int on_stopped_plan = 0;
+  for (const auto& run : r.runs) {
+    EXPECT_FALSE(run.summary.ok()) << run.experiment->name;
+    if (run.summary.status != IntegrationStatus::ReferenceStopped) continue;  // stopped on its own
+    ++on_stopped_plan;
+    EXPECT_NEAR(run.summary.t_end, ps.t_end, 1e-9) << run.experiment->name;
+    EXPECT_NE(run.summary.message.find(std::string("where the plan stopped (") + to_string(ps.status)), std::string::npos)
+        << run.summary.message;
+  }
+  EXPECT_GE(on_stopped_plan, 1);
+  EXPECT_NE(io::summary_json(*p, r).dump(2, 2).find("\"completed\": 0,"), std::string::npos);
+}
+
+TEST(StoppedPlan, Rk4PlanIsCutAtItsLastSampleWithinTheTolerance) {
+  const auto p = io::parse_problem(stopped_scenario("rk4", "1e-4"), "stopped.yaml");
+  EXPECT_EQ(p->residual_tolerance, 1e-4);
+  const io::Results r = run(*p, 2);
+  const IntegrationSummary& ps = r.plan.summary;
+  ASSERT_EQ(ps.status, IntegrationStatus::ResidualExceeded) << to_string(ps.status) << ": " << ps.message;
+  ASSERT_FALSE(r.plan.t.empty());
+  EXPECT_EQ(ps.t_end, r.plan.t.back());
+  EXPECT_EQ(r.plan.stages.steps, ps.steps);
+  EXPECT_NEAR(ps.t_end, ps.steps * r.plan.stages.h, 1e-12);
+  for (const auto& phi : r.plan.phi) EXPECT_LE(phi.cwiseAbs().maxCoeff(), 1e-4);
+  EXPECT_LE(ps.max_constraint_residual, 1e-4);
+  for (const auto& run : r.runs) {
+    EXPECT_EQ(run.summary.status, IntegrationStatus::ReferenceStopped) << run.experiment->name << ": " << run.summary.message;
+    EXPECT_EQ(run.summary.t_end, ps.t_end) << run.experiment->name;
+  }
+  const std::string js = io::summary_json(*p, r).dump(2, 2);
+  EXPECT_NE(js.find("\"residual_tolerance\": " + JsonValue(1e-4).dump(0)), std::string::npos) << JsonValue(1e-4).dump(0);
+  EXPECT_NE(js.find("\"t_end\": " + fmt(ps.t_end)), std::string::npos);
+  const std::string csv = io::sweep_csv(*p, r);
+  EXPECT_NE(csv.find(",message\n"), std::string::npos);
+  EXPECT_NE(csv.find(",reference stopped early,"), std::string::npos);
+  EXPECT_NE(csv.find(",\"tracked the reference up to t = "), std::string::npos) << "the message, quoted (it has a comma)";
 }

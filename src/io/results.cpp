@@ -272,6 +272,14 @@ double max_finite(const std::vector<JointTracking>& js, double JointTracking::*f
   return m;
 }
 
+/// A CSV text field (RFC 4180): quoted when it holds a comma, a quote or a line break.
+std::string csv_text(const std::string& x) {
+  if (x.find_first_of(",\"\r\n") == std::string::npos) return x;
+  std::string q = "\"";
+  for (char ch : x) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return q + "\"";
+}
+
 /// The sweep parameters over all runs, in order of first appearance.
 std::vector<std::string> sweep_names(const Results& res) {
   std::vector<std::string> names;
@@ -294,7 +302,7 @@ std::string sweep_csv(const Problem& p, const Results& res) {
   s += ",t_end,final_max_abs_error,peak_abs_tau,max_e0,max_settle_time,max_late_error,saturated_samples";
   for (const char* f : {"e0_", "settle_", "late_", "peak_tau_"})
     for (const auto& j : joints) s += "," + std::string(f) + j;
-  s += "\n";
+  s += ",message\n";
   auto num = [](double x) { return std::isfinite(x) ? fmt(x) : std::string("nan"); };
   for (size_t i = 0; i < res.runs.size(); ++i) {
     const RunRecord& r = res.runs[i];
@@ -312,7 +320,7 @@ std::string sweep_csv(const Problem& p, const Results& res) {
     for (double JointTracking::*f : {&JointTracking::e0, &JointTracking::settle_time, &JointTracking::late_error,
                                      &JointTracking::peak_tau})
       for (size_t j = 0; j < joints.size(); ++j) s += "," + (j < m.joints.size() ? num(m.joints[j].*f) : std::string("nan"));
-    s += "\n";
+    s += "," + csv_text(m.message) + "\n";
   }
   return s;
 }
@@ -331,6 +339,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   plan["t_end"] = ps.t_end;
   plan["max_constraint_residual"] = ps.max_constraint_residual;
   plan["residual_from"] = p.residual_from;
+  plan["residual_tolerance"] = number_or_null(p.is_jerk_problem() ? std::nan("") : p.residual_tolerance);
   if (p.residual_from > p.integrator.t0)
     plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = ps.max_constraint_residual;
   plan["wall_time_s"] = ps.wall_time;
@@ -355,6 +364,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());
     o["status"] = rr.done ? to_string(r.status) : "not_run";
     o["message"] = r.message;
+    o["t_end"] = r.t_end;
     o["saturated_samples"] = r.saturated_samples;
     o["final_max_abs_error"] = r.final_max_abs_error;
     o["peak_abs_tau"] = r.peak_abs_tau;

@@ -34,9 +34,69 @@ constexpr long kMaxSpecValues = 1'000'000;
 /// would otherwise be followed until the stack overflows (found by the fuzzers).
 constexpr int kMaxSpecDepth = 64;
 
-/// YAML → SpecValue: scalar keys only, each key once (both lines named otherwise).
+/// Whether the quoted scalar that starts at text[pos] (a ' or a ") has its closing quote.
+/// yaml-cpp 0.7 accepts a quote left open: the value then runs on to the end of the file, which
+/// swallows every later key (found by a user: `name: "arm` gave "model: missing").
+bool quote_closed(const std::string& text, size_t pos) {
+  const char q = text[pos];
+  for (size_t i = pos + 1; i < text.size(); ++i) {
+    if (q == '"' && text[i] == '\\') {
+      ++i;  // an escape: \" or \\ is not the end
+    } else if (text[i] == q) {
+      if (q == '\'' && i + 1 < text.size() && text[i + 1] == '\'') {
+        ++i;  // '' inside single quotes is one quote
+      } else {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+/// The line (1-based) where a quoted value starts that never ends, or 0: a hint for a YAML syntax
+/// error that yaml-cpp reports elsewhere (`q: {j1: "0, j2: 1}` gives "end of map flow not found").
+/// A quote opens a value only at its start (after a line's indentation, ': ', '- ', '[', '{' or
+/// ','); comments are skipped.
+int unterminated_quote_line(const std::string& text) {
+  int line = 1;
+  char prev = '\n';  // the last character that is not a space or a tab
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char ch = text[i];
+    if (ch == '\n') {
+      ++line;
+      prev = '\n';
+      continue;
+    }
+    if (ch == ' ' || ch == '\t') continue;
+    if (ch == '#' && (i == 0 || text[i - 1] == ' ' || text[i - 1] == '\t' || text[i - 1] == '\n')) {
+      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
+      continue;
+    }
+    const bool at_value_start = prev == '\n' || prev == '[' || prev == '{' || prev == ',' ||
+                                ((prev == ':' || prev == '-' || prev == '?') && i > 0 && (text[i - 1] == ' ' || text[i - 1] == '\t'));
+    if ((ch == '"' || ch == '\'') && at_value_start) {
+      if (!quote_closed(text, i)) return line;
+      const char q = ch;
+      for (++i; i < text.size(); ++i) {  // to the closing quote, counting lines
+        if (text[i] == '\n') ++line;
+        if (q == '"' && text[i] == '\\') {
+          if (i + 1 < text.size() && text[i + 1] == '\n') ++line;
+          ++i;
+        } else if (text[i] == q) {
+          if (q == '\'' && i + 1 < text.size() && text[i + 1] == '\'') ++i;
+          else break;
+        }
+      }
+    }
+    prev = ch;
+  }
+  return 0;
+}
+
+/// YAML → SpecValue: scalar keys only, each key once (both lines named otherwise). `text` is the
+/// file's text (to find quoted values that never end).
 SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::string& key, const SpecReader& r,
-                  long& budget, int depth = 0) {
+                  long& budget, const std::string& text, int depth = 0) {
   if (depth > kMaxSpecDepth)
     r.fail(SourceLocation{file, n.Mark().is_null() ? 0 : n.Mark().line + 1},
            key.size() > 48 ? key.substr(0, 48) + "..." : key,
@@ -56,11 +116,20 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
     case YAML::NodeType::Scalar:
       v.kind = SpecValue::Kind::Scalar;
       v.text = n.Scalar();
+      if (!n.Mark().is_null() && n.Mark().pos >= 0 && static_cast<size_t>(n.Mark().pos) < text.size() &&
+          (text[n.Mark().pos] == '"' || text[n.Mark().pos] == '\'') && !quote_closed(text, n.Mark().pos)) {
+        const char q = text[n.Mark().pos];
+        std::string start = text.substr(n.Mark().pos, 24);
+        if (const auto nl = start.find('\n'); nl != std::string::npos) start = start.substr(0, nl);
+        r.fail(v.where, key,
+               std::string("the quoted text that starts here (") + start + ") never ends: no closing " + q +
+                   " before the end of the file (hint: add the closing " + q + ")");
+      }
       break;
     case YAML::NodeType::Sequence:
       v.kind = SpecValue::Kind::List;
       for (size_t i = 0; i < n.size(); ++i)
-        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r, budget, depth + 1));
+        v.items.push_back(to_spec(n[i], file, key + "[" + std::to_string(i) + "]", r, budget, text, depth + 1));
       break;
     case YAML::NodeType::Map:
       v.kind = SpecValue::Kind::Map;
@@ -77,7 +146,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
             r.fail(SourceLocation{file, line}, child,
                    "key '" + k + "' is given twice (lines " + std::to_string(e.key_line) + " and " + std::to_string(line) +
                        "); keep one");
-        v.entries.push_back({k, line, to_spec(kv.second, file, child, r, budget, depth + 1)});
+        v.entries.push_back({k, line, to_spec(kv.second, file, child, r, budget, text, depth + 1)});
       }
       break;
   }
@@ -98,6 +167,18 @@ struct DocumentCounter final : YAML::EventHandler {
   void OnMapEnd() override {}
 };
 
+/// Every key some kind of the registry allows: an entry's keys are checked against these before
+/// its required keys are looked up, so that a misspelt key (`expresion:`) is reported as such and
+/// not as the required key it hides (`kind: missing`).
+template <class Kind>
+std::vector<std::string> any_kind_keys(const Registry<Kind>& reg) {
+  std::vector<std::string> all;
+  for (const Kind& k : reg.entries())
+    for (const std::string& key : allowed_keys(k))
+      if (std::find(all.begin(), all.end(), key) == all.end()) all.push_back(key);
+  return all;
+}
+
 /// Reads the structure of the file; `c` only locates errors (it evaluates nothing here).
 class Reader {
  public:
@@ -112,6 +193,7 @@ class Reader {
       const SpecValue& e = n[i];
       const std::string k = "constraints[" + std::to_string(i) + "]";
       if (!e.is_map()) c_.fail(e, k, "expected a mapping with 'name' and 'expression' or 'kind', got " + e.describe());
+      c_.keys(e, k, any_kind_keys(constraint_kinds()));  // unknown keys before missing ones
       EntrySpec s;
       s.name = c_.string(c_.need(e, "name", k), k + ".name");
       if (!names.insert(s.name).second)
@@ -142,6 +224,7 @@ class Reader {
       EntrySpec s;
       s.key = key + "[" + std::to_string(i) + "]";
       if (!f.is_map()) c_.fail(f, s.key, "expected a mapping with a 'type', got " + f.describe());
+      c_.keys(f, s.key, any_kind_keys(force_kinds()));  // unknown keys before missing ones
       s.kind = c_.choice(c_.need(f, "type", s.key), s.key + ".type", force_kinds().names());
       if (f["name"]) s.name = c_.string(f["name"], s.key + ".name");
       s.fields = f;
@@ -155,6 +238,7 @@ class Reader {
     EntrySpec s;
     s.key = key;
     if (!n.is_map()) c_.fail(n, key, "expected a mapping with a 'type', got " + n.describe());
+    c_.keys(n, key, any_kind_keys(controller_kinds()));  // unknown keys before missing ones
     s.kind = c_.choice(c_.need(n, "type", key), key + ".type", controller_kinds().names());
     s.fields = n;
     c_.keys(n, key, allowed_keys(*controller_kinds().find(s.kind)));
@@ -263,6 +347,9 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
         break;
       }
     }
+    if (hint.empty())
+      if (const int q = unterminated_quote_line(text))
+        hint = " (hint: the quoted text that starts on line " + std::to_string(q) + " never ends; add its closing quote)";
     throw Error(source + (e.mark.is_null() ? "" : ":" + std::to_string(e.mark.line + 1)) +
                 ": YAML syntax error: " + SpecReader::one_line(e.msg) + hint);
   }
@@ -273,7 +360,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   ScenarioSpec s;
   s.file = source;
   long budget = kMaxSpecValues;
-  s.root = to_spec(yroot, source, "", c, budget);
+  s.root = to_spec(yroot, source, "", c, budget, text);
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
@@ -341,7 +428,8 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
 
   if (const SpecValue& in = root["integrator"]) {
     c.keys(in, "integrator",
-           {"method", "step", "t0", "t1", "rtol", "atol", "output_interval", "min_step", "residual_from"});
+           {"method", "step", "t0", "t1", "rtol", "atol", "output_interval", "min_step", "residual_from",
+            "residual_tolerance"});
     IntegratorSpec& o = s.integrator;
     if (in["method"]) o.method = c.choice(in["method"], "integrator.method", {"rk4", "dopri5"});
     o.step = in["step"];
@@ -352,6 +440,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     o.output_interval = in["output_interval"];
     o.min_step = in["min_step"];
     o.residual_from = in["residual_from"];
+    o.residual_tolerance = in["residual_tolerance"];
     o.value = in;
   }
 

@@ -49,6 +49,16 @@ LinkInertia read_inertia(const SpecReader& c, const SpecValue& n, const std::str
       c.fail(I, k, "expected 3 (diagonal), 6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or 3x3 values, got " + std::to_string(I.size()));
     }
   }
+  // Each number may be finite while the spatial inertia they make is not (mass 1e300 at a COM
+  // of 1e200: m |c|^2 overflows); name the key whose value overflows, not a singular M later.
+  const double r = in.com.stableNorm(), mr = in.mass * r, mrr = mr * r;
+  if (!std::isfinite(mr) || !std::isfinite(mrr)) {
+    const bool at_com = n["com"] && r > 1;
+    c.fail(at_com ? n["com"] : n["mass"], key + (at_com ? ".com" : ".mass"),
+           "mass " + fmt(in.mass) + " kg with its centre of mass at distance " + fmt(r) +
+               " m overflows: the inertia about the joint, m |com|^2 = " + fmt(mrr) +
+               ", is not a finite number (check the units of mass and com)");
+  }
   return in;
 }
 
@@ -356,7 +366,18 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
     const Eigen::MatrixXd M = mass_matrix(m, data, p.q0);
     const Eigen::LLT<Eigen::MatrixXd> llt(M);
     const double tiny = 1e-12 * std::max(1.0, M.diagonal().cwiseAbs().maxCoeff());
-    if (llt.info() != Eigen::Success || !M.allFinite() || (M.diagonal().array() <= tiny).any()) {
+    if (!M.allFinite()) {
+      int j = 0;
+      for (int i = 0; i < m.nv; ++i)
+        if (!M.row(i).allFinite()) {
+          j = i;
+          break;
+        }
+      c.fail(spec.model.value, "model",
+             "the mass matrix is not a finite number at the initial state (row of joint '" + m.joint_name[j] +
+                 "': an overflow; masses, lengths or inertias too large, e.g. a wrong unit)");
+    }
+    if (llt.info() != Eigen::Success || (M.diagonal().array() <= tiny).any()) {
       int j = 0;
       for (int i = 0; i < m.nv; ++i)
         if (!(M(i, i) > tiny)) {
@@ -455,6 +476,10 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   s->parameters = c.params;
   s->model_spec = spec.model.value;
   const Model& m = s->model;
+  if (m.nv == 0)
+    c.fail(spec.model.value, "model",
+           "the model has no moving joint: nothing to plan (every joint is 'fixed'; give at least one the type "
+           "revolute or prismatic)");
 
   // URDF <mimic> joints: material couplings, before the file's own constraints.
   for (const MimicSpec& mm : spec.model.mimics) {
@@ -614,11 +639,32 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
     o.min_step = in.min_step ? c.number(in.min_step, "integrator.min_step") : std::min(o.min_step, 0.5 * o.step);
     if (in.residual_from) s->residual_from = c.number(in.residual_from, "integrator.residual_from");
+    if (in.residual_tolerance) {
+      const SpecValue& rt = in.residual_tolerance;
+      if (s->is_jerk_problem())
+        c.fail(rt, "integrator.residual_tolerance",
+               "not for problems with jerk constraints (order: jerk): their plan's residual is that of the dynamics "
+               "and is not checked against a tolerance (docs/higher_order.md); remove it");
+      if (rt.is_scalar() && (rt.text == "none" || rt.text == "off")) {
+        s->residual_tolerance = std::numeric_limits<double>::infinity();
+      } else {
+        s->residual_tolerance = c.number(rt, "integrator.residual_tolerance");
+        if (!(s->residual_tolerance > 0))
+          c.fail(rt, "integrator.residual_tolerance",
+                 "expected a tolerance > 0 (or 'none' for no check), got " + fmt(s->residual_tolerance));
+      }
+    }
     try {
       o.validate();
     } catch (const Error& e) {
       c.fail(in.value, "integrator", e.what());
     }
+    // One step over the whole span (or more) is no plan: RK4 would take a single step and report
+    // its end, whatever the motion did in between.
+    if (o.step > o.t1 - o.t0)
+      c.fail(in.step ? in.step : in.value, "integrator.step",
+             "the step " + fmt(o.step) + " s is longer than the time span t1 - t0 = " + fmt(o.t1 - o.t0) +
+                 " s (hint: a step of a few milliseconds; the default is 1e-3)");
   }
 
   // Limits, before any work: steps and samples of a run, number of runs.
@@ -919,7 +965,9 @@ Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<v
     return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
   }
   const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
-  return plan_motion(rd, x0, p.integrator, p.residual_from, progress, RecordOptions{p.report_point_indices()});
+  RecordOptions record{p.report_point_indices()};
+  record.residual_tolerance = p.residual_tolerance;
+  return plan_motion(rd, x0, p.integrator, p.residual_from, progress, record);
 }
 
 ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const Plan& plan, ReferenceDynamics& rd,
@@ -936,7 +984,15 @@ ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const 
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
   x0.head(n) = ex.q0;
   x0.segment(n, n) = ex.qd0;
-  return simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &rd, x0, o);
+  ClosedLoopResult r = simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &rd, x0, o);
+  // A run that tracked a plan to its end is a success only when the plan was: else it tracked
+  // the valid part of a reference that stopped early, and says so.
+  if (r.summary.ok() && !plan.summary.ok()) {
+    r.summary.status = IntegrationStatus::ReferenceStopped;
+    r.summary.message = "tracked the reference up to t = " + fmt(r.summary.t_end) + " s, where the plan stopped (" +
+                        to_string(plan.summary.status) + "; the plan's reason: summary.json plan.message)";
+  }
+  return r;
 }
 
 }  // namespace refdyn

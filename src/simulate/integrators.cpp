@@ -23,6 +23,8 @@ const char* to_string(IntegrationStatus s) {
     case IntegrationStatus::NumericalFailure: return "numerical failure";
     case IntegrationStatus::MaxSteps: return "maximum number of steps";
     case IntegrationStatus::Stopped: return "stopped by observer";
+    case IntegrationStatus::ResidualExceeded: return "residual above tolerance";
+    case IntegrationStatus::ReferenceStopped: return "reference stopped early";
   }
   return "?";
 }

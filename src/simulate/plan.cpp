@@ -138,16 +138,48 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     }
   };
   double worst = 0;
+  // The first sample (t >= residual_from) whose residual exceeds the tolerance (or is not a
+  // number) is not recorded: the plan ends at the sample before, its last trustworthy one. The
+  // initial state is always recorded (build_problem checked it against initial.tolerance).
+  const double tol = record.residual_tolerance;
+  bool cut = false;
+  double cut_t = 0, cut_residual = 0;
+  std::string cut_why;
   auto obs = [&](double t, const Eigen::VectorXd& x) {
+    if (t >= residual_from - 1e-12) {
+      double r = 0;
+      try {
+        r = rd.residual(t, x);
+      } catch (const NumericalFailure& e) {
+        if (!std::isfinite(tol)) throw;
+        r = std::nan("");
+        cut_why = e.what();
+      }
+      if (!(r <= tol) && !plan.t.empty()) {
+        cut = true, cut_t = t, cut_residual = r;
+        return false;
+      }
+      if (!std::isnan(r)) worst = std::max(worst, r);
+    }
     plan.t.push_back(t);
     plan.x.push_back(x);
-    if (t >= residual_from - 1e-12) worst = std::max(worst, rd.residual(t, x));
     recorder.record(t, x);
     if (progress) progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
   plan.summary = integrate_staged(rhs, x, options, obs);
+  if (cut) {
+    IntegrationSummary& s = plan.summary;
+    s.status = IntegrationStatus::ResidualExceeded;
+    s.t_end = plan.t.empty() ? options.t0 : plan.t.back();
+    s.message = "at t = " + fmt(cut_t) + " s the constraint residual max |Phi| = " + fmt(cut_residual) +
+                (cut_why.empty() ? std::string() : " (" + cut_why + ")") + " exceeds integrator.residual_tolerance = " +
+                fmt(tol) + ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
+                fmt(s.t_end) + " s (hint: a smaller step, stronger Baumgarte gains, or a task that stays in the "
+                "workspace)";
+    if (rk4) s.steps = std::lround((s.t_end - options.t0) / st.h);
+  }
   if (rk4) {
     st.steps = plan.summary.steps;
     st.data.resize(static_cast<size_t>(st.steps) * 4 * per_stage);

@@ -139,6 +139,22 @@ def test_stopped_plan_is_a_status_not_an_exception():
     assert r.feasibility["feasible"] is False and r.feasibility.get("incomplete_reason")
 
 
+def test_runs_on_a_stopped_plan_are_never_a_success():
+    # A 3R arm whose tip leaves the workspace (tests/data/stopped/): the plan is cut at its last
+    # sample within integrator.residual_tolerance, and each run tracks only that part.
+    r = refdyn.track(SOURCE_DIR / "tests" / "data" / "stopped" / "planar_3r_leaves_workspace.yaml")
+    assert not r.plan.ok and r.plan.status == "residual above tolerance"
+    assert "residual_tolerance" in r.plan.message
+    t_end = r.plan.t[-1]
+    assert 0.5 < t_end < 2.0 and np.abs(r.plan.q).max() < 10
+    assert len(r.runs) == 40
+    for name, run in r.runs.items():
+        assert not run.ok and run.status == "reference stopped early", name
+        assert run.summary["t_end"] == pytest.approx(t_end) and "where the plan stopped" in run.message
+    assert all(x["status"] == "reference stopped early" for x in r.summary["runs"])
+    assert r.summary["statistics"]["completed"] == 0
+
+
 # ---------------------------------------------------------------- model functions
 
 def test_model_properties(paper_model):

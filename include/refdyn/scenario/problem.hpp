@@ -38,6 +38,11 @@ struct Limits {
 
 /// The largest limits.max_runs a scenario may set (building 100,000 runs takes ~5 s, ~0.3 GB).
 inline constexpr long kMaxRunsCeiling = 100'000;
+/// Default of `integrator.residual_tolerance`: the largest constraint residual max |Phi| (metres
+/// or radians, as the constraints are written) a plan may reach before it is cut. Far above the
+/// residuals of a plan that meets its task (examples and tests: below 1e-5), far below a plan
+/// that has left it (a diverging plan, a step too large for the motion).
+inline constexpr double kDefaultResidualTolerance = 1e-3;
 
 /// One closed-loop run of a scenario (one value of a sweep, one point of a grid, one Monte Carlo
 /// sample, or an experiment with none of them). Everything a run needs is fixed here, by
@@ -75,6 +80,10 @@ struct Problem {
   Eigen::VectorXd initial_dq, initial_dqd;  ///< the projection's correction (zeros if none)
   IntegratorOptions integrator;
   double residual_from = 0.0;               ///< report max residual over t >= this
+  /// The plan stops (status ResidualExceeded, exit 4) at the first sample with t >= residual_from
+  /// whose constraint residual max |Phi| exceeds this: beyond it the plan no longer meets its
+  /// task (`integrator.residual_tolerance`, docs/scenario.md).
+  double residual_tolerance = kDefaultResidualTolerance;
   Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
   std::vector<std::unique_ptr<Experiment>> experiments;
   std::vector<std::string> report_points;   ///< points recorded in trajectories

@@ -109,7 +109,7 @@ struct InitialSpec {
 
 struct IntegratorSpec {
   std::string method = "rk4";              ///< rk4 | dopri5
-  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, max_steps;
+  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, residual_tolerance, max_steps;
   SpecValue value;
 };
 

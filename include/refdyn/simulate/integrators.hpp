@@ -32,6 +32,8 @@ enum class IntegrationStatus {
   NumericalFailure,  ///< the right-hand side reported a failure (e.g. singular partition)
   MaxSteps,          ///< max_steps exhausted before t1
   Stopped,           ///< the observer asked to stop
+  ResidualExceeded,  ///< a plan's constraint residual exceeded its tolerance (the plan misses its task)
+  ReferenceStopped,  ///< a closed loop reached the end of a plan that itself stopped early
 };
 const char* to_string(IntegrationStatus s);
 

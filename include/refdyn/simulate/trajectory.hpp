@@ -5,6 +5,7 @@
 #include "refdyn/simulate/integrators.hpp"
 
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,10 @@ struct Plan : Trajectory {
 /// What plan_motion records besides the state (model point indices, e.g. a scenario's outputs).
 struct RecordOptions {
   std::vector<int> points;
+  /// The plan stops at the first output sample (t >= residual_from) whose constraint residual
+  /// max |Phi| exceeds this (or is not a number): that sample is not recorded, the plan ends at
+  /// the one before with status ResidualExceeded. Infinity: no check (the library default).
+  double residual_tolerance = std::numeric_limits<double>::infinity();
 };
 
 }  // namespace refdyn
