@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <numbers>
 #include <random>
+#include <map>
 #include <set>
 
 namespace refdyn {
@@ -248,8 +249,13 @@ auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec
   }
 }
 
+/// Reads a force list. Signal columns (a flexible drive's psi_dr, tau_drive) are suffixed
+/// "_<name>" for a named element; an unnamed element keeps the bare names unless another
+/// element of the list records the same name, then it is suffixed "_<joint>" (two unnamed drives
+/// on different joints: psi_dr_j1, psi_dr_j2; a single unnamed drive keeps psi_dr). Names that
+/// still coincide are an error.
 void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
-  std::set<std::string> signal_names;
+  std::vector<ForceElementPtr> built;
   for (const EntrySpec& e : entries) {
     std::vector<std::pair<double, std::string>> recorded;
     c.recorder = &recorded;
@@ -263,10 +269,27 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
     c.recorder = nullptr;
     std::const_pointer_cast<ForceElement>(f)->label = e.name;
     std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
-    for (const auto& s : f->signal_names())
+    built.push_back(std::move(f));
+  }
+  std::map<std::string, int> uses;
+  for (const auto& f : built)
+    for (const auto& s : f->signal_names()) ++uses[s];
+  for (size_t i = 0; i < built.size(); ++i) {
+    const SpecValue& joint = entries[i].fields["joint"];
+    if (!entries[i].name.empty() || !joint.is_scalar() || joint.text.empty()) continue;
+    for (const auto& s : built[i]->signal_names())
+      if (uses[s] > 1) {
+        std::const_pointer_cast<ForceElement>(built[i])->label = joint.text;
+        break;
+      }
+  }
+  std::set<std::string> signal_names;
+  for (size_t i = 0; i < built.size(); ++i) {
+    for (const auto& s : built[i]->signal_names())
       if (!signal_names.insert(s).second)
-        c.fail(e.fields, e.key, "two force elements record '" + s + "' (give each a different 'name:')");
-    out.add(f);
+        c.fail(entries[i].fields, entries[i].key,
+               "two force elements record '" + s + "' (give each a different 'name:')");
+    out.add(built[i]);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include "refdyn/error.hpp"
 #include "refdyn/text.hpp"
+#include "refdyn/version.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -319,6 +320,7 @@ std::string sweep_csv(const Problem& p, const Results& res) {
 
 JsonValue summary_json(const Problem& p, const Results& res) {
   JsonValue s = JsonValue::object();
+  s["refdyn_version"] = version();
   s["scenario"] = p.name;
   s["file"] = p.file;
   s["wall_time_s"] = res.wall_time;
