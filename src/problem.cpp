@@ -284,6 +284,7 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
       }
   }
   std::set<std::string> signal_names;
+  const size_t states_before = static_cast<size_t>(out.num_states());
   for (size_t i = 0; i < built.size(); ++i) {
     for (const auto& s : built[i]->signal_names())
       if (!signal_names.insert(s).second)
@@ -291,6 +292,15 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
                "two force elements record '" + s + "' (give each a different 'name:')");
     out.add(built[i]);
   }
+  // State columns (LuGre's z_<joint>) are told apart by ForceSet::state_names; names that still
+  // coincide (e.g. an element named "2" next to two unnamed ones) are an error.
+  std::set<std::string> state_names;
+  const auto states = out.state_names();
+  for (size_t i = 0, k = states_before; i < built.size(); ++i)
+    for (int s = 0; s < built[i]->num_states(); ++s, ++k)
+      if (!state_names.insert(states[k]).second)
+        c.fail(entries[i].fields, entries[i].key,
+               "two force elements have the state '" + states[k] + "' (give each a different 'name:')");
 }
 
 ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {

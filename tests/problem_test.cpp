@@ -234,6 +234,22 @@ TEST(Spec, UnnamedForceElementsAreToldApartByTheirJoints) {
                                 {"drives.yaml:", "forces[1]", "two force elements record 'psi_dr_j1'"});
   test::expect_error_mentioning([&] { signals(drive("j1", "") + drive("j2", "") + drive("j2", "j1")); },
                                 {"forces[2]", "two force elements record 'psi_dr_j1'"});
+
+  // The same for states: two LuGre elements on one joint (before: two columns named z_j2).
+  auto lugre = [](const std::string& name) {
+    return "  - {type: lugre, joint: j2, mu_s: 0.1, mu_k: 0.2, sigma0: 5.0, stribeck_velocity: 0.175" +
+           (name.empty() ? "" : ", name: " + name) + "}\n";
+  };
+  auto states = [](const std::string& forces) {
+    return io::parse_problem(arm("forces:\n" + forces), "lugre.yaml")->forces.state_names();
+  };
+  EXPECT_EQ(states(lugre("")), (V{"z_j2"}));
+  EXPECT_EQ(states(lugre("a")), (V{"z_j2"})) << "a lone named element keeps its column";
+  EXPECT_EQ(states(lugre("") + lugre("")), (V{"z_j2_1", "z_j2_2"}));
+  EXPECT_EQ(states(lugre("a") + lugre("b")), (V{"z_j2_a", "z_j2_b"}));
+  EXPECT_EQ(states(lugre("") + lugre("b")), (V{"z_j2_1", "z_j2_b"}));
+  test::expect_error_mentioning([&] { states(lugre("") + lugre("1")); },
+                                {"lugre.yaml:", "forces[1]", "two force elements have the state 'z_j2_1'"});
 }
 
 TEST(Spec, DuplicateKeysAreRejectedWithBothLines) {
