@@ -5,6 +5,7 @@
 #include "report.hpp"
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/common/version.hpp"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -37,6 +38,7 @@ int main(int argc, char** argv) {
       "            3 internal error; 4 a run stopped early (diverged, singular partition): partial results written.\n"
       "Scenario format: docs/scenario.md (`refdyn kinds` lists constraint kinds, forces, controllers).\n"
       "Examples: examples/*/*.yaml.");
+  app.set_version_flag("--version", std::string("refdyn ") + refdyn::version(), "Print the version and exit");
   app.require_subcommand(1);
   std::string file, out_dir = "results";
   bool quiet = false, report = false;
@@ -121,6 +123,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e) == 0 ? kOk : kUsage;
   } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e) == 0 ? kOk : kUsage;
+  } catch (const CLI::CallForVersion& e) {
     return app.exit(e) == 0 ? kOk : kUsage;
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);

@@ -193,12 +193,21 @@ bool ellipse_of(const Constraint& c, std::string& out) {
   return true;
 }
 
+/// The 3D view's "up": against gravity (the four-bar, gravity along −y, stands in the x-y plane);
+/// +z for a model without gravity.
+Vec3 view_up(const Model& m) {
+  const double g = m.gravity.norm();
+  if (!(g > 0 && std::isfinite(g))) return Vec3(0, 0, 1);
+  return Vec3(-m.gravity / g) + Vec3::Zero();  // + 0: no "-0" in the page
+}
+
 std::string scenario_json(const Problem& p) {
   const Model& m = p.model;
   std::string o = "{\"name\":" + str(p.name) + ",\"file\":" + str(p.file);
+  const Vec3 up = view_up(m);
   o += ",\"model\":{\"name\":" + str(m.name) + ",\"dof\":" + std::to_string(m.nq) + ",\"total_mass\":" +
        num(m.total_mass()) + ",\"gravity\":[" + num(m.gravity.x()) + "," + num(m.gravity.y()) + "," +
-       num(m.gravity.z()) + "],\"joints\":[";
+       num(m.gravity.z()) + "],\"up\":[" + num(up.x()) + "," + num(up.y()) + "," + num(up.z()) + "],\"joints\":[";
   for (int i = 0; i < m.nq; ++i) {
     const JointLimits& l = m.limits[i];
     o += std::string(i ? "," : "") + "{\"joint\":" + str(m.joint_name[i]) + ",\"body\":" + str(m.body_name[i]) +

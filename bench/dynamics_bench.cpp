@@ -7,9 +7,13 @@
 // program aborts loudly otherwise. At the end it prints the table of ratios KDL / refdyn.
 //
 // Forward dynamics (FD: CRBA + Cholesky, the articulated-body algorithm, the automatic choice,
-// KDL's ChainFdSolver_RNE) and constrained forward dynamics (CFD: one reference-dynamics
-// evaluation with 4 constraint rows by projection, Lagrange/KKT and the automatic choice, against
-// KDL's M, c, g and an Eigen KKT solve) are timed in the same run; their own table follows.
+// KDL's ChainFdSolver_RNE) and constrained forward dynamics are timed in the same run; their own
+// table follows. CFD: one reference-dynamics evaluation with 4 constraint rows (tip x, y, z and a
+// joint coupling) by projection, Lagrange/KKT and the automatic choice; KDL has no solver for a
+// joint coupling, so its peer there is KDL's M, c, g plus an Eigen KKT solve written for this
+// benchmark ("kdl_kkt"). CFDtip: the tip frame's origin held (3 rows), the case KDL's own
+// constrained solver ChainHdSolver_Vereshchagin handles ("kdl_vereshchagin"), timed next to the
+// same KKT peer. Every peer figure is printed with the KDL routine it calls.
 
 #include "bench_report.hpp"
 #include "dh_tables.hpp"
@@ -63,6 +67,7 @@ refdyn::Model model_from_table(const DHTable& t) {
   refdyn::ModelDescription d = refdyn::from_dh(rows, refdyn::DHConvention::Standard, t.name);
   d.gravity = refdyn::Vec3(t.gravity[0], t.gravity[1], t.gravity[2]);
   d.add_point("tip", d.links.back().name, refdyn::Vec3(0.05, 0.0, 0.0));  // for the constrained FD
+  d.add_point("ee", d.links.back().name, refdyn::Vec3::Zero());  // KDL's tip frame origin (CFDtip)
   return refdyn::build_model(d);
 }
 
@@ -80,6 +85,13 @@ struct Case {
   std::vector<Eigen::VectorXd> x;
   Eigen::VectorXd xdot;
   bool constrained = false;
+  // CFDtip (same models): "ee" (the last DH frame's origin = KDL's tip) held at its state-0
+  // position, 3 rows; a second KDL peer holds these rows (KKT) and the Vereshchagin inputs.
+  refdyn::ConstraintSet tip_constraints;
+  std::unique_ptr<refdyn::ReferenceDynamics> rd_tip_proj, rd_tip_lag, rd_tip_auto;
+  std::unique_ptr<KdlPeer> kdl_tip;
+  std::vector<Eigen::VectorXd> x_tip;
+  bool tip = false;
   bool crossover_only = false;  ///< only the FD and CFD benchmarks (sizes for the crossovers)
 };
 
@@ -118,7 +130,62 @@ void setup_constrained(Case& c) {
   c.constrained = true;
 }
 
-std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::uint32_t seed) {
+/// CFDtip: the point "ee" (the origin of the last DH frame, KDL's tip) held at its state-0
+/// position, 3 rows, no applied forces, the Baumgarte terms active. Peers: KDL's own constrained
+/// solver, ChainHdSolver_Vereshchagin with alfa = unit x, y, z (linear) at the tip and beta = the
+/// tip acceleration refdyn's solution has (KDL's convention: the spatial acceleration at the tip,
+/// r̈ − ω × v, plus root_acc = −gravity) — by Gauss's principle the same problem, so the same q̈
+/// (checked); and the KKT peer with the same A and right-hand side.
+void setup_tip(Case& c, const DHTable& table) {
+  using namespace refdyn;
+  const Model& m = c.model;
+  Data data(m);
+  const int ee = m.point_index("ee");
+  forward_kinematics(m, data, c.q[0]);
+  const Vec3 r0 = point_position(m, data, ee);
+  for (int axis = 0; axis < 3; ++axis) c.tip_constraints.add(point_coordinate(m, "ee", axis, constant(r0[axis])));
+  ReferenceDynamicsOptions o;
+  o.automatic_partition = true;
+  o.solver = ReferenceSolver::Projection;
+  c.rd_tip_proj = std::make_unique<ReferenceDynamics>(m, c.forces, c.tip_constraints, o);
+  o.solver = ReferenceSolver::Lagrange;
+  c.rd_tip_lag = std::make_unique<ReferenceDynamics>(m, c.forces, c.tip_constraints, o);
+  o.solver = ReferenceSolver::Automatic;
+  c.rd_tip_auto = std::make_unique<ReferenceDynamics>(m, c.forces, c.tip_constraints, o);
+  c.kdl_tip = std::make_unique<KdlPeer>(table);
+  const int n = m.nq, rows = 3;
+  std::vector<double> q, qd, A(static_cast<size_t>(kStates) * rows * n), rhs(static_cast<size_t>(kStates) * rows);
+  std::vector<double> alfa, beta, ff(static_cast<size_t>(kStates) * n, 0.0);
+  const Vec3 gravity = m.gravity;
+  for (int k = 0; k < kStates; ++k) {
+    q.insert(q.end(), c.q[k].data(), c.q[k].data() + n);
+    qd.insert(qd.end(), c.qd[k].data(), c.qd[k].data() + n);
+    c.x_tip.push_back(c.rd_tip_lag->make_state(c.q[k], c.qd[k]));
+    Eigen::VectorXd xdot = Eigen::VectorXd::Zero(c.x_tip[k].size());
+    c.rd_tip_lag->derivative(0.0, c.x_tip[k], xdot);
+    const ConstraintEval& ev = c.rd_tip_lag->constraints();
+    Eigen::Map<Eigen::MatrixXd>(A.data() + static_cast<size_t>(k) * rows * n, rows, n) = ev.A;
+    for (int r = 0; r < rows; ++r)
+      rhs[k * rows + r] = -ev.gamma[r] - 2.0 * o.alpha * ev.phid[r] - o.beta * o.beta * ev.phi[r];
+    const PointState& P = ev.points[ee];
+    const Vec3 acc = P.C * xdot.segment(n, n) + P.d - P.w.cross(P.v) - gravity;
+    for (int r = 0; r < rows; ++r) {
+      double a6[6] = {0, 0, 0, 0, 0, 0};
+      a6[r] = 1.0;
+      alfa.insert(alfa.end(), a6, a6 + 6);
+      beta.push_back(acc[r]);
+    }
+  }
+  const std::vector<double> qdd(static_cast<size_t>(kStates) * n, 0.0);
+  c.kdl_tip->load_states(q.data(), qd.data(), qdd.data(), kStates);
+  c.kdl_tip->set_constraints(A.data(), rhs.data(), rows, kStates);
+  const double root_acc[6] = {-gravity.x(), -gravity.y(), -gravity.z(), 0, 0, 0};  // KDL: minus gravity
+  c.kdl_tip->setup_vereshchagin(root_acc, rows);
+  c.kdl_tip->load_vereshchagin_inputs(alfa.data(), beta.data(), ff.data(), kStates);
+  c.tip = true;
+}
+
+std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::uint32_t seed, bool tip = false) {
   auto c = std::make_unique<Case>(std::move(model));
   c->name = table.name;
   c->data = std::make_unique<refdyn::Data>(c->model);
@@ -142,6 +209,7 @@ std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::
     c->tau.push_back(Eigen::Map<const Eigen::VectorXd>(tau.data() + k * n, n));
   }
   if (n >= 7 && !c->model.point_name.empty()) setup_constrained(*c);
+  if (tip && c->constrained) setup_tip(*c, table);
   return c;
 }
 
@@ -202,10 +270,34 @@ bool check_forward_dynamics(Case& c) {
     expect("CFD: automatic vs its choice", k, xa,
            c.rd_auto->options().solver == refdyn::ReferenceSolver::Lagrange ? xl : xp, 0.0, worst_c);
     expect("CFD: refdyn Lagrange vs KDL M, c, g + KKT", k, xl.segment(n, n), kq, 1e3 * tol, worst_c);
+    if (!c.tip) continue;
+    Eigen::VectorXd tp = Eigen::VectorXd::Zero(c.x_tip[k].size()), tl = tp, ta = tp;
+    c.rd_tip_proj->derivative(0.0, c.x_tip[k], tp);
+    c.rd_tip_lag->derivative(0.0, c.x_tip[k], tl);
+    c.rd_tip_auto->derivative(0.0, c.x_tip[k], ta);
+    expect("CFDtip: projection vs Lagrange", k, tp.segment(n, n), tl.segment(n, n), 1e3 * tol, worst_c);
+    expect("CFDtip: automatic vs its choice", k, ta,
+           c.rd_tip_auto->options().solver == refdyn::ReferenceSolver::Lagrange ? tl : tp, 0.0, worst_c);
+    if (c.kdl_tip->constrained_forward_dynamics(k) != 0 || c.kdl_tip->vereshchagin(k) != 0) {
+      std::fprintf(stderr, "FATAL: %s: the KDL KKT peer or ChainHdSolver_Vereshchagin failed\n", c.name.c_str());
+      return false;
+    }
+    c.kdl_tip->get_qdd(kq.data());
+    expect("CFDtip: refdyn Lagrange vs KDL M, c, g + KKT", k, tl.segment(n, n), kq, 1e3 * tol, worst_c);
+    c.kdl_tip->get_vereshchagin_qdd(kq.data());
+    expect("CFDtip: refdyn Lagrange vs KDL ChainHdSolver_Vereshchagin", k, tl.segment(n, n), kq, 1e3 * tol, worst_c);
+    double pos[3], twist[6], acc[6];
+    if (c.kdl_tip->tip_kinematics(k, kq.data(), pos, twist, acc) != 0) return false;
+    refdyn::forward_kinematics(c.model, data, c.q[k]);
+    const refdyn::Vec3 ee = refdyn::point_position(c.model, data, c.model.point_index("ee"));
+    expect("CFDtip: refdyn point ee vs KDL's tip position", k, ee, Eigen::Vector3d(pos[0], pos[1], pos[2]), 1e-12,
+           worst_c);
   }
   std::printf("check %-8s %2d DOF: FD routes and KDL agree (worst %.1e, cond(M) up to %.1e)", c.name.c_str(), n,
               worst, worst_cond);
-  if (c.constrained) std::printf("; CFD routes and KDL peer agree (worst %.1e)", worst_c);
+  if (c.constrained)
+    std::printf("; CFD%s routes and KDL peers%s agree (worst %.1e)", c.tip ? " and CFDtip" : "",
+                c.tip ? " (KKT, Vereshchagin)" : " (KKT)", worst_c);
   std::printf("\n");
   return ok;
 }
@@ -307,7 +399,24 @@ void register_forward_dynamics(Case* c, Reg reg) {
     c->rd_auto->derivative(0.0, c->x[k], c->xdot);
     benchmark::DoNotOptimize(c->xdot.data());
   });
-  reg(p + "CFD/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->constrained_forward_dynamics(k)); });
+  reg(p + "CFD/kdl_kkt", [=](int k) { benchmark::DoNotOptimize(kdl->constrained_forward_dynamics(k)); });
+  if (!c->tip) return;
+  // The tip held (3 rows): refdyn's routes, KDL's own constrained solver and the KKT peer.
+  reg(p + "CFDtip/projection", [=](int k) {
+    c->rd_tip_proj->derivative(0.0, c->x_tip[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  reg(p + "CFDtip/lagrange", [=](int k) {
+    c->rd_tip_lag->derivative(0.0, c->x_tip[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  reg(p + "CFDtip/auto", [=](int k) {
+    c->rd_tip_auto->derivative(0.0, c->x_tip[k], c->xdot);
+    benchmark::DoNotOptimize(c->xdot.data());
+  });
+  KdlPeer* kt = c->kdl_tip.get();
+  reg(p + "CFDtip/kdl_vereshchagin", [=](int k) { benchmark::DoNotOptimize(kt->vereshchagin(k)); });
+  reg(p + "CFDtip/kdl_kkt", [=](int k) { benchmark::DoNotOptimize(kt->constrained_forward_dynamics(k)); });
 }
 
 void register_case(Case* c) {
@@ -365,11 +474,22 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
     auto it = rep.stats.find(key);
     return it == rep.stats.end() ? nullptr : &it->second;
   };
+  // The KDL routine behind each peer figure.
+  const std::map<std::string, std::string> kdl_routine = {
+      {"M", "ChainDynParam::JntToMass"},
+      {"c+g", "ChainDynParam::JntToCoriolis + JntToGravity"},
+      {"g", "ChainDynParam::JntToGravity"},
+      {"ID", "ChainIdSolver_RNE::CartToJnt"},
+      {"FD/kdl", "ChainFdSolver_RNE::CartToJnt (KDL's FD solver)"},
+      {"CFD/kdl_kkt", "JntToMass + JntToCoriolis + JntToGravity + Eigen KKT written for this bench (KDL has no solver for a joint coupling)"},
+      {"CFDtip/kdl_vereshchagin", "ChainHdSolver_Vereshchagin::CartToJnt (KDL's constrained solver)"},
+      {"CFDtip/kdl_kkt", "JntToMass + JntToCoriolis + JntToGravity + Eigen KKT written for this bench"},
+  };
   std::printf("\nRatios KDL / refdyn recursive and trace / recursive (> 1: refdyn's recursive route is faster).\n");
   std::printf("Times are CPU time per call; 'med' = median over repetitions, 'min' = fastest repetition;\n");
   std::printf("ratios are med/med and min/min.\n\n");
-  std::printf("| model | DOF | quantity | recursive med | recursive min | KDL med | KDL min | KDL/rec med | KDL/rec min | trace med | trace/rec med |\n");
-  std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("| model | DOF | quantity | KDL routine | recursive med | recursive min | KDL med | KDL min | KDL/rec med | KDL/rec min | trace med | trace/rec med |\n");
+  std::printf("|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const auto& c : cases)
     for (const auto& qty : kQuantities) {
       const std::string p = c->name + "/" + qty + "/";
@@ -380,9 +500,9 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
       const double rm = r ? r->median() : NAN, rn = r ? r->min() : NAN;
       const double km = k ? k->median() : NAN, kn = k ? k->min() : NAN;
       const double tm = t ? t->median() : NAN;
-      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
-                  qty.c_str(), fmt_ns(rm).c_str(), fmt_ns(rn).c_str(), fmt_ns(km).c_str(), fmt_ns(kn).c_str(),
-                  fmt_ratio(km / rm).c_str(), fmt_ratio(kn / rn).c_str(), fmt_ns(tm).c_str(),
+      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
+                  qty.c_str(), kdl_routine.at(qty).c_str(), fmt_ns(rm).c_str(), fmt_ns(rn).c_str(), fmt_ns(km).c_str(),
+                  fmt_ns(kn).c_str(), fmt_ratio(km / rm).c_str(), fmt_ratio(kn / rn).c_str(), fmt_ns(tm).c_str(),
                   fmt_ratio(tm / rm).c_str());
     }
   std::printf("\nM = mass matrix (refdyn mass_matrix [CRBA] | trace_mass_matrix | KDL ChainDynParam::JntToMass)\n");
@@ -391,26 +511,29 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
   std::printf("g = gravity (gravity_forces | trace_gravity | JntToGravity)\n");
   std::printf("ID = inverse dynamics (inverse_dynamics [RNEA] | - | ChainIdSolver_RNE::CartToJnt)\n");
 
-  std::printf("\nForward dynamics (FD) and constrained forward dynamics (CFD, 4 rows). FD: crba =\n");
-  std::printf("forward_dynamics_crba (CRBA + RNEA + Cholesky), aba = forward_dynamics_aba, auto = forward_dynamics,\n");
-  std::printf("kdl = ChainFdSolver_RNE. CFD: crba = projection, aba = lagrange (KKT), auto = ReferenceSolver::Automatic,\n");
-  std::printf("kdl = JntToMass + JntToCoriolis + JntToGravity + Eigen KKT. Medians; ratios med/med.\n\n");
+  std::printf("\nForward dynamics (FD) and constrained forward dynamics (CFD: tip x, y, z + a joint coupling, 4 rows;\n");
+  std::printf("CFDtip: the tip frame's origin held, 3 rows). FD: crba = forward_dynamics_crba (CRBA + RNEA + Cholesky),\n");
+  std::printf("aba = forward_dynamics_aba, auto = forward_dynamics. CFD, CFDtip: crba = projection, aba = lagrange (KKT),\n");
+  std::printf("auto = ReferenceSolver::Automatic. The KDL column names the routine it times (one row per peer).\n");
+  std::printf("Medians; ratios med/med, the last min/min.\n\n");
   std::printf("fused = unchecked::mass_matrix_and_bias + solve_mass_matrix (the closed-loop plant's CRBA route).\n\n");
-  std::printf("| model | DOF | quantity | crba/projection | fused | aba/lagrange | auto | KDL | crba÷aba (proj÷lag) | fused÷aba | KDL÷auto | KDL min÷auto min |\n");
-  std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("| model | DOF | quantity | crba/projection | fused | aba/lagrange | auto | KDL routine | KDL | crba÷aba (proj÷lag) | fused÷aba | KDL÷auto | KDL min÷auto min |\n");
+  std::printf("|---|---:|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n");
+  const std::vector<std::pair<std::string, std::string>> rows = {
+      {"FD", "kdl"}, {"CFD", "kdl_kkt"}, {"CFDtip", "kdl_vereshchagin"}, {"CFDtip", "kdl_kkt"}};
   for (const auto& c : cases)
-    for (const std::string qty : {"FD", "CFD"}) {
+    for (const auto& [qty, peer] : rows) {
       const std::string p = c->name + "/" + qty + "/";
       const Stats* a = get(p + (qty == "FD" ? "crba" : "projection"));
       const Stats* b = get(p + (qty == "FD" ? "aba" : "lagrange"));
       const Stats* au = get(p + "auto");
-      const Stats* k = get(p + "kdl");
+      const Stats* k = get(p + peer);
       const Stats* fu = get(p + "fused");
       if (!a || !b || !au || !k) continue;
       const double fm = fu ? fu->median() : NAN;
-      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
+      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
                   qty.c_str(), fmt_ns(a->median()).c_str(), fmt_ns(fm).c_str(), fmt_ns(b->median()).c_str(),
-                  fmt_ns(au->median()).c_str(), fmt_ns(k->median()).c_str(),
+                  fmt_ns(au->median()).c_str(), kdl_routine.at(qty + "/" + peer).c_str(), fmt_ns(k->median()).c_str(),
                   fmt_ratio(a->median() / b->median()).c_str(), fmt_ratio(fm / b->median()).c_str(),
                   fmt_ratio(k->median() / au->median()).c_str(), fmt_ratio(k->min() / au->min()).c_str());
     }
@@ -426,7 +549,7 @@ int main(int argc, char** argv) {
   cases.push_back(make_case(refdyn_bench::paper_table(), refdyn::models::paper_manipulator(), 101));
   for (int dof : {7, 15, 30, 60}) {
     const DHTable t = refdyn_bench::random_table(dof, 1000 + dof);
-    cases.push_back(make_case(t, model_from_table(t), 2000 + dof));
+    cases.push_back(make_case(t, model_from_table(t), 2000 + dof, /*tip=*/true));
   }
   // Extra sizes for the crossovers (FD and CFD only): kAbaFrom, kLagrangeFrom.
   for (int dof : {2, 4, 5, 10, 20, 24}) {

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -520,6 +521,28 @@ TEST(CommandLine, HelpForEachSubcommand) {
       EXPECT_TRUE(contains(r.out + r.err, m)) << "'refdyn " << h.args << "' does not mention " << m << describe(r);
   }
   EXPECT_TRUE(empty_dir(s.cwd())) << "--help wrote:" << listing(s.cwd());
+}
+
+// refdyn --version prints the project's version (project(VERSION) in CMakeLists.txt); summary.json
+// records the same as "refdyn_version"; the Python package and CHANGELOG.md name it too.
+TEST(CommandLine, VersionIsTheProjectsAndSummaryJsonRecordsIt) {
+  Scratch s;
+  std::smatch m;
+  const std::string cmake = read_text(kSource / "CMakeLists.txt");
+  ASSERT_TRUE(std::regex_search(cmake, m, std::regex(R"(project\(refdyn VERSION ([0-9]+\.[0-9]+\.[0-9]+))")));
+  const std::string v = m[1];
+  const Result r = run(s, "--version");
+  EXPECT_EQ(r.code, 0) << describe(r);
+  EXPECT_EQ(r.out, "refdyn " + v + "\n") << describe(r);
+  EXPECT_EQ(r.err, "");
+  EXPECT_TRUE(empty_dir(s.cwd())) << "--version wrote:" << listing(s.cwd());
+  const Result p = run(s, "plan " + quote(kGood) + " -o out -q");
+  ASSERT_EQ(p.code, 0) << describe(p);
+  const std::string summary = read_text(s.cwd() / "out" / "summary.json");
+  EXPECT_EQ(summary.rfind("{\n  \"refdyn_version\": \"" + v + "\",\n", 0), 0u) << summary.substr(0, 200);
+  EXPECT_TRUE(contains(read_text(kSource / "python/pyproject.toml"), "version = \"" + v + "\""));
+  EXPECT_TRUE(contains(read_text(kSource / "python/refdyn/__init__.py"), "__version__ = \"" + v + "\""));
+  EXPECT_TRUE(contains(read_text(kSource / "CHANGELOG.md"), "\n## " + v + "\n")) << "CHANGELOG.md has no section " << v;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -206,6 +206,52 @@ experiments:
 
 // ---------------------------------------------------------------------------------------------
 // The YAML layer: structure errors with lines, before any number is evaluated.
+// Unnamed force elements of one type (issue 24): each keeps the bare column names when it is the
+// only one recording them (the paper's psi_dr), and is suffixed with its joint when several
+// would record the same name; a named one is suffixed with its name; names that still coincide
+// are an error located at the second element.
+TEST(Spec, UnnamedForceElementsAreToldApartByTheirJoints) {
+  auto drive = [](const std::string& joint, const std::string& name) {
+    return "  - {type: flexible_drive, joint: " + joint + ", stiffness: 50, damping: 2" +
+           (name.empty() ? "" : ", name: " + name) + ", profile: {raised_cosine: {base: 0, amplitude: 0.1, period: 1}}}\n";
+  };
+  auto signals = [](const std::string& forces) {
+    const auto p = io::parse_problem(arm("forces:\n" + forces), "drives.yaml");
+    std::vector<std::string> names;
+    for (const auto& e : p->forces.elements())
+      for (const auto& s : e->signal_names()) names.push_back(s);
+    return names;
+  };
+  using V = std::vector<std::string>;
+  EXPECT_EQ(signals(drive("j1", "")), (V{"psi_dr", "tau_drive"}));
+  EXPECT_EQ(signals(drive("j1", "") + drive("j2", "")), (V{"psi_dr_j1", "tau_drive_j1", "psi_dr_j2", "tau_drive_j2"}));
+  EXPECT_EQ(signals(drive("j1", "") + drive("j2", "shoulder")), (V{"psi_dr", "tau_drive", "psi_dr_shoulder", "tau_drive_shoulder"}));
+  EXPECT_EQ(signals(drive("j1", "a") + drive("j2", "b")), (V{"psi_dr_a", "tau_drive_a", "psi_dr_b", "tau_drive_b"}));
+  EXPECT_EQ(signals(drive("j1", "") + "  - {type: damping, joint: j1, coefficient: 0.5}\n" + drive("j2", "")),
+            (V{"psi_dr_j1", "tau_drive_j1", "psi_dr_j2", "tau_drive_j2"}));
+  // Two unnamed drives on the same joint, or a drive named after the joint of an unnamed one.
+  test::expect_error_mentioning([&] { signals(drive("j1", "") + drive("j1", "")); },
+                                {"drives.yaml:", "forces[1]", "two force elements record 'psi_dr_j1'"});
+  test::expect_error_mentioning([&] { signals(drive("j1", "") + drive("j2", "") + drive("j2", "j1")); },
+                                {"forces[2]", "two force elements record 'psi_dr_j1'"});
+
+  // The same for states: two LuGre elements on one joint (before: two columns named z_j2).
+  auto lugre = [](const std::string& name) {
+    return "  - {type: lugre, joint: j2, mu_s: 0.1, mu_k: 0.2, sigma0: 5.0, stribeck_velocity: 0.175" +
+           (name.empty() ? "" : ", name: " + name) + "}\n";
+  };
+  auto states = [](const std::string& forces) {
+    return io::parse_problem(arm("forces:\n" + forces), "lugre.yaml")->forces.state_names();
+  };
+  EXPECT_EQ(states(lugre("")), (V{"z_j2"}));
+  EXPECT_EQ(states(lugre("a")), (V{"z_j2"})) << "a lone named element keeps its column";
+  EXPECT_EQ(states(lugre("") + lugre("")), (V{"z_j2_1", "z_j2_2"}));
+  EXPECT_EQ(states(lugre("a") + lugre("b")), (V{"z_j2_a", "z_j2_b"}));
+  EXPECT_EQ(states(lugre("") + lugre("b")), (V{"z_j2_1", "z_j2_b"}));
+  test::expect_error_mentioning([&] { states(lugre("") + lugre("1")); },
+                                {"lugre.yaml:", "forces[1]", "two force elements have the state 'z_j2_1'"});
+}
+
 TEST(Spec, DuplicateKeysAreRejectedWithBothLines) {
   test::expect_error_mentioning([] { io::parse_scenario(arm("integrator: {t1: 1}\n"), "dup.yaml"); },
                                 {"dup.yaml:", "integrator", "given twice", "lines 14 and 15"});

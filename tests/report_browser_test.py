@@ -105,6 +105,20 @@ r = run([REFDYN, "report", planar, "-q", "--scenario",
          os.path.join(SOURCE, "examples/planar_2r_circle/planar_2r_circle.yaml")], cwd=OUT)
 check(r.returncode == 0 and os.path.exists(os.path.join(planar, "report.html")), "with --scenario (%s)" % r.stderr.strip())
 
+# The 3D view's "up" is against gravity: the four-bar (gravity along -y) stands in the x-y
+# plane, the paper's manipulator (gravity along -z) has +z up. Written into the page's data.
+def page_up(path):
+    m = re.search(r'"gravity":\[[^\]]*\],"up":\[([^\]]*)\]', open(path, encoding="utf-8").read())
+    return [float(x) for x in m.group(1).split(",")] if m else None
+
+
+four_bar = os.path.join(OUT, "four_bar")
+r = run([REFDYN, "plan", "examples/four_bar/four_bar.yaml", "-o", four_bar, "-q", "--report"], cwd=SOURCE)
+check(r.returncode == 0, "refdyn plan four_bar --report (%s)" % r.stderr.strip())
+four_bar_html = os.path.join(four_bar, "report.html")
+check(page_up(four_bar_html) == [0.0, 1.0, 0.0], "four-bar page: up = -gravity direction = [0, 1, 0] (%s)" % page_up(four_bar_html))
+check(page_up(html_path) == [0.0, 0.0, 1.0], "paper page: up = [0, 0, 1] (%s)" % page_up(html_path))
+
 if not CHROMIUM:
     print("SKIP: chromium not installed (bash scripts/install-deps.sh installs it)")
     sys.exit(77 if not failures else 1)
@@ -168,6 +182,20 @@ m2 = re.search(r'<pre id="selftest"[^>]*>([^<]*)</pre>', r.stdout)
 st2 = json.loads(m2.group(1)) if m2 and m2.group(1).strip() else {"errors": ["no self-test output"], "graphs": 0, "plotsInked": -1}
 check(st2["errors"] == [] and st2["graphs"] > 0 and st2["plotsInked"] == st2["graphs"],
       "planar_2r_circle report: no error, every plot inked (%s)" % st2["errors"])
+
+# The view itself: the camera's up and the ground grid's normal follow gravity.
+def close(a, b):
+    return a is not None and len(a) == 3 and all(abs(x - y) < 1e-12 for x, y in zip(a, b))
+
+
+check(close(st.get("view", {}).get("cameraUp"), [0, 0, 1]) and close(st.get("view", {}).get("gridNormal"), [0, 0, 1]),
+      "paper page: camera up and ground normal +z (%s)" % st.get("view"))
+r = chromium("file://" + four_bar_html + "#selftest=1", "--dump-dom")
+m3 = re.search(r'<pre id="selftest"[^>]*>([^<]*)</pre>', r.stdout)
+st3 = json.loads(m3.group(1)) if m3 and m3.group(1).strip() else {"errors": ["no self-test output"]}
+check(st3["errors"] == [] and close(st3.get("view", {}).get("cameraUp"), [0, 1, 0])
+      and close(st3.get("view", {}).get("gridNormal"), [0, 1, 0]),
+      "four-bar page: no error, camera up and ground normal +y, against gravity (%s, %s)" % (st3["errors"], st3.get("view")))
 
 # ---- 3. screenshot ----
 shot = os.path.join(OUT, "report_paper_t2.5.png")

@@ -31,7 +31,7 @@ __all__ = [
     "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
     "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",
 ]
-__version__ = "0.1.0"
+__version__ = "0.2.0"  # = project(VERSION) in CMakeLists.txt (cli_test checks)
 
 # --------------------------------------------------------------------------- scenarios
 

@@ -203,10 +203,29 @@ void ForceSet::add(ForceElementPtr e) {
   elements_.push_back(std::move(e));
 }
 
+/// The states' column names, distinct: an element's own name (LuGre: z_<joint>) unless another
+/// element of the set has a state of that name too (two LuGre elements on one joint); then each
+/// of them is suffixed "_<label>" (its scenario `name:`) or, unnamed, "_<k>", its ordinal among
+/// the elements sharing the name (z_j2_1, z_j2_2). A set without such duplicates (every scenario
+/// before this rule) keeps its names.
 std::vector<std::string> ForceSet::state_names() const {
-  std::vector<std::string> n;
+  std::vector<std::string> raw;
+  std::vector<const ForceElement*> owner;
   for (const auto& e : elements_)
-    for (auto& s : e->state_names()) n.push_back(s);
+    for (auto& s : e->state_names()) {
+      raw.push_back(s);
+      owner.push_back(e.get());
+    }
+  std::vector<std::string> n = raw;
+  for (size_t i = 0; i < raw.size(); ++i) {
+    int ordinal = 0, count = 0;
+    for (size_t j = 0; j < raw.size(); ++j)
+      if (raw[j] == raw[i]) {
+        ++count;
+        if (j <= i) ++ordinal;
+      }
+    if (count > 1) n[i] = raw[i] + "_" + (owner[i]->label.empty() ? std::to_string(ordinal) : owner[i]->label);
+  }
   return n;
 }
 

@@ -2,6 +2,7 @@
 
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/common/version.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -327,6 +328,7 @@ std::string sweep_csv(const Problem& p, const Results& res) {
 
 JsonValue summary_json(const Problem& p, const Results& res) {
   JsonValue s = JsonValue::object();
+  s["refdyn_version"] = version();
   s["scenario"] = p.name;
   s["file"] = p.file;
   s["wall_time_s"] = res.wall_time;

@@ -4,6 +4,7 @@
 #include "refdyn/scenario/problem.hpp"
 #include "refdyn/scenario/registry.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/common/version.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -202,6 +203,7 @@ JsonValue variants_summary_json(const std::string& scenario, const std::string& 
                                 const std::vector<std::string>& joints, const std::vector<Variant>& variants,
                                 const std::vector<VariantSummary>& summaries, bool tracked, double wall_time) {
   JsonValue s = JsonValue::object();
+  s["refdyn_version"] = version();
   s["scenario"] = scenario;
   s["file"] = file;
   s["wall_time_s"] = wall_time;

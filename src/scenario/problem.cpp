@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <numbers>
 #include <random>
+#include <map>
 #include <set>
 
 namespace refdyn {
@@ -258,8 +259,13 @@ auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec
   }
 }
 
+/// Reads a force list. Signal columns (a flexible drive's psi_dr, tau_drive) are suffixed
+/// "_<name>" for a named element; an unnamed element keeps the bare names unless another
+/// element of the list records the same name, then it is suffixed "_<joint>" (two unnamed drives
+/// on different joints: psi_dr_j1, psi_dr_j2; a single unnamed drive keeps psi_dr). Names that
+/// still coincide are an error.
 void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
-  std::set<std::string> signal_names;
+  std::vector<ForceElementPtr> built;
   for (const EntrySpec& e : entries) {
     std::vector<std::pair<double, std::string>> recorded;
     c.recorder = &recorded;
@@ -273,11 +279,38 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
     c.recorder = nullptr;
     std::const_pointer_cast<ForceElement>(f)->label = e.name;
     std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
-    for (const auto& s : f->signal_names())
-      if (!signal_names.insert(s).second)
-        c.fail(e.fields, e.key, "two force elements record '" + s + "' (give each a different 'name:')");
-    out.add(f);
+    built.push_back(std::move(f));
   }
+  std::map<std::string, int> uses;
+  for (const auto& f : built)
+    for (const auto& s : f->signal_names()) ++uses[s];
+  for (size_t i = 0; i < built.size(); ++i) {
+    const SpecValue& joint = entries[i].fields["joint"];
+    if (!entries[i].name.empty() || !joint.is_scalar() || joint.text.empty()) continue;
+    for (const auto& s : built[i]->signal_names())
+      if (uses[s] > 1) {
+        std::const_pointer_cast<ForceElement>(built[i])->label = joint.text;
+        break;
+      }
+  }
+  std::set<std::string> signal_names;
+  const size_t states_before = static_cast<size_t>(out.num_states());
+  for (size_t i = 0; i < built.size(); ++i) {
+    for (const auto& s : built[i]->signal_names())
+      if (!signal_names.insert(s).second)
+        c.fail(entries[i].fields, entries[i].key,
+               "two force elements record '" + s + "' (give each a different 'name:')");
+    out.add(built[i]);
+  }
+  // State columns (LuGre's z_<joint>) are told apart by ForceSet::state_names; names that still
+  // coincide (e.g. an element named "2" next to two unnamed ones) are an error.
+  std::set<std::string> state_names;
+  const auto states = out.state_names();
+  for (size_t i = 0, k = states_before; i < built.size(); ++i)
+    for (int s = 0; s < built[i]->num_states(); ++s, ++k)
+      if (!state_names.insert(states[k]).second)
+        c.fail(entries[i].fields, entries[i].key,
+               "two force elements have the state '" + states[k] + "' (give each a different 'name:')");
 }
 
 ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {

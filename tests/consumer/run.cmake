@@ -50,7 +50,7 @@ run_step("build consumer" ${CMAKE_COMMAND} --build ${WORK_DIR}/build -j 2)
 if(EXTRA_FLAGS MATCHES "sanitize")  # CLN's one static-initializer leak is not refdyn's
   set(ENV{LSAN_OPTIONS} "suppressions=${SOURCE_DIR}/cmake/lsan.supp")
 endif()
-foreach(exe consumer consumer_io)
+foreach(exe consumer consumer_io consumer_all)
   run_step("run ${exe}" ${WORK_DIR}/build/${exe})
   message(STATUS "${exe}: ${STEP_OUTPUT}")
   if(NOT STEP_OUTPUT MATCHES "refdyn consumer: OK")

@@ -6,7 +6,8 @@ ForceKind force_flexible_drive() {
   ForceKind k;
   k.name = "flexible_drive";
   k.doc = "flexible drive τ = s (ψ_dr(t) − q_j) + d (ψ̇_dr(t) − q̇_j), an actuator; records psi_dr and tau_drive "
-          "(suffixed _<name> when the element has a name)";
+          "(suffixed _<name> when the element has a name; without one, _<joint> when another element of the list "
+          "records the same names)";
   k.keys = {{"joint", "joint", true, "", "the driven joint"},
             {"stiffness", "number", true, "", "s [N m/rad or N/m]"},
             {"damping", "number", true, "", "d [N m s/rad or N s/m]"},
