@@ -213,8 +213,9 @@ TEST(GenericDynamics, DualDerivativesEqualCentralDifferences) {
                         }, h)),
                 1e-7)
           << "direction " << k;
-      EXPECT_DOUBLE_EQ(tau8[0].v, tau1[0].v);
     }
+    // the value part does not depend on the number of directions (up to FMA contraction)
+    for (int i = 0; i < n; ++i) EXPECT_NEAR(tau8[i].v, tau1[i].v, 1e-13 * std::max(1.0, std::abs(tau1[i].v)));
   }
 }
 
