@@ -15,7 +15,10 @@ namespace refdyn::multibody {
                                   Motions<S>&);                                                                 \
   template PointKinematics<S> point_kinematics<S>(const Point<S>&, const Poses<S>&, const Motions<S>&);         \
   template Vec3T<S> point_jacobian_column<S>(const Bodies<S>&, const Poses<S>&, int, const Vec3T<S>&);          \
-  template std::vector<S> newton_euler_backward<S>(const Bodies<S>&, const Poses<S>&, const Motions<S>&);       \
+  template void newton_euler_backward<S>(const Bodies<S>&, const Poses<S>&, const Motions<S>&,                   \
+                                         std::vector<Vec3T<S>>&, std::vector<Vec3T<S>>&, std::vector<S>&);       \
+  template void inverse_dynamics<S>(const Bodies<S>&, const Poses<S>&, const Vec3&, const S*, const S*, bool,      \
+                                    NewtonEulerWork<S>&, std::vector<S>&);                                       \
   template std::vector<S> inverse_dynamics<S>(const Bodies<S>&, const Poses<S>&, const Vec3&, const S*, const S*, \
                                               bool);                                                            \
   template std::vector<S> mass_matrix<S>(const Bodies<S>&, const Poses<S>&);

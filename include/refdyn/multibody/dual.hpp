@@ -19,11 +19,11 @@ namespace refdyn::multibody {
 template <int N>
 struct Dual {
   static_assert(N >= 1, "a dual number needs at least one direction");
-  double v = 0.0;                  ///< value
-  std::array<double, N> d{};       ///< derivatives along the N directions
+  double v;                        ///< value
+  std::array<double, N> d;         ///< derivatives along the N directions
 
-  Dual() = default;
-  Dual(double value) : v(value) {}  // NOLINT: constants convert implicitly, as in a + 2
+  Dual() : v(0.0), d{} {}
+  Dual(double value) : v(value), d{} {}  // NOLINT: constants convert implicitly, as in a + 2
   /// value with derivative `dk` along direction k (others 0).
   static Dual variable(double value, int k, double dk = 1.0) {
     Dual r(value);
@@ -43,36 +43,52 @@ struct Dual {
   }
   Dual& operator*=(const Dual& b) { return *this = *this * b; }
 
-  friend Dual operator+(Dual a, const Dual& b) { return a += b; }
-  friend Dual operator-(Dual a, const Dual& b) { return a -= b; }
+  friend Dual operator+(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v + b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = a.d[k] + b.d[k];
+    return r;
+  }
+  friend Dual operator-(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v - b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = a.d[k] - b.d[k];
+    return r;
+  }
   friend Dual operator-(const Dual& a) {
-    Dual r;
+    Dual r(uninitialized);
     r.v = -a.v;
     for (int k = 0; k < N; ++k) r.d[k] = -a.d[k];
     return r;
   }
   /// (a + a' ε)(b + b' ε) = ab + (a' b + a b') ε
   friend Dual operator*(const Dual& a, const Dual& b) {
-    Dual r;
+    Dual r(uninitialized);
     r.v = a.v * b.v;
     for (int k = 0; k < N; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
     return r;
   }
   /// a / b = a/b + (a' − (a/b) b')/b ε
   friend Dual operator/(const Dual& a, const Dual& b) {
-    Dual r;
+    Dual r(uninitialized);
     r.v = a.v / b.v;
     const double ib = 1.0 / b.v;
     for (int k = 0; k < N; ++k) r.d[k] = (a.d[k] - r.v * b.d[k]) * ib;
     return r;
   }
+
+ private:
+  struct Uninitialized {};
+  static constexpr Uninitialized uninitialized{};
+  explicit Dual(Uninitialized) {}  // the operations fill every entry
 };
 
 /// f(v + d ε) = f(v) + f'(v) d ε with f'(v) given.
 template <int N>
 Dual<N> chain(double fv, double dfv, const Dual<N>& x) {
-  Dual<N> r(fv);
-  for (int k = 0; k < N; ++k) r.d[k] = dfv * x.d[k];
+  Dual<N> r = x;
+  r.v = fv;
+  for (int k = 0; k < N; ++k) r.d[k] *= dfv;
   return r;
 }
 template <int N> Dual<N> sin(const Dual<N>& x) { return chain(std::sin(x.v), std::cos(x.v), x); }

@@ -19,11 +19,21 @@
 
 namespace refdyn::multibody {
 
+/// Scratch of inverse_dynamics, reusable across calls (no allocation once sized).
+template <class S>
+struct NewtonEulerWork {
+  Motions<S> motion;
+  std::vector<Vec3T<S>> f, n;  ///< body forces and moments about the origin, body axes
+};
+
 /// τ from body motions already computed (forward_motion with the base acceleration −g or 0).
 template <class S>
-std::vector<S> newton_euler_backward(const Bodies<S>& bodies, const Poses<S>& poses, const Motions<S>& mo) {
+void newton_euler_backward(const Bodies<S>& bodies, const Poses<S>& poses, const Motions<S>& mo,
+                           std::vector<Vec3T<S>>& f, std::vector<Vec3T<S>>& nn, std::vector<S>& tau) {
   const int n = bodies.size();
-  std::vector<Vec3T<S>> f(n), nn(n);
+  f.resize(n);
+  nn.resize(n);
+  tau.resize(n);
   for (int i = 0; i < n; ++i) {
     const Body<S>& B = bodies.bodies[i];
     const Vec3T<S>& w = mo.w[i];
@@ -32,7 +42,6 @@ std::vector<S> newton_euler_backward(const Bodies<S>& bodies, const Poses<S>& po
     f[i] = add(add(scale(a, B.m), cross(wd, B.h)), cross(w, cross(w, B.h)));
     nn[i] = add(add(mul(B.I, wd), cross(w, mul(B.I, w))), cross(B.h, a));
   }
-  std::vector<S> tau(n);
   for (int i = n; i-- > 0;) {
     const Body<S>& B = bodies.bodies[i];
     tau[i] = B.type == JointType::Revolute ? dot(B.axis, nn[i]) : dot(B.axis, f[i]);
@@ -42,18 +51,25 @@ std::vector<S> newton_euler_backward(const Bodies<S>& bodies, const Poses<S>& po
       nn[B.parent] = add(add(nn[B.parent], mul(poses.local_R[i], nn[i])), cross(poses.local_p[i], fp));
     }
   }
-  return tau;
 }
 
-/// τ = M q̈ + c + g (gravity true) or M q̈ + c (false) at the poses' q. qd, qdd: n values each, or
-/// nullptr for zero.
+/// τ = M q̈ + c + g (gravity true) or M q̈ + c (false) at the poses' q → tau. qd, qdd: n values
+/// each, or nullptr for zero.
+template <class S>
+void inverse_dynamics(const Bodies<S>& bodies, const Poses<S>& poses, const Vec3& gravity, const S* qd, const S* qdd,
+                      bool with_gravity, NewtonEulerWork<S>& work, std::vector<S>& tau) {
+  const Vec3T<S> a_base = with_gravity ? scale(lift<S>(gravity), from_double<S>(-1.0)) : zero3<S>();
+  forward_motion(bodies, poses, qd, qdd, a_base, false, work.motion);
+  newton_euler_backward(bodies, poses, work.motion, work.f, work.n, tau);
+}
+/// The same, returning τ (allocates its scratch).
 template <class S>
 std::vector<S> inverse_dynamics(const Bodies<S>& bodies, const Poses<S>& poses, const Vec3& gravity, const S* qd,
                                 const S* qdd, bool with_gravity) {
-  Motions<S> mo;
-  const Vec3T<S> a_base = with_gravity ? scale(lift<S>(gravity), from_double<S>(-1.0)) : zero3<S>();
-  forward_motion(bodies, poses, qd, qdd, a_base, false, mo);
-  return newton_euler_backward(bodies, poses, mo);
+  NewtonEulerWork<S> work;
+  std::vector<S> tau;
+  inverse_dynamics(bodies, poses, gravity, qd, qdd, with_gravity, work, tau);
+  return tau;
 }
 
 /// M(q), row-major n×n, column j = inverse_dynamics with q̈ = e_j, q̇ = 0, no gravity (the lower
@@ -62,11 +78,11 @@ template <class S>
 std::vector<S> mass_matrix(const Bodies<S>& bodies, const Poses<S>& poses) {
   const int n = bodies.size();
   std::vector<S> M(static_cast<std::size_t>(n) * n, from_double<S>(0.0));
-  std::vector<S> e(n, from_double<S>(0.0));
+  std::vector<S> e(n, from_double<S>(0.0)), col;
+  NewtonEulerWork<S> work;
   for (int j = 0; j < n; ++j) {
     e[j] = from_double<S>(1.0);
-    const std::vector<S> col = inverse_dynamics(bodies, poses, Vec3::Zero().eval(), static_cast<const S*>(nullptr),
-                                                e.data(), false);
+    inverse_dynamics(bodies, poses, Vec3::Zero().eval(), static_cast<const S*>(nullptr), e.data(), false, work, col);
     e[j] = from_double<S>(0.0);
     for (int i = j; i < n; ++i)
       M[static_cast<std::size_t>(i) * n + j] = M[static_cast<std::size_t>(j) * n + i] = col[i];

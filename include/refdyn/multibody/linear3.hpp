@@ -11,6 +11,7 @@
 #include "refdyn/spatial.hpp"
 
 #include <array>
+#include <type_traits>
 
 namespace refdyn::multibody {
 
@@ -37,7 +38,7 @@ template <class S> Mat3T<S> lift(const Mat3& A) {
 
 template <class S> Vec3T<S> add(const Vec3T<S>& a, const Vec3T<S>& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
 template <class S> Vec3T<S> sub(const Vec3T<S>& a, const Vec3T<S>& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-template <class S> Vec3T<S> scale(const Vec3T<S>& a, const S& s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+template <class S> Vec3T<S> scale(const Vec3T<S>& a, const std::type_identity_t<S>& s) { return {a[0] * s, a[1] * s, a[2] * s}; }
 template <class S> S dot(const Vec3T<S>& a, const Vec3T<S>& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 template <class S> Vec3T<S> cross(const Vec3T<S>& a, const Vec3T<S>& b) {
   return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
@@ -67,7 +68,7 @@ template <class S> Mat3T<S> add(const Mat3T<S>& A, const Mat3T<S>& B) {
   for (int k = 0; k < 9; ++k) C[k] = A[k] + B[k];
   return C;
 }
-template <class S> Mat3T<S> scale(const Mat3T<S>& A, const S& s) {
+template <class S> Mat3T<S> scale(const Mat3T<S>& A, const std::type_identity_t<S>& s) {
   Mat3T<S> C;
   for (int k = 0; k < 9; ++k) C[k] = A[k] * s;
   return C;
