@@ -25,9 +25,12 @@ namespace {
 using D1 = multibody::Dual<1>;
 
 struct DualMotion {
+  std::uint64_t model_id = 0;        ///< the model `bodies` were converted from (ids are unique)
   multibody::Bodies<D1> bodies;
   multibody::Poses<D1> poses;
-  std::vector<D1> q, qd, qdd;
+  multibody::Motions<D1> motion;
+  multibody::NewtonEulerWork<D1> work;
+  std::vector<D1> q, qd, qdd, tau;
 };
 
 void seed(const Eigen::VectorXd& x, const Eigen::VectorXd* dx, std::vector<D1>& out) {
@@ -35,13 +38,20 @@ void seed(const Eigen::VectorXd& x, const Eigen::VectorXd* dx, std::vector<D1>& 
   for (Eigen::Index i = 0; i < x.size(); ++i) out[i] = D1::variable(x[i], 0, dx ? (*dx)[i] : 0.0);
 }
 
-void dual_state(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
-                DualMotion& m) {
-  m.bodies = multibody::bodies_from_model<D1>(model);
+/// This thread's workspace with the model's bodies over D1 and their poses at q + q̇ ε (a Model
+/// is immutable and its id unique, so the converted bodies are kept until another model comes).
+DualMotion& dual_state(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                       const Eigen::VectorXd& qdd) {
+  thread_local DualMotion m;
+  if (m.model_id != model.id || m.bodies.size() != model.nv) {
+    m.bodies = multibody::bodies_from_model<D1>(model);
+    m.model_id = model.id;
+  }
   seed(q, &qd, m.q);
   seed(qd, &qdd, m.qd);
   seed(qdd, nullptr, m.qdd);
   multibody::forward_poses(m.bodies, m.q, m.poses);
+  return m;
 }
 
 }  // namespace
@@ -62,11 +72,9 @@ void point_motion(const Model& model, const Eigen::VectorXd& q, const Eigen::Vec
     out.v = out.a = out.j = Vec3::Zero();
     return;
   }
-  DualMotion m;
-  dual_state(model, q, qd, qdd, m);
-  multibody::Motions<D1> mo;
-  multibody::forward_motion(m.bodies, m.poses, m.qd.data(), m.qdd.data(), multibody::zero3<D1>(), true, mo);
-  const multibody::PointKinematics<D1> k = multibody::point_kinematics(m.bodies.points[point], m.poses, mo);
+  DualMotion& m = dual_state(model, q, qd, qdd);
+  multibody::forward_motion(m.bodies, m.poses, m.qd.data(), m.qdd.data(), multibody::zero3<D1>(), true, m.motion);
+  const multibody::PointKinematics<D1> k = multibody::point_kinematics(m.bodies.points[point], m.poses, m.motion);
   for (int i = 0; i < 3; ++i) {
     out.r[i] = k.r[i].v;
     out.v[i] = k.v[i].v;
@@ -87,10 +95,9 @@ void inverse_dynamics_rate(const Model& model, const Eigen::VectorXd& q, const E
   model.check_q(q);
   check_vector("qd", qd, model.nv);
   check_vector("qdd", qdd, model.nv);
-  DualMotion m;
-  dual_state(model, q, qd, qdd, m);
-  const std::vector<D1> t =
-      multibody::inverse_dynamics(m.bodies, m.poses, model.gravity, m.qd.data(), m.qdd.data(), true);
+  DualMotion& m = dual_state(model, q, qd, qdd);
+  multibody::inverse_dynamics(m.bodies, m.poses, model.gravity, m.qd.data(), m.qdd.data(), true, m.work, m.tau);
+  const std::vector<D1>& t = m.tau;
   tau.resize(model.nv);
   tau_rate.resize(model.nv);
   for (int i = 0; i < model.nv; ++i) {
