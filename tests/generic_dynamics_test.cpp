@@ -219,6 +219,20 @@ TEST(GenericDynamics, DualDerivativesEqualCentralDifferences) {
   }
 }
 
+TEST(GenericDynamics, DualArithmeticIsTheChainRule) {
+  using D2 = mb::Dual<2>;
+  const D2 x = D2::variable(0.7, 0), y = D2::variable(1.9, 1);  // ∂/∂x, ∂/∂y
+  const D2 f = mb::sin(x) * y / (mb::sqrt(y) + 2.0) - mb::cos(x * y) + 3.0 * x - (-y);
+  const double sx = std::sin(0.7), sy = std::sqrt(1.9), den = sy + 2.0;
+  const double fx = std::cos(0.7) * 1.9 / den + std::sin(0.7 * 1.9) * 1.9 + 3.0;
+  const double fy = sx / den - sx * 1.9 * (0.5 / sy) / (den * den) + std::sin(0.7 * 1.9) * 0.7 + 1.0;
+  EXPECT_NEAR(f.v, sx * 1.9 / den - std::cos(0.7 * 1.9) + 2.1 + 1.9, 1e-14);  // |f| ≈ 4: a few ulp
+  EXPECT_NEAR(f.d[0], fx, 1e-14);
+  EXPECT_NEAR(f.d[1], fy, 1e-14);
+  EXPECT_TRUE(mb::is_zero(mb::from_double<D2>(0.0)));
+  EXPECT_FALSE(mb::is_zero(D2::variable(0.0, 1)));  // zero value, nonzero derivative
+}
+
 double eval(const GiNaC::ex& e, const GiNaC::exmap& at) {
   const GiNaC::ex v = e.subs(at, GiNaC::subs_options::no_pattern).evalf();
   EXPECT_TRUE(GiNaC::is_a<GiNaC::numeric>(v)) << v;
