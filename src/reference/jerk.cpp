@@ -4,6 +4,8 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/expression/expression.hpp"
 #include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/multibody/dual.hpp"
+#include "refdyn/multibody/generic_dynamics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/common/text.hpp"
@@ -18,166 +20,38 @@ namespace refdyn {
 
 namespace {
 
-// ---- forward-mode AD: dual numbers a + b ε, ε² = 0 -----------------------------------------
-struct Dual {
-  double v = 0, d = 0;
-  Dual() = default;
-  Dual(double value, double deriv = 0) : v(value), d(deriv) {}
-};
-inline Dual operator+(Dual a, Dual b) { return {a.v + b.v, a.d + b.d}; }
-inline Dual operator-(Dual a, Dual b) { return {a.v - b.v, a.d - b.d}; }
-inline Dual operator*(Dual a, Dual b) { return {a.v * b.v, a.d * b.v + a.v * b.d}; }
-inline Dual sin(Dual a) { return {std::sin(a.v), std::cos(a.v) * a.d}; }
-inline Dual cos(Dual a) { return {std::cos(a.v), -std::sin(a.v) * a.d}; }
-inline double value(Dual a) { return a.v; }
-inline double deriv(Dual a) { return a.d; }
-using std::cos;
-using std::sin;
+// Exact time derivatives along the motion: the generic multibody core over one-direction dual
+// numbers, seeded with q + q̇ ε, q̇ + q̈ ε, q̈ + 0 ε (q⃛ = 0).
+using D1 = multibody::Dual<1>;
 
-/// A 3-vector and a 3×3 matrix over a scalar S (double or Dual).
-template <class S>
-struct V3 {
-  S x{}, y{}, z{};
-  S& operator[](int i) { return i == 0 ? x : i == 1 ? y : z; }
-  const S& operator[](int i) const { return i == 0 ? x : i == 1 ? y : z; }
-};
-template <class S> V3<S> operator+(const V3<S>& a, const V3<S>& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-template <class S> V3<S> operator-(const V3<S>& a, const V3<S>& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-template <class S, class T> V3<S> scale(const T& s, const V3<S>& a) { return {S(s) * a.x, S(s) * a.y, S(s) * a.z}; }
-template <class S> S dot(const V3<S>& a, const V3<S>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-template <class S> V3<S> cross(const V3<S>& a, const V3<S>& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-template <class S> V3<S> lift(const Vec3& a) { return {S(a.x()), S(a.y()), S(a.z())}; }
-
-template <class S>
-struct M3 {
-  S m[3][3]{};
-  static M3 identity() {
-    M3 r;
-    for (int i = 0; i < 3; ++i) r.m[i][i] = S(1.0);
-    return r;
-  }
-};
-template <class S> M3<S> lift(const Mat3& a) {
-  M3<S> r;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) r.m[i][j] = S(a(i, j));
-  return r;
-}
-template <class S> M3<S> operator*(const M3<S>& a, const M3<S>& b) {
-  M3<S> r;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) r.m[i][j] = a.m[i][0] * b.m[0][j] + a.m[i][1] * b.m[1][j] + a.m[i][2] * b.m[2][j];
-  return r;
-}
-template <class S> V3<S> operator*(const M3<S>& a, const V3<S>& v) {
-  V3<S> r;
-  for (int i = 0; i < 3; ++i) r[i] = a.m[i][0] * v.x + a.m[i][1] * v.y + a.m[i][2] * v.z;
-  return r;
-}
-template <class S> M3<S> transpose(const M3<S>& a) {
-  M3<S> r;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) r.m[i][j] = a.m[j][i];
-  return r;
-}
-
-/// World-frame kinematics of every body over S: pose (R, p: origin), world joint axis z,
-/// angular velocity/acceleration ω, α and the origin's velocity/acceleration v, a (the base
-/// accelerates with a_base: −g for inverse dynamics, 0 for kinematics).
-template <class S>
-struct Bodies {
-  std::vector<M3<S>> R;
-  std::vector<V3<S>> p, z, w, al, v, a;
+struct DualMotion {
+  std::uint64_t model_id = 0;        ///< the model `bodies` were converted from (ids are unique)
+  multibody::Bodies<D1> bodies;
+  multibody::Poses<D1> poses;
+  multibody::Motions<D1> motion;
+  multibody::NewtonEulerWork<D1> work;
+  std::vector<D1> q, qd, qdd, tau;
 };
 
-template <class S>
-void forward(const Model& model, const std::vector<S>& q, const std::vector<S>& qd, const std::vector<S>& qdd,
-             const Vec3& a_base, Bodies<S>& b) {
-  const int nb = model.nv;
-  b.R.assign(nb, M3<S>{});
-  b.p.assign(nb, V3<S>{});
-  b.z = b.w = b.al = b.v = b.a = b.p;
-  for (int i = 0; i < nb; ++i) {
-    const int par = model.parent[i];
-    const SE3& P = model.placement[i];
-    const Vec3& u = model.axis[i];
-    const S x = q[i] + S(model.offset[i]);
-    const M3<S> Rp = par < 0 ? M3<S>::identity() : b.R[par];
-    const V3<S> pp = par < 0 ? V3<S>{} : b.p[par];
-    const V3<S> wp = par < 0 ? V3<S>{} : b.w[par];
-    const V3<S> alp = par < 0 ? V3<S>{} : b.al[par];
-    const V3<S> vp = par < 0 ? V3<S>{} : b.v[par];
-    const V3<S> ap = par < 0 ? lift<S>(a_base) : b.a[par];
-    const V3<S> z = Rp * lift<S>(Vec3(P.R * u));
-    M3<S> Rl;
-    V3<S> pl = lift<S>(P.p);
-    if (model.joint_type[i] == JointType::Revolute) {
-      // Rodrigues about u: c 1 + s [u]x + (1 − c) u uᵀ
-      const S c = cos(x), s = sin(x), one_c = S(1.0) - c;
-      M3<S> Rj;
-      const double uu[3] = {u.x(), u.y(), u.z()};
-      const double sk[3][3] = {{0, -u.z(), u.y()}, {u.z(), 0, -u.x()}, {-u.y(), u.x(), 0}};
-      for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k)
-          Rj.m[r][k] = (r == k ? c : S(0.0)) + s * S(sk[r][k]) + one_c * S(uu[r] * uu[k]);
-      Rl = lift<S>(P.R) * Rj;
-    } else {
-      Rl = lift<S>(P.R);
-      pl = pl + scale<S>(x, lift<S>(Vec3(P.R * u)));
-    }
-    b.R[i] = Rp * Rl;
-    b.p[i] = pp + Rp * pl;
-    b.z[i] = z;
-    const V3<S> d = b.p[i] - pp;
-    const V3<S> v_rigid = vp + cross(wp, d);
-    const V3<S> a_rigid = ap + cross(alp, d) + cross(wp, cross(wp, d));
-    if (model.joint_type[i] == JointType::Revolute) {
-      b.w[i] = wp + scale<S>(qd[i], z);
-      b.al[i] = alp + scale<S>(qdd[i], z) + cross(wp, scale<S>(qd[i], z));
-      b.v[i] = v_rigid;
-      b.a[i] = a_rigid;
-    } else {
-      b.w[i] = wp;
-      b.al[i] = alp;
-      b.v[i] = v_rigid + scale<S>(qd[i], z);
-      b.a[i] = a_rigid + scale<S>(S(2.0), cross(wp, scale<S>(qd[i], z))) + scale<S>(qdd[i], z);
-    }
-  }
+void seed(const Eigen::VectorXd& x, const Eigen::VectorXd* dx, std::vector<D1>& out) {
+  out.resize(x.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i) out[i] = D1::variable(x[i], 0, dx ? (*dx)[i] : 0.0);
 }
 
-/// Recursive Newton–Euler in the world frame: τ = M q̈ + c + g (a_base = −g).
-template <class S>
-void rnea(const Model& model, const Bodies<S>& b, std::vector<S>& tau) {
-  const int nb = model.nv;
-  std::vector<V3<S>> F(nb), N(nb);
-  for (int i = 0; i < nb; ++i) {
-    const Inertia& in = model.inertia[i];
-    const M3<S>& R = b.R[i];
-    const V3<S> h = R * lift<S>(in.h);                       // m c (world axes)
-    const M3<S> I = R * lift<S>(in.I) * transpose(R);        // about the origin, world axes
-    const V3<S>& w = b.w[i];
-    const V3<S>& al = b.al[i];
-    const V3<S>& a = b.a[i];
-    F[i] = scale<S>(in.m, a) + cross(al, h) + cross(w, cross(w, h));
-    N[i] = I * al + cross(w, I * w) + cross(h, a);
+/// This thread's workspace with the model's bodies over D1 and their poses at q + q̇ ε (a Model
+/// is immutable and its id unique, so the converted bodies are kept until another model comes).
+DualMotion& dual_state(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                       const Eigen::VectorXd& qdd) {
+  thread_local DualMotion m;
+  if (m.model_id != model.id || m.bodies.size() != model.nv) {
+    m.bodies = multibody::bodies_from_model<D1>(model);
+    m.model_id = model.id;
   }
-  tau.assign(nb, S(0.0));
-  for (int i = nb - 1; i >= 0; --i) {
-    tau[i] = model.joint_type[i] == JointType::Revolute ? dot(b.z[i], N[i]) : dot(b.z[i], F[i]);
-    const int par = model.parent[i];
-    if (par >= 0) {
-      N[par] = N[par] + N[i] + cross(b.p[i] - b.p[par], F[i]);
-      F[par] = F[par] + F[i];
-    }
-  }
-}
-
-std::vector<Dual> along(const Eigen::VectorXd& x, const Eigen::VectorXd* dx) {
-  std::vector<Dual> r(x.size());
-  for (Eigen::Index i = 0; i < x.size(); ++i) r[i] = Dual(x[i], dx ? (*dx)[i] : 0.0);
-  return r;
+  seed(q, &qd, m.q);
+  seed(qd, &qdd, m.qd);
+  seed(qdd, nullptr, m.qdd);
+  multibody::forward_poses(m.bodies, m.q, m.poses);
+  return m;
 }
 
 }  // namespace
@@ -190,8 +64,6 @@ void point_motion(const Model& model, const Eigen::VectorXd& q, const Eigen::Vec
   if (point < 0 || point >= static_cast<int>(model.point_name.size()))
     throw Error(expected_got("point index", "0 .. number of points - 1", std::to_string(point)));
   const int n = model.nv;
-  Bodies<Dual> b;
-  forward(model, along(q, &qd), along(qd, &qdd), along(qdd, nullptr), Vec3::Zero(), b);
   out.C.setZero(3, n);
   out.Cdot.setZero(3, n);
   const int body = model.point_body[point];
@@ -200,21 +72,20 @@ void point_motion(const Model& model, const Eigen::VectorXd& q, const Eigen::Vec
     out.v = out.a = out.j = Vec3::Zero();
     return;
   }
-  const V3<Dual> d = b.R[body] * lift<Dual>(model.point_position[point]);
-  const V3<Dual> r = b.p[body] + d;
-  const V3<Dual> v = b.v[body] + cross(b.w[body], d);
-  const V3<Dual> a = b.a[body] + cross(b.al[body], d) + cross(b.w[body], cross(b.w[body], d));
-  for (int k = 0; k < 3; ++k) {
-    out.r[k] = value(r[k]);
-    out.v[k] = value(v[k]);
-    out.a[k] = value(a[k]);
-    out.j[k] = deriv(a[k]);  // d/dt of a(q, q̇, q̈) with q⃛ = 0
+  DualMotion& m = dual_state(model, q, qd, qdd);
+  multibody::forward_motion(m.bodies, m.poses, m.qd.data(), m.qdd.data(), multibody::zero3<D1>(), true, m.motion);
+  const multibody::PointKinematics<D1> k = multibody::point_kinematics(m.bodies.points[point], m.poses, m.motion);
+  for (int i = 0; i < 3; ++i) {
+    out.r[i] = k.r[i].v;
+    out.v[i] = k.v[i].v;
+    out.a[i] = k.a[i].v;
+    out.j[i] = k.a[i].d[0];  // d/dt of a(q, q̇, q̈) with q⃛ = 0
   }
   for (int j : model.support[body]) {
-    const V3<Dual> col = model.joint_type[j] == JointType::Revolute ? cross(b.z[j], r - b.p[j]) : b.z[j];
-    for (int k = 0; k < 3; ++k) {
-      out.C(k, j) = value(col[k]);
-      out.Cdot(k, j) = deriv(col[k]);
+    const multibody::Vec3T<D1> col = multibody::point_jacobian_column(m.bodies, m.poses, j, k.r);
+    for (int i = 0; i < 3; ++i) {
+      out.C(i, j) = col[i].v;
+      out.Cdot(i, j) = col[i].d[0];
     }
   }
 }
@@ -224,15 +95,14 @@ void inverse_dynamics_rate(const Model& model, const Eigen::VectorXd& q, const E
   model.check_q(q);
   check_vector("qd", qd, model.nv);
   check_vector("qdd", qdd, model.nv);
-  Bodies<Dual> b;
-  forward(model, along(q, &qd), along(qd, &qdd), along(qdd, nullptr), Vec3(-model.gravity), b);
-  std::vector<Dual> t;
-  rnea(model, b, t);
+  DualMotion& m = dual_state(model, q, qd, qdd);
+  multibody::inverse_dynamics(m.bodies, m.poses, model.gravity, m.qd.data(), m.qdd.data(), true, m.work, m.tau);
+  const std::vector<D1>& t = m.tau;
   tau.resize(model.nv);
   tau_rate.resize(model.nv);
   for (int i = 0; i < model.nv; ++i) {
     tau[i] = t[i].v;
-    tau_rate[i] = t[i].d;
+    tau_rate[i] = t[i].d[0];
   }
 }
 

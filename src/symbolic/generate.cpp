@@ -187,16 +187,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (const auto& c : problem.constraints.constraints()) acceleration_rows = acceleration_rows || c->order() == 2;
   for (size_t p = 0; p < model.point_name.size(); ++p) {
     const int b = sm.bodies.points[p].body;
-    const Vec3s& pc = sm.bodies.points[p].position;
-    Vec3s r;
-    std::array<ex, 9> R;
-    if (b < 0) {
-      r = pc;
-      for (int k = 0; k < 9; ++k) R[k] = (k % 4 == 0) ? 1 : 0;
-    } else {
-      R = sm.R[b];
-      for (int k = 0; k < 3; ++k) r[k] = sm.r[b][k] + R[3 * k] * pc[0] + R[3 * k + 1] * pc[1] + R[3 * k + 2] * pc[2];
-    }
+    const Vec3s r = multibody::point_position(sm.bodies.points[p], sm.poses);
+    const symbolic_detail::Mat3s R = b < 0 ? multibody::identity3<ex>() : sm.poses.R[b];
     const std::string& P = model.point_name[p];
     static const char* axes[] = {"x", "y", "z"};
     for (int k = 0; k < 3; ++k) {
@@ -314,13 +306,7 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   // --- dynamics: Newton–Euler ---
   S.c = sm.inverse_dynamics(qd, {}, false);
   S.g = sm.inverse_dynamics({}, {}, true);
-  S.M.assign(static_cast<size_t>(n) * n, 0);
-  for (int j = 0; j < n; ++j) {
-    std::vector<ex> e(n, ex(0));
-    e[j] = 1;
-    const std::vector<ex> col = sm.inverse_dynamics({}, e, false);
-    for (int i = j; i < n; ++i) S.M[static_cast<size_t>(i) * n + j] = S.M[static_cast<size_t>(j) * n + i] = col[i];
-  }
+  S.M = multibody::mass_matrix(sm.bodies, sm.poses);
 
   // --- partition ---
   std::vector<char> is_ind(n, 0);

@@ -1,11 +1,14 @@
 #pragma once
 // Private to the generator (src/symbolic/*.cpp).
-//   model.cpp     symbolic kinematics and Newton–Euler dynamics (GiNaC) of a Model
+//   model.cpp     the bodies of a Model as GiNaC expressions (the kinematics and Newton–Euler
+//                 are the generic core's, refdyn/multibody/, instantiated for GiNaC::ex)
 //   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
 //   emit.cpp      C99 (with common-subexpression elimination), LaTeX and JSON writers
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/scenario/spec.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
+#include "refdyn/multibody/generic_dynamics.hpp"
+#include "ginac_scalar.hpp"
 
 #include <ginac/ginac.h>
 
@@ -17,37 +20,20 @@
 namespace refdyn::symbolic_detail {
 
 using GiNaC::ex;
-using Vec3s = std::array<ex, 3>;
-using Mat3s = std::array<ex, 9>;  // row-major
+using Vec3s = multibody::Vec3T<ex>;
+using Mat3s = multibody::Mat3T<ex>;  // row-major
 
-/// A double as a GiNaC number: integers exactly, others as IEEE doubles.
-ex number(double v);
 /// A vector of the model as numbers, entries within 4 ulp of its largest one written as 0.
 Vec3s clean(const Vec3& v);
 /// A rotation as numbers, entries within 4 ulp of 0 or ±1 written exactly.
 Mat3s rotation(const Mat3& R);
 
-/// A body of the compiled model with symbolic geometry and inertia (numbers, or expressions of
-/// the scenario's parameters when the scenario wrote them so).
-struct SymbolicBody {
-  int parent = -1;
-  JointType type = JointType::Revolute;
-  Vec3 axis = Vec3::UnitZ();  ///< unit joint axis in the body frame (numbers)
-  Mat3s R;                    ///< placement of the joint frame in the parent body frame
-  Vec3s p;
-  ex offset;                  ///< joint offset
-  ex m;                       ///< mass
-  Vec3s h;                    ///< first moment m·c in the body frame
-  Mat3s I;                    ///< rotational inertia about the body origin, body axes
-};
-struct SymbolicPoint {
-  int body = -1;              ///< -1: fixed in the world
-  Vec3s position;             ///< in the body frame (world frame for body −1)
-};
-struct SymbolicBodies {
-  std::vector<SymbolicBody> bodies;
-  std::vector<SymbolicPoint> points;  ///< indexed like Model::point_name
-};
+/// The bodies of the compiled model with symbolic geometry and inertia (numbers, or expressions
+/// of the scenario's parameters when the scenario wrote them so): the generic core's bodies
+/// (refdyn/multibody/body.hpp) over GiNaC expressions.
+using SymbolicBody = multibody::Body<ex>;
+using SymbolicPoint = multibody::Point<ex>;
+using SymbolicBodies = multibody::Bodies<ex>;
 
 /// The compiled model's numbers (rotation entries within 4 ulp of 0 or ±1, and vector entries
 /// within 4 ulp of the vector's largest, are written exactly: a DH twist of 90° leaves 6e-17).
@@ -58,19 +44,16 @@ SymbolicBodies bodies_from_model(const Model& model);
 using SpecNumber = std::function<ex(const SpecValue&)>;
 SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const SpecNumber& value);
 
-/// World kinematics and dynamics as GiNaC expressions of the coordinate symbols.
+/// World kinematics and dynamics as GiNaC expressions of the coordinate symbols: the generic
+/// core (refdyn/multibody/) instantiated for GiNaC::ex.
 struct SymbolicModel {
-  std::vector<Mat3s> R;        ///< world orientation of each body
-  std::vector<Vec3s> r;        ///< world position of each body origin
-  std::vector<Mat3s> local_R;  ///< orientation of each body in its parent's frame (world for roots)
-  std::vector<Vec3s> local_p;  ///< its origin in the parent's frame
-  /// Joint-space inverse dynamics M q̈ + c + g at the given symbolic q̈ (empty: 0) and q̇ (empty:
-  /// 0), with or without gravity (Newton–Euler in body frames).
-  std::vector<ex> inverse_dynamics(const std::vector<ex>& qd, const std::vector<ex>& qdd, bool gravity) const;
-
   SymbolicBodies bodies;
   Vec3 gravity;
-  std::vector<ex> q;           ///< coordinate symbols
+  std::vector<ex> q;               ///< coordinate symbols
+  multibody::Poses<ex> poses;      ///< local and world poses of every body at q
+  /// Joint-space inverse dynamics M q̈ + c + g at the given symbolic q̈ (empty: 0) and q̇ (empty:
+  /// 0), with or without gravity (multibody::inverse_dynamics, Newton–Euler in body frames).
+  std::vector<ex> inverse_dynamics(const std::vector<ex>& qd, const std::vector<ex>& qdd, bool gravity) const;
 };
 
 SymbolicModel symbolic_model(const SymbolicBodies& bodies, const Vec3& gravity, const std::vector<ex>& q);

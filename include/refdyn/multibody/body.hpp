@@ -1,0 +1,77 @@
+#pragma once
+/// The bodies of a compiled model over a scalar S (double, a dual number, or a GiNaC expression
+/// whose geometry and inertia may be symbols of scenario parameters).
+///
+///     body i's frame in its parent's = P_i · J_i(q_i + offset_i),   P_i = (R, p)
+///     J_i = rotation by the angle about `axis` (revolute) or translation along it (prismatic)
+///     inertia about the body origin, body axes: m, h = m c, I = I_C − m [c]×²
+///
+/// One body per degree of freedom, parents before children, fixed joints and link offsets
+/// folded, exactly as build_model compiles a Model (model.hpp); a point is fixed on one body.
+#include "refdyn/multibody/model.hpp"
+#include "refdyn/multibody/linear3.hpp"
+
+#include <vector>
+
+namespace refdyn::multibody {
+
+template <class S>
+struct Body {
+  int parent = -1;                  ///< parent body, -1: the world
+  JointType type = JointType::Revolute;  ///< Revolute or Prismatic
+  Vec3T<S> axis = zero3<S>();       ///< unit joint axis in the body frame
+  Mat3T<S> R = identity3<S>();      ///< placement P of the joint frame in the parent body frame
+  Vec3T<S> p = zero3<S>();
+  S offset = from_double<S>(0.0);   ///< joint offset (angle or distance)
+  S m = from_double<S>(0.0);        ///< mass
+  Vec3T<S> h = zero3<S>();          ///< first moment m·c, body frame
+  Mat3T<S> I = zero33<S>();         ///< rotational inertia about the body origin, body axes
+};
+
+template <class S>
+struct Point {
+  int body = -1;                    ///< -1: fixed in the world
+  Vec3T<S> position = zero3<S>();   ///< in the body frame (the world frame for body −1)
+};
+
+template <class S>
+struct Bodies {
+  std::vector<Body<S>> bodies;
+  std::vector<Point<S>> points;     ///< indexed like Model::point_name
+  int size() const { return static_cast<int>(bodies.size()); }
+};
+
+/// The model's numbers as S constants (exactly: no rounding to 0 or ±1).
+template <class S>
+Bodies<S> bodies_from_model(const Model& model) {
+  Bodies<S> out;
+  out.bodies.resize(model.nv);
+  for (int i = 0; i < model.nv; ++i) {
+    Body<S>& b = out.bodies[i];
+    b.parent = model.parent[i];
+    b.type = model.joint_type[i];
+    b.axis = lift<S>(model.axis[i]);
+    b.R = lift<S>(model.placement[i].R);
+    b.p = lift<S>(model.placement[i].p);
+    b.offset = from_double<S>(model.offset[i]);
+    b.m = from_double<S>(model.inertia[i].m);
+    b.h = lift<S>(model.inertia[i].h);
+    b.I = lift<S>(model.inertia[i].I);
+  }
+  for (std::size_t k = 0; k < model.point_name.size(); ++k)
+    out.points.push_back({model.point_body[k], lift<S>(model.point_position[k])});
+  return out;
+}
+
+/// Inertia (m, h, I about the origin) given in frame B, expressed in A for the pose X of B in A
+/// (parallel axes): h' = R h + m p, I' = R I Rᵀ − [p]×[Rh]× − [Rh]×[p]× − m [p]×².
+template <class S>
+void transform_inertia(const PoseT<S>& X, const S& m, Vec3T<S>& h, Mat3T<S>& I) {
+  const Vec3T<S> Rh = mul(X.R, h);
+  const Mat3T<S> P = skew(X.p), H = skew(Rh);
+  I = add(add(mul(mul(X.R, I), transpose(X.R)), scale(add(mul(P, H), mul(H, P)), from_double<S>(-1.0))),
+          scale(mul(P, P), S(-m)));
+  h = add(Rh, scale(X.p, m));
+}
+
+}  // namespace refdyn::multibody

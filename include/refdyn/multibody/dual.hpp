@@ -1,0 +1,115 @@
+#pragma once
+/// Forward-mode dual numbers with N directions, no heap:
+///
+///     x = v + Σ_k d_k ε_k,   ε_k ε_l = 0,   so  f(x) = f(v) + f'(v) Σ_k d_k ε_k
+///
+/// Seeding the inputs with directions gives exact directional derivatives of anything computed
+/// through the generic core: N = 1 for a time derivative along the motion (the jerk route seeds
+/// q with q̇, q̇ with q̈, q̈ with q⃛ = 0), N = n_x (or chunks of a fixed N) for a Jacobian, N = n_p
+/// for parameter sensitivities. N is a compile-time constant, so a Dual<N> is a flat array of
+/// N + 1 doubles and the operations unroll (bench/dual_bench.cpp compares it with Eigen's
+/// AutoDiffScalar, README "Dual numbers").
+#include "refdyn/multibody/scalar.hpp"
+
+#include <array>
+#include <cmath>
+
+namespace refdyn::multibody {
+
+template <int N>
+struct Dual {
+  static_assert(N >= 1, "a dual number needs at least one direction");
+  double v;                        ///< value
+  std::array<double, N> d;         ///< derivatives along the N directions
+
+  Dual() : v(0.0), d{} {}
+  Dual(double value) : v(value), d{} {}  // NOLINT: constants convert implicitly, as in a + 2
+  /// value with derivative `dk` along direction k (others 0).
+  static Dual variable(double value, int k, double dk = 1.0) {
+    Dual r(value);
+    r.d[k] = dk;
+    return r;
+  }
+
+  Dual& operator+=(const Dual& b) {
+    v += b.v;
+    for (int k = 0; k < N; ++k) d[k] += b.d[k];
+    return *this;
+  }
+  Dual& operator-=(const Dual& b) {
+    v -= b.v;
+    for (int k = 0; k < N; ++k) d[k] -= b.d[k];
+    return *this;
+  }
+  Dual& operator*=(const Dual& b) { return *this = *this * b; }
+
+  friend Dual operator+(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v + b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = a.d[k] + b.d[k];
+    return r;
+  }
+  friend Dual operator-(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v - b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = a.d[k] - b.d[k];
+    return r;
+  }
+  friend Dual operator-(const Dual& a) {
+    Dual r(uninitialized);
+    r.v = -a.v;
+    for (int k = 0; k < N; ++k) r.d[k] = -a.d[k];
+    return r;
+  }
+  /// (a + a' ε)(b + b' ε) = ab + (a' b + a b') ε
+  friend Dual operator*(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v * b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
+    return r;
+  }
+  /// a / b = a/b + (a' − (a/b) b')/b ε
+  friend Dual operator/(const Dual& a, const Dual& b) {
+    Dual r(uninitialized);
+    r.v = a.v / b.v;
+    const double ib = 1.0 / b.v;
+    for (int k = 0; k < N; ++k) r.d[k] = (a.d[k] - r.v * b.d[k]) * ib;
+    return r;
+  }
+
+ private:
+  struct Uninitialized {};
+  static constexpr Uninitialized uninitialized{};
+  explicit Dual(Uninitialized) {}  // the operations fill every entry
+};
+
+/// f(v + d ε) = f(v) + f'(v) d ε with f'(v) given.
+template <int N>
+Dual<N> chain(double fv, double dfv, const Dual<N>& x) {
+  Dual<N> r = x;
+  r.v = fv;
+  for (int k = 0; k < N; ++k) r.d[k] *= dfv;
+  return r;
+}
+template <int N> Dual<N> sin(const Dual<N>& x) { return chain(std::sin(x.v), std::cos(x.v), x); }
+template <int N> Dual<N> cos(const Dual<N>& x) { return chain(std::cos(x.v), -std::sin(x.v), x); }
+template <int N> Dual<N> sqrt(const Dual<N>& x) {
+  const double s = std::sqrt(x.v);
+  return chain(s, 0.5 / s, x);
+}
+
+template <int N>
+struct ScalarTraits<Dual<N>> {
+  static Dual<N> from_double(double v) { return Dual<N>(v); }
+  static Dual<N> sin(const Dual<N>& x) { return multibody::sin(x); }
+  static Dual<N> cos(const Dual<N>& x) { return multibody::cos(x); }
+  static Dual<N> sqrt(const Dual<N>& x) { return multibody::sqrt(x); }
+  static bool is_zero(const Dual<N>& x) {
+    if (x.v != 0.0) return false;
+    for (int k = 0; k < N; ++k)
+      if (x.d[k] != 0.0) return false;
+    return true;
+  }
+};
+
+}  // namespace refdyn::multibody
