@@ -22,7 +22,7 @@ file(REMOVE_RECURSE ${WORK_DIR})
 file(MAKE_DIRECTORY ${WORK_DIR})
 
 run_step("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
-foreach(f include/refdyn/model.hpp include/refdyn/recursive_dynamics.hpp include/refdyn/kinematics.hpp
+foreach(f include/refdyn/multibody/model.hpp include/refdyn/multibody/recursive_dynamics.hpp include/refdyn/multibody/kinematics.hpp
           include/refdyn/io/scenario.hpp lib/cmake/refdyn/refdynConfig.cmake
           lib/cmake/refdyn/refdynConfigVersion.cmake lib/cmake/refdyn/refdynTargets.cmake)
   if(NOT EXISTS ${prefix}/${f})
