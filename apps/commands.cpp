@@ -139,7 +139,7 @@ int run_check(const std::string& file, const InputOptions& in) {
     for (int j = 0; j < m.nq; ++j) std::cout << " " << m.joint_name[j] << " " << x[2 * m.nq + j];
     std::cout << "\n";
   }
-  const PlannerPartition* part = planner->partition();
+  const std::optional<PlannerPartition> part = planner->partition();
   if (part) {
     std::cout << "partition: independent [";
     for (size_t i = 0; i < part->independent.size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[part->independent[i]];
@@ -148,7 +148,7 @@ int run_check(const std::string& file, const InputOptions& in) {
     std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
               << part->condition << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
   }
-  const bool projected = s.project_initial && part;  // the projection moves the dependent coordinates
+  const bool projected = s.project_initial && part.has_value();  // the projection moves the dependent coordinates
   if (projected) {
     std::cout << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
     for (int j = 0; j < m.nq; ++j)

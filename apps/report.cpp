@@ -246,7 +246,7 @@ std::string scenario_json(const Problem& p) {
     const Eigen::VectorXd x = p.initial_state(*planner);
     Eigen::VectorXd dx(x.size());
     planner->derivative(p.integrator.t0, x, dx);
-    if (const PlannerPartition* part = planner->partition()) {
+    if (const std::optional<PlannerPartition> part = planner->partition()) {
       o += ",\"partition\":{\"independent\":[";
       for (size_t i = 0; i < part->independent.size(); ++i) o += (i ? "," : "") + str(m.joint_name[part->independent[i]]);
       o += "],\"dependent\":[";

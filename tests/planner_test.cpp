@@ -119,8 +119,8 @@ TEST(Planner, OrderTwoPlansLikePlanMotion) {
   EXPECT_TRUE(same_bits(x, a.x.front()));
   Eigen::VectorXd dx(x.size());
   planner->derivative(0.0, x, dx);
-  const PlannerPartition* part = planner->partition();
-  ASSERT_NE(part, nullptr);
+  const std::optional<PlannerPartition> part = planner->partition();
+  ASSERT_TRUE(part.has_value());
   EXPECT_EQ(part->independent.size() + part->dependent.size(), 2u);
   const std::vector<RowResidual> res = planner->row_residuals();
   ASSERT_EQ(res.size(), 2u);
@@ -155,7 +155,7 @@ TEST(Planner, JerkPlansLikePlanJerkMotion) {
   EXPECT_EQ(planner->state_names(), a.state_names);
   EXPECT_TRUE(planner->state_has_acceleration());
   EXPECT_FALSE(planner->checks_residual_tolerance());
-  EXPECT_EQ(planner->partition(), nullptr);
+  EXPECT_FALSE(planner->partition().has_value());
   EXPECT_EQ(planner->description(), "jerk-level problem (p = 3): state [q; qd; qdd], kappa = 40 1/s");
   EXPECT_FALSE(std::isfinite(p->residual_tolerance));  // not checked: summary.json writes null
   const Eigen::VectorXd x = p->initial_state(*planner);

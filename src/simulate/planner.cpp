@@ -25,11 +25,8 @@ std::vector<RowResidual> ReferencePlanner::row_residuals() const {
   return {{"|Phi|", ev.phi.cwiseAbs()}, {"|dPhi/dt|", ev.phid.cwiseAbs()}};
 }
 
-const PlannerPartition* ReferencePlanner::partition() const {
-  partition_.independent = rd_->independent();
-  partition_.dependent = rd_->dependent();
-  partition_.condition = rd_->partition_condition();
-  return &partition_;
+std::optional<PlannerPartition> ReferencePlanner::partition() const {
+  return PlannerPartition{rd_->independent(), rd_->dependent(), rd_->partition_condition()};
 }
 
 JerkPlanner::JerkPlanner(std::unique_ptr<JerkDynamics> jd) : owned_(std::move(jd)), jd_(owned_.get()) {}

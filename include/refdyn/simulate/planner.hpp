@@ -17,6 +17,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -79,8 +80,8 @@ class Planner {
 
   /// The constraint rows' residuals at the last derivative(), for `refdyn check`.
   virtual std::vector<RowResidual> row_residuals() const = 0;
-  /// The coordinate partition at the last evaluation, or null (no partition: a KKT system).
-  virtual const PlannerPartition* partition() const = 0;
+  /// The coordinate partition at the last evaluation, or none (no partition: a KKT system).
+  virtual std::optional<PlannerPartition> partition() const = 0;
   /// One line describing the planner's own settings for `refdyn check` ("" for none).
   virtual std::string description() const = 0;
 };
@@ -106,13 +107,12 @@ class ReferencePlanner final : public Planner {
   bool checks_residual_tolerance() const override { return true; }
   /// |Phi| and |dPhi/dt| per row.
   std::vector<RowResidual> row_residuals() const override;
-  const PlannerPartition* partition() const override;
+  std::optional<PlannerPartition> partition() const override;
   std::string description() const override { return ""; }
 
  private:
   std::unique_ptr<ReferenceDynamics> owned_;
   ReferenceDynamics* rd_;
-  mutable PlannerPartition partition_;
 };
 
 /// The jerk dynamics (p = 3, JerkDynamics) as a Planner.
@@ -137,7 +137,7 @@ class JerkPlanner final : public Planner {
   bool checks_residual_tolerance() const override { return false; }
   /// |B qddd + s| per row.
   std::vector<RowResidual> row_residuals() const override;
-  const PlannerPartition* partition() const override { return nullptr; }
+  std::optional<PlannerPartition> partition() const override { return std::nullopt; }
   /// "jerk-level problem (p = 3): state [q; qd; qdd], kappa = … 1/s".
   std::string description() const override;
 
