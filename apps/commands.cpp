@@ -113,65 +113,64 @@ int run_check(const std::string& file, const InputOptions& in) {
   const std::vector<io::Variant> variants = io::expand_variants(spec);  // checked before "valid"
   const Problem& s = *sp;
   const Model& m = s.model;
-  if (s.is_jerk_problem()) {  // planned by JerkDynamics: state [q; q̇; q̈], no partition
-    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa}, &s.forces);
-    const Eigen::VectorXd x = jd.initial_state(s.integrator.t0, s.q0, s.qd0, s.qdd0.size() ? &s.qdd0 : nullptr);
-    Eigen::VectorXd dx(x.size());
-    jd.derivative(s.integrator.t0, x, dx);
-    std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
-    std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
-    for (const auto& c : s.constraints.constraints())
-      std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
-    std::cout << "jerk-level problem (p = 3): state [q; qd; qdd], kappa = " << s.kappa << " 1/s\n";
-    std::cout << "initial acceleration at t0 = " << s.integrator.t0 << " s" << (s.qdd0.size() ? " (from initial.qdd)" : " (free)")
-              << ":";
-    for (int j = 0; j < m.nq; ++j) std::cout << " " << m.joint_name[j] << " " << x[2 * m.nq + j];
-    std::cout << "\n";
-    for (int r = 0; r < s.constraints.rows(); ++r)
-      std::printf("  %-20s |B qddd + s| = %.3e\n", s.constraints.row_name(r).c_str(), std::abs(jd.row_residual()[r]));
-    std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
-              << s.integrator.t0 << ", " << s.integrator.t1 << "] s\n";
-    return kOk;
-  }
   // Everything is evaluated before anything is printed: "valid" is never followed by an error.
-  ReferenceDynamics rd(m, s.forces, s.constraints, s.options);
-  Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
-  rd.derivative(s.integrator.t0, x, dx);
+  const double t0 = s.integrator.t0;
+  const auto planner = s.make_planner();
+  const Eigen::VectorXd x = s.initial_state(*planner);
+  Eigen::VectorXd dx(x.size());
+  planner->derivative(t0, x, dx);
   std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
   std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
-  int mat = 0, prog = 0, hol = 0, fo = 0, acc = 0;
+  int mat = 0, prog = 0, hol = 0, fo = 0, acc = 0, jerk = 0;
   for (const auto& c : s.constraints.constraints()) {
     std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
     (c->origin == ConstraintOrigin::Material ? mat : prog) += c->rows();
-    (c->order() == 2 ? acc : c->first_order() ? fo : hol) += c->rows();  // (order 3: jerk problems, above)
+    (c->order() == 3 ? jerk : c->order() == 2 ? acc : c->first_order() ? fo : hol) += c->rows();
   }
   std::cout << "  rows by kind: " << mat << " material, " << prog << " programmed; " << hol << " holonomic, " << fo
-            << " first-order" << (acc ? ", " + std::to_string(acc) + " acceleration-level" : std::string()) << "\n";
+            << " first-order" << (acc ? ", " + std::to_string(acc) + " acceleration-level" : std::string())
+            << (jerk ? ", " + std::to_string(jerk) + " jerk-level" : std::string()) << "\n";
   std::cout << "force elements: " << s.forces.elements().size();
   for (const auto& e : s.forces.elements()) std::cout << "  " << e->name();
   std::cout << "\n";
-  std::cout << "partition: independent [";
-  for (size_t i = 0; i < rd.independent().size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[rd.independent()[i]];
-  std::cout << "], dependent [";
-  for (size_t i = 0; i < rd.dependent().size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[rd.dependent()[i]];
-  std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
-            << rd.partition_condition() << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
-  if (s.project_initial) {
+  if (const std::string d = planner->description(); !d.empty()) std::cout << d << "\n";
+  if (planner->state_has_acceleration()) {
+    std::cout << "initial acceleration at t0 = " << t0 << " s" << (s.qdd0.size() ? " (from initial.qdd)" : " (free)") << ":";
+    for (int j = 0; j < m.nq; ++j) std::cout << " " << m.joint_name[j] << " " << x[2 * m.nq + j];
+    std::cout << "\n";
+  }
+  const std::optional<PlannerPartition> part = planner->partition();
+  if (part) {
+    std::cout << "partition: independent [";
+    for (size_t i = 0; i < part->independent.size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[part->independent[i]];
+    std::cout << "], dependent [";
+    for (size_t i = 0; i < part->dependent.size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[part->dependent[i]];
+    std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
+              << part->condition << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
+  }
+  const bool projected = s.project_initial && part.has_value();  // the projection moves the dependent coordinates
+  if (projected) {
     std::cout << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
     for (int j = 0; j < m.nq; ++j)
       if (s.initial_dq[j] != 0 || s.initial_dqd[j] != 0)
         std::printf("  %-12s q %+.6g -> %.10g   qd %+.6g -> %.10g\n", m.joint_name[j].c_str(), s.initial_dq[j],
                     s.q0[j], s.initial_dqd[j], s.qd0[j]);
   }
-  std::cout << "initial residuals at t0 = " << s.integrator.t0 << " s" << (s.project_initial ? " (after projection)" : "")
-            << ":\n";
-  for (int r = 0; r < s.constraints.rows(); ++r)
-    std::printf("  %-20s |Phi| = %.3e   |dPhi/dt| = %.3e\n", s.constraints.row_name(r).c_str(),
-                std::abs(rd.constraints().phi[r]), std::abs(rd.constraints().phid[r]));
+  std::cout << "initial residuals at t0 = " << t0 << " s" << (projected ? " (after projection)" : "") << ":\n";
+  const std::vector<RowResidual> residuals = planner->row_residuals();
+  for (int r = 0; r < s.constraints.rows(); ++r) {
+    std::printf("  %-20s", s.constraints.row_name(r).c_str());
+    for (size_t k = 0; k < residuals.size(); ++k)
+      std::printf("%s%s = %.3e", k ? "   " : " ", residuals[k].label.c_str(), residuals[k].values[r]);
+    std::printf("\n");
+  }
   std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
-            << s.integrator.t0 << ", " << s.integrator.t1 << "] s; the plan stops where max |Phi| > "
-            << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))
-            << " (integrator.residual_tolerance)\n";
+            << s.integrator.t0 << ", " << s.integrator.t1 << "] s";
+  if (planner->checks_residual_tolerance())
+    std::cout << "; the plan stops where max |Phi| > "
+              << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))
+              << " (integrator.residual_tolerance)";
+  std::cout << "\n";
   std::cout << "experiments: " << s.experiments.size() << " runs\n";
   if (!variants.empty()) {
     std::cout << "variants: " << variants.size() << " (";

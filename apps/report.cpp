@@ -242,15 +242,20 @@ std::string scenario_json(const Problem& p) {
   o += "]";
   // The partition and its conditioning at t0, as `refdyn check` prints them.
   {
-    auto rd = p.make_reference_dynamics();
-    Eigen::VectorXd x = rd->make_state(p.q0, p.qd0), dx(x.size());
-    rd->derivative(p.integrator.t0, x, dx);
-    o += ",\"partition\":{\"independent\":[";
-    for (size_t i = 0; i < rd->independent().size(); ++i) o += (i ? "," : "") + str(m.joint_name[rd->independent()[i]]);
-    o += "],\"dependent\":[";
-    for (size_t i = 0; i < rd->dependent().size(); ++i) o += (i ? "," : "") + str(m.joint_name[rd->dependent()[i]]);
-    o += "],\"automatic\":" + std::string(p.automatic_independent ? "true" : "false") +
-         ",\"condition_t0\":" + num(rd->partition_condition()) + "}";
+    auto planner = p.make_planner();
+    const Eigen::VectorXd x = p.initial_state(*planner);
+    Eigen::VectorXd dx(x.size());
+    planner->derivative(p.integrator.t0, x, dx);
+    if (const std::optional<PlannerPartition> part = planner->partition()) {
+      o += ",\"partition\":{\"independent\":[";
+      for (size_t i = 0; i < part->independent.size(); ++i) o += (i ? "," : "") + str(m.joint_name[part->independent[i]]);
+      o += "],\"dependent\":[";
+      for (size_t i = 0; i < part->dependent.size(); ++i) o += (i ? "," : "") + str(m.joint_name[part->dependent[i]]);
+      o += "],\"automatic\":" + std::string(p.automatic_independent ? "true" : "false") +
+           ",\"condition_t0\":" + num(part->condition) + "}";
+    } else {
+      o += ",\"partition\":null";  // none: the planner solves a KKT system (jerk problems)
+    }
   }
   const ReferenceDynamicsOptions& ro = p.options;
   const IntegratorOptions& in = p.integrator;

@@ -156,7 +156,7 @@ io::UrdfOptions urdf_options(const std::string& root_link, bool points_for_links
 
 // ---------------------------------------------------------------- problems and results
 struct PyResults {
-  std::shared_ptr<const Problem> problem;  // the Results' reference dynamics refer to it
+  std::shared_ptr<const Problem> problem;  // the Results' planner refers to it
   io::Results results;
 };
 

@@ -68,18 +68,18 @@ void for_each_index(size_t count, int shard, int num_shards, int jobs, const std
 
 namespace {
 
-/// Runs the experiments of this shard. Each run gets its own ReferenceDynamics (an automatic
-/// partition is state that a shared one would carry from run to run) and its own controller,
-/// so a run's numbers depend on its experiment only.
+/// Runs the experiments of this shard. Each run gets its own planner (an automatic partition is
+/// state that a shared one would carry from run to run) and its own controller, so a run's
+/// numbers depend on its experiment only.
 void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
   const bool one_run = p.experiments.size() == 1;
   auto run = [&](size_t i) {
     const Experiment& ex = *p.experiments[i];
     RunRecord& rec = res.runs[i];
-    const auto rd = p.make_reference_dynamics();
+    const auto planner = p.make_planner();
     std::function<void(double)> progress;
     if (one_run && o.progress) progress = o.progress("experiment " + ex.name, p.integrator.t0, res.plan.summary.t_end);
-    ClosedLoopResult r = track_experiment(p, ex, res.plan, *rd, progress);
+    ClosedLoopResult r = track_experiment(p, ex, res.plan, *planner, progress);
     rec.summary = summarize_run(p, r);
     if (!o.run_csv_dir.empty()) write_csv_atomic(o.run_csv_dir / ("track_" + ex.name + ".csv"), trajectory_table(r));
     if (i < o.keep_trajectories) rec.result = std::move(r);
@@ -98,8 +98,8 @@ Results run_problem(const Problem& p, const RunOptions& o) {
     throw Error("run_problem: shard " + std::to_string(o.shard) + " of " + std::to_string(o.num_shards) + " shards");
   const auto start = std::chrono::steady_clock::now();
   Results res;
-  res.rd = p.make_reference_dynamics();
-  res.plan = plan_problem(p, *res.rd, o.progress ? o.progress("planning", p.integrator.t0, p.integrator.t1)
+  res.planner = p.make_planner();
+  res.plan = plan_problem(p, *res.planner, o.progress ? o.progress("planning", p.integrator.t0, p.integrator.t1)
                                                  : std::function<void(double)>());
   const int n = p.model.nv;
   std::vector<Eigen::VectorXd> q, qd;
@@ -341,7 +341,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   plan["t_end"] = ps.t_end;
   plan["max_constraint_residual"] = ps.max_constraint_residual;
   plan["residual_from"] = p.residual_from;
-  plan["residual_tolerance"] = number_or_null(p.is_jerk_problem() ? std::nan("") : p.residual_tolerance);
+  plan["residual_tolerance"] = number_or_null(p.residual_tolerance);
   if (p.residual_from > p.integrator.t0)
     plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = ps.max_constraint_residual;
   plan["wall_time_s"] = ps.wall_time;

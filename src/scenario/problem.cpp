@@ -445,6 +445,28 @@ std::unique_ptr<ReferenceDynamics> Problem::make_reference_dynamics() const {
   return std::make_unique<ReferenceDynamics>(model, forces, constraints, options);
 }
 
+std::unique_ptr<Planner> Problem::make_planner(ReferenceDynamics* rd) const {
+  if (is_jerk_problem())
+    return std::make_unique<JerkPlanner>(
+        std::make_unique<JerkDynamics>(model, jerk_constraints, JerkDynamicsOptions{kappa}, &forces));
+  if (rd) return std::make_unique<ReferencePlanner>(*rd);
+  return std::make_unique<ReferencePlanner>(make_reference_dynamics());
+}
+
+Eigen::VectorXd Problem::initial_state(Planner& planner) const {
+  return planner.initial_state(integrator.t0, q0, qd0, qdd0.size() ? &qdd0 : nullptr);
+}
+
+PlanSettings Problem::plan_settings(const std::function<void(double)>& progress) const {
+  PlanSettings s;
+  s.integrator = integrator;
+  s.residual_from = residual_from;
+  s.record.points = report_point_indices();
+  s.record.residual_tolerance = residual_tolerance;
+  s.progress = progress;
+  return s;
+}
+
 void check_output_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name,
                        const std::string& what) {
   check_name(c, at, key, name);
@@ -587,6 +609,8 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       if (!spec.experiments.empty())
         c.fail(spec.experiments_value, "experiments",
                "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
+      // The jerk plan reports the dynamics residual and is not cut at a tolerance (JerkPlanner).
+      s->residual_tolerance = std::numeric_limits<double>::infinity();
     }
   }
 
@@ -991,19 +1015,20 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   return s;
 }
 
+Plan plan_problem(const Problem& p, Planner& planner, const std::function<void(double)>& progress) {
+  return planner.plan(p.initial_state(planner), p.plan_settings(progress));
+}
+
 Plan plan_problem(const Problem& p, ReferenceDynamics& rd, const std::function<void(double)>& progress) {
-  if (p.is_jerk_problem()) {
-    JerkDynamics jd(p.model, p.jerk_constraints, JerkDynamicsOptions{p.kappa}, &p.forces);
-    const Eigen::VectorXd x0 = jd.initial_state(p.integrator.t0, p.q0, p.qd0, p.qdd0.size() ? &p.qdd0 : nullptr);
-    return plan_jerk_motion(jd, x0, p.integrator, RecordOptions{p.report_point_indices()}, progress);
-  }
-  const Eigen::VectorXd x0 = rd.make_state(p.q0, p.qd0);
-  RecordOptions record{p.report_point_indices()};
-  record.residual_tolerance = p.residual_tolerance;
-  return plan_motion(rd, x0, p.integrator, p.residual_from, progress, record);
+  return plan_problem(p, *p.make_planner(&rd), progress);
 }
 
 ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const Plan& plan, ReferenceDynamics& rd,
+                                  const std::function<void(double)>& progress) {
+  return track_experiment(p, ex, plan, *p.make_planner(&rd), progress);
+}
+
+ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const Plan& plan, Planner& planner,
                                   const std::function<void(double)>& progress) {
   const Model& m = p.model;
   const int n = m.nv;
@@ -1017,7 +1042,7 @@ ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const 
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
   x0.head(n) = ex.q0;
   x0.segment(n, n) = ex.qd0;
-  ClosedLoopResult r = simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &rd, x0, o);
+  ClosedLoopResult r = simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &planner, x0, o);
   // A run that tracked a plan to its end is a success only when the plan was: else it tracked
   // the valid part of a reference that stopped early, and says so.
   if (r.summary.ok() && !plan.summary.ok()) {

@@ -65,7 +65,7 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
 }  // namespace
 
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
-                                      const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,
+                                      const Plan& plan, Planner* rd, const Eigen::VectorXd& x0_plant,
                                       const ClosedLoopOptions& options) {
   const IntegratorOptions& io = options.integrator;
   io.validate();
@@ -162,20 +162,22 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       out.summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
     }
   } else {
-    if (!rd) throw Error("simulate_closed_loop: Dormand–Prince needs the ReferenceDynamics to integrate jointly");
+    if (!rd) throw Error("simulate_closed_loop: Dormand–Prince needs the planner (reference dynamics) to integrate jointly");
     const int nr = rd->state_size();
     Eigen::VectorXd xr(nr), dxr(nr);
+    const double *q_ref = nullptr, *qd_ref = nullptr, *qdd_ref = nullptr;
+    rd->reference(xr, dxr, q_ref, qd_ref, qdd_ref);  // views into xr, dxr
     auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
       xr = x.head(nr);
       rd->derivative(t, xr, dxr);
       dx.head(nr) = dxr;
-      set_ref(xr.data(), xr.data() + n, dxr.data() + n);
+      set_ref(q_ref, qd_ref, qdd_ref);
       plant_derivative(plant, plant_forces, controller, w, options.effort_limit, t, x.data() + nr, dx.data() + nr);
     };
     auto obs = [&](double t, const Eigen::VectorXd& x) {
       xr = x.head(nr);
       rd->derivative(t, xr, dxr);
-      set_ref(xr.data(), xr.data() + n, dxr.data() + n);
+      set_ref(q_ref, qd_ref, qdd_ref);
       record(t, x.data() + nr);
       return true;
     };
@@ -186,6 +188,14 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
   }
   out.summary.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
+}
+
+ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
+                                      const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,
+                                      const ClosedLoopOptions& options) {
+  if (!rd) return simulate_closed_loop(plant, plant_forces, controller, plan, static_cast<Planner*>(nullptr), x0_plant, options);
+  ReferencePlanner planner(*rd);
+  return simulate_closed_loop(plant, plant_forces, controller, plan, &planner, x0_plant, options);
 }
 
 }  // namespace refdyn

@@ -49,7 +49,7 @@ struct RunOptions {
   bool track = false;          ///< also run the experiments
   ProgressFactory progress;    ///< optional; the plan, and the run when there is just one
   /// Threads running experiments: 0 = every core (std::thread::hardware_concurrency). Each run
-  /// has its own ReferenceDynamics and controller; results do not depend on this number.
+  /// has its own planner and controller; results do not depend on this number.
   int jobs = 1;
   /// Keep the trajectories of the first `keep_trajectories` runs (experiment order) in
   /// Results::runs[i].result: the report, the paper table and the Python bindings use them. The
@@ -74,7 +74,7 @@ struct RunRecord {
 };
 
 struct Results {
-  std::unique_ptr<ReferenceDynamics> rd;
+  std::unique_ptr<Planner> planner;  ///< the plan's (Problem::make_planner)
   Plan plan;
   FeasibilityReport feasibility;
   std::vector<RunRecord> runs;  ///< one per experiment of the Problem, in its order (if tracked)

@@ -98,6 +98,7 @@ class JerkDynamics {
   const Model& model() const { return model_; }
   const std::vector<JerkConstraintPtr>& constraints() const { return constraints_; }
   const ForceSet* forces() const { return forces_; }
+  const JerkDynamicsOptions& options() const { return opt_; }
 
   /// x0 = [q0; q̇0; q̈0] with q̈0 consistent with the dynamics, Nᵀ(M q̈0 − F) = 0:
   /// q̈0 = M⁻¹(F + Bᵀλ0). Without qdd_hint λ0 = 0 (q̈0 is the free acceleration); with it,

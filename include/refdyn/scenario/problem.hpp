@@ -11,6 +11,7 @@
 #include "refdyn/constraints/constraints.hpp"
 #include "refdyn/simulate/closed_loop.hpp"
 #include "refdyn/simulate/plan.hpp"
+#include "refdyn/simulate/planner.hpp"
 #include "refdyn/forces/force_elements.hpp"
 #include "refdyn/simulate/integrators.hpp"
 #include "refdyn/reference/jerk.hpp"
@@ -101,8 +102,16 @@ struct Problem {
   bool is_jerk_problem() const { return !jerk_constraints.empty(); }
 
   std::vector<int> report_point_indices() const;
-  /// A reference dynamics of this problem (refers to its members).
+  /// A reference dynamics of order ≤ 2 of this problem (refers to its members).
   std::unique_ptr<ReferenceDynamics> make_reference_dynamics() const;
+  /// The planner of this problem (refers to its members): a JerkPlanner for a jerk problem,
+  /// else a ReferencePlanner owning a new ReferenceDynamics, or, given `rd` (made by
+  /// make_reference_dynamics()), one that uses `rd`. The one place that looks at the order.
+  std::unique_ptr<Planner> make_planner(ReferenceDynamics* rd = nullptr) const;
+  /// The initial conditions as a planner state: planner.initial_state(t0, q0, qd0, hint).
+  Eigen::VectorXd initial_state(Planner& planner) const;
+  /// What plan_problem plans with: the integrator, residual window and tolerance, points.
+  PlanSettings plan_settings(const std::function<void(double)>& progress = {}) const;
 };
 
 /// A SpecReader of the scenario's file with its parameters evaluated (in order; each may use
@@ -120,12 +129,17 @@ std::string substitute_value(std::string name_template, const std::string& param
 /// Builds and checks a Problem. Throws Error "FILE:LINE: KEY: message" naming the offending key.
 std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec);
 
-/// Plans the problem's reference motion (plan_motion with the problem's integrator, residual
-/// window and recorded points). `rd` must be made by problem.make_reference_dynamics(). A jerk
-/// problem is planned by plan_jerk_motion instead (`rd` is not used).
+/// Plans the problem's reference motion with `planner` (made by problem.make_planner()) from the
+/// problem's initial conditions and plan_settings().
+Plan plan_problem(const Problem& problem, Planner& planner, const std::function<void(double)>& progress = {});
+/// The same with `rd` made by problem.make_reference_dynamics() (a jerk problem is planned by
+/// its own JerkPlanner; `rd` is then not used).
 Plan plan_problem(const Problem& problem, ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
 
-/// Runs one experiment on the unconstrained plant tracking `plan`.
+/// Runs one experiment on the unconstrained plant tracking `plan` (`planner`: the problem's,
+/// used by Dormand–Prince to integrate the reference jointly).
+ClosedLoopResult track_experiment(const Problem& problem, const Experiment& experiment, const Plan& plan,
+                                  Planner& planner, const std::function<void(double)>& progress = {});
 ClosedLoopResult track_experiment(const Problem& problem, const Experiment& experiment, const Plan& plan,
                                   ReferenceDynamics& rd, const std::function<void(double)>& progress = {});
 

@@ -18,8 +18,10 @@
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/simulate/controllers.hpp"
 #include "refdyn/simulate/integrators.hpp"
+#include "refdyn/simulate/planner.hpp"
 #include "refdyn/simulate/trajectory.hpp"
 
+#include <cstddef>
 #include <functional>
 #include <vector>
 
@@ -42,9 +44,20 @@ struct ClosedLoopResult : Trajectory {
 /// = [q; q̇; z_plant] (the controller's states, if any, start at zero; x0_plant may also carry
 /// them). RK4: replays plan.stages through the integrator's stage hook (options.integrator must
 /// have the same t0, step, and t1 ≤ the plan's end). Dormand–Prince: integrates the reference
-/// jointly (needs `rd`).
+/// jointly (needs the `planner` that made the plan, any order: its state and derivative give
+/// q̂, q̂̇, q̂̈ through Planner::reference).
+ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
+                                      const Plan& plan, Planner* planner, const Eigen::VectorXd& x0_plant,
+                                      const ClosedLoopOptions& options);
+/// The same with a ReferenceDynamics (order ≤ 2) as the planner (null: RK4 replay only).
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
                                       const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,
                                       const ClosedLoopOptions& options);
+/// RK4 replay only (no planner).
+inline ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
+                                             const Plan& plan, std::nullptr_t, const Eigen::VectorXd& x0_plant,
+                                             const ClosedLoopOptions& options) {
+  return simulate_closed_loop(plant, plant_forces, controller, plan, static_cast<Planner*>(nullptr), x0_plant, options);
+}
 
 }  // namespace refdyn

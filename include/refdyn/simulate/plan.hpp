@@ -1,6 +1,7 @@
 #pragma once
 /// Planning: the reference dynamics (of order ≤ 2, or the jerk dynamics of order 3) integrated
-/// from a consistent initial state and recorded as a Plan (trajectory.hpp).
+/// from a consistent initial state and recorded as a Plan (trajectory.hpp). Callers that should
+/// not care about the order use the Planner interface (planner.hpp), which calls these.
 
 #include "refdyn/reference/jerk.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"

@@ -1,0 +1,55 @@
+// ReferencePlanner and JerkPlanner (planner.hpp): the two reference dynamics behind one
+// interface, delegating to plan_motion and plan_jerk_motion.
+#include "refdyn/simulate/planner.hpp"
+
+#include "refdyn/simulate/plan.hpp"
+
+#include <sstream>
+
+namespace refdyn {
+
+ReferencePlanner::ReferencePlanner(std::unique_ptr<ReferenceDynamics> rd) : owned_(std::move(rd)), rd_(owned_.get()) {}
+ReferencePlanner::ReferencePlanner(ReferenceDynamics& rd) : rd_(&rd) {}
+
+Eigen::VectorXd ReferencePlanner::initial_state(double, const Eigen::VectorXd& q0, const Eigen::VectorXd& qd0,
+                                                const Eigen::VectorXd*) {
+  return rd_->make_state(q0, qd0);
+}
+
+Plan ReferencePlanner::plan(const Eigen::VectorXd& x0, const PlanSettings& s) {
+  return plan_motion(*rd_, x0, s.integrator, s.residual_from, s.progress, s.record);
+}
+
+std::vector<RowResidual> ReferencePlanner::row_residuals() const {
+  const ConstraintEval& ev = rd_->constraints();
+  return {{"|Phi|", ev.phi.cwiseAbs()}, {"|dPhi/dt|", ev.phid.cwiseAbs()}};
+}
+
+std::optional<PlannerPartition> ReferencePlanner::partition() const {
+  return PlannerPartition{rd_->independent(), rd_->dependent(), rd_->partition_condition()};
+}
+
+JerkPlanner::JerkPlanner(std::unique_ptr<JerkDynamics> jd) : owned_(std::move(jd)), jd_(owned_.get()) {}
+JerkPlanner::JerkPlanner(JerkDynamics& jd) : jd_(&jd) {}
+
+std::vector<std::string> JerkPlanner::state_names() const {
+  std::vector<std::string> names;
+  for (const std::string& j : jd_->model().joint_name) names.push_back("acc_" + j);
+  return names;
+}
+
+Plan JerkPlanner::plan(const Eigen::VectorXd& x0, const PlanSettings& s) {
+  return plan_jerk_motion(*jd_, x0, s.integrator, s.record, s.progress);
+}
+
+std::vector<RowResidual> JerkPlanner::row_residuals() const {
+  return {{"|B qddd + s|", jd_->row_residual().cwiseAbs()}};
+}
+
+std::string JerkPlanner::description() const {
+  std::ostringstream o;
+  o << "jerk-level problem (p = 3): state [q; qd; qdd], kappa = " << jd_->options().kappa << " 1/s";
+  return o.str();
+}
+
+}  // namespace refdyn
