@@ -161,7 +161,7 @@ TEST(Fields, CsvColumnsAreTheFieldsColumns) {
   FieldContext c;
   c.names = &joints;
   std::vector<std::string> cols;
-  csv_columns<io::RunSummary>(cols, c);
+  io::csv_columns<io::RunSummary>(cols, c);
   EXPECT_EQ(cols, (std::vector<std::string>{"t_end", "final_max_abs_error", "peak_abs_tau", "max_e0", "max_settle_time",
                                             "max_late_error", "saturated_samples", "e0_a", "e0_b", "settle_a", "settle_b",
                                             "late_a", "late_b", "peak_tau_a", "peak_tau_b", "message"}));
@@ -183,7 +183,7 @@ TEST(Fields, CsvColumnsAreTheFieldsColumns) {
   });
   EXPECT_EQ(csv_fields, 9u);
   std::vector<std::string> cells;
-  csv_cells(cells, sample_run(), c);
+  io::csv_cells(cells, sample_run(), c);
   ASSERT_EQ(cells.size(), cols.size());
   EXPECT_EQ(cells.back(), "\"stopped at t = 0.1: \"\"quoted\"\", comma\nand a line\"");
   EXPECT_EQ(cells[0], "0.30000000000000004");
@@ -192,13 +192,13 @@ TEST(Fields, CsvColumnsAreTheFieldsColumns) {
 
   cols.clear();
   c.holds = when::Tracked;
-  csv_columns<io::VariantSummary>(cols, c);
+  io::csv_columns<io::VariantSummary>(cols, c);
   EXPECT_EQ(cols, (std::vector<std::string>{"t_end", "max_constraint_residual", "feasible", "violations",
                                             "peak_speed_a", "peak_speed_b", "peak_effort_a", "peak_effort_b", "runs",
                                             "runs_completed", "worst_final_max_abs_error", "worst_peak_abs_tau"}));
   cells.clear();
   io::VariantSummary invalid;  // not run: the outcome cells are empty ("nan" for numbers)
-  csv_cells(cells, invalid, c);
+  io::csv_cells(cells, invalid, c);
   EXPECT_EQ(cells, (std::vector<std::string>{"nan", "nan", "", "", "nan", "nan", "nan", "nan", "0", "0", "nan", "nan"}));
 
   // The whole table read back by the one CSV reader: header and cells as written.
