@@ -49,7 +49,7 @@ template <class E>
 struct is_vector<std::vector<E>> : std::true_type {};
 
 /// The MPI payload of described structs (common/fields.hpp): every stored field marked
-/// out::Wire, in the order listed: numbers as their bytes (bit-exact), strings and vectors with
+/// sink::Wire, in the order listed: numbers as their bytes (bit-exact), strings and vectors with
 /// their length, enums as int32, flags as int32.
 class Writer {
  public:
@@ -63,7 +63,7 @@ class Writer {
     } else if constexpr (is_described_v<T>) {
       for_each_field<T>([&](const auto& f) {
         if constexpr (std::decay_t<decltype(f)>::stored)
-          if (f.in & out::Wire) put(f.get(x));
+          if (f.in & sink::Wire) put(f.get(x));
       });
     } else if constexpr (is_vector<T>::value) {
       put(static_cast<std::uint64_t>(x.size()));
@@ -94,7 +94,7 @@ class Reader {
     } else if constexpr (is_described_v<T>) {
       for_each_field<T>([&](const auto& f) {
         if constexpr (std::decay_t<decltype(f)>::stored)
-          if (f.in & out::Wire) get(f.ref(x));
+          if (f.in & sink::Wire) get(f.ref(x));
       });
     } else if constexpr (is_vector<T>::value) {
       const auto n = take<std::uint64_t>();

@@ -58,7 +58,7 @@ py::tuple table_of(const Trajectory& tr) {
 }
 
 /// Python values of described fields (common/fields.hpp): numbers, text, enums as their names,
-/// structs as dicts of their out::Python fields, vectors as lists.
+/// structs as dicts of their sink::Python fields, vectors as lists.
 template <class V>
 py::object py_of(const V& v);
 
@@ -66,7 +66,7 @@ template <class T>
 py::dict py_dict(const T& x) {
   py::dict d;
   for_each_field<T>([&](const auto& f) {
-    if (f.in & out::Python) d[f.name] = py_of(f.get(x));
+    if (f.in & sink::Python) d[f.name] = py_of(f.get(x));
   });
   return d;
 }
@@ -161,14 +161,8 @@ py::array_t<double> out(const Eigen::MatrixBase<Derived>& m) {
   return r;
 }
 
-py::dict limits_dict(const JointLimits& l) {
-  py::dict d;
-  d["lower"] = l.lower;
-  d["upper"] = l.upper;
-  d["velocity"] = l.velocity;
-  d["effort"] = l.effort;
-  return d;
-}
+/// {lower, upper, velocity, effort} (Fields<JointLimits>, as in feasibility.json).
+py::dict limits_dict(const JointLimits& l) { return py_dict(l); }
 
 std::shared_ptr<PyModel> urdf_model(const ModelDescription& d) { return std::make_shared<PyModel>(build_model(d)); }
 

@@ -168,7 +168,7 @@ TEST(Fields, CsvColumnsAreTheFieldsColumns) {
   // Each column is a field's column (or <column>_<joint>), every field marked for CSV has one.
   size_t csv_fields = 0;
   for_each_field<io::RunSummary>([&](const auto& f) {
-    if (!(f.in & out::Csv)) return;
+    if (!(f.in & sink::Csv)) return;
     ++csv_fields;
     const std::string col = f.column();
     bool found = false;

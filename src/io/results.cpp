@@ -357,7 +357,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     runs.push_back(std::move(o));
   }
   // Statistics over the runs (the aggregate of a sweep or Monte Carlo study): a distribution of
-  // every field marked out::Stat, overall and per joint.
+  // every field marked sink::Stat, overall and per joint.
   JsonValue& st = s["statistics"] = JsonValue::object();
   long ok = 0;
   for (const RunRecord& rr : res.runs) ok += rr.done && rr.summary.ok();
@@ -367,7 +367,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   st["percentiles"] = "linear between order statistics (numpy default); NaN values counted as missing";
   for_each_field<RunSummary>([&](const auto& f) {
     if constexpr (std::is_same_v<typename std::decay_t<decltype(f)>::Value, double>) {
-      if (!(f.in & out::Stat)) return;
+      if (!(f.in & sink::Stat)) return;
       std::vector<double> v;
       for (const RunRecord& rr : res.runs) v.push_back(f.get(rr.summary));
       st[c.expand(f.key())] = distribution_json(distribution_of(std::move(v)));
@@ -378,7 +378,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     JsonValue o = JsonValue::object();
     o["joint"] = p.model.joint_name[j];
     for_each_field<JointTracking>([&](const auto& f) {
-      if (!(f.in & out::Stat)) return;
+      if (!(f.in & sink::Stat)) return;
       std::vector<double> v;
       for (const RunRecord& rr : res.runs)
         v.push_back(j < rr.summary.joints.size() ? f.get(rr.summary.joints[j]) : std::nan(""));

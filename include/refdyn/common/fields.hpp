@@ -24,7 +24,7 @@
 
 namespace refdyn {
 
-namespace out {
+namespace sink {
 /// The outputs a field goes to.
 enum : unsigned {
   Json = 1u,    ///< summary.json, feasibility.json (and the Python dicts made from them)
@@ -34,7 +34,7 @@ enum : unsigned {
   Stat = 16u,   ///< summary.json "statistics": a distribution over the runs
   All = Json | Csv | Wire | Python,
 };
-}  // namespace out
+}  // namespace sink
 
 /// Conditions a writer states (FieldContext::holds) for fields that depend on them.
 namespace when {
@@ -55,7 +55,7 @@ struct MemberField {
   const char* name;               ///< the Python key, and the JSON key / CSV column unless set below
   M T::*member;
   const char* unit = "";          ///< SI unit of the value ("" for counts, text, flags)
-  unsigned in = out::All;         ///< outputs (out::…)
+  unsigned in = sink::All;         ///< outputs (sink::…)
   const char* json = nullptr;     ///< JSON key; may hold "{late}" (FieldContext::late)
   const char* csv = nullptr;      ///< CSV column (or, for a per-joint field, its prefix before "_<joint>")
   int csv_block = 0;              ///< CSV columns go by block (0, 1, 2: free text last), then by this order
@@ -77,7 +77,7 @@ struct DerivedField {
   const char* name;
   R (*fn)(const T&);
   const char* unit = "";
-  unsigned in = out::Json;
+  unsigned in = sink::Json;
   const char* json = nullptr;
   const char* csv = nullptr;
   int csv_block = 0;
@@ -90,11 +90,11 @@ struct DerivedField {
 };
 
 template <class T, class M>
-constexpr MemberField<T, M> field(const char* name, M T::*member, const char* unit = "", unsigned in = out::All) {
+constexpr MemberField<T, M> field(const char* name, M T::*member, const char* unit = "", unsigned in = sink::All) {
   return {name, member, unit, in};
 }
 template <class T, class R>
-constexpr DerivedField<T, R> derived(const char* name, R (*fn)(const T&), const char* unit = "", unsigned in = out::Json) {
+constexpr DerivedField<T, R> derived(const char* name, R (*fn)(const T&), const char* unit = "", unsigned in = sink::Json) {
   return {name, fn, unit, in};
 }
 /// Builder-style modifiers: field(...) | json_key("x") | csv_column("y") | …

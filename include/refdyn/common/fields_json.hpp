@@ -1,6 +1,6 @@
 #pragma once
 /// JSON of described structs (common/fields.hpp): to_json writes the fields that go to
-/// out::Json (in their order; keys with "{late}" expanded), from_json reads the stored ones
+/// sink::Json (in their order; keys with "{late}" expanded), from_json reads the stored ones
 /// back (null → NaN for numbers). The one JSON path of RunSummary, VariantSummary,
 /// IntegrationSummary and the feasibility report.
 
@@ -17,7 +17,7 @@
 namespace refdyn {
 
 template <class T>
-void write_fields_json(JsonValue& o, const T& x, const FieldContext& c, unsigned in = out::Json);
+void write_fields_json(JsonValue& o, const T& x, const FieldContext& c, unsigned in = sink::Json);
 template <class T>
 void read_fields_json(const JsonValue& j, T& x, const FieldContext& c, const std::string& where);
 
@@ -91,7 +91,7 @@ void read_json(const JsonValue& j, V& v, const FieldContext& c, const std::strin
 }
 }  // namespace detail
 
-/// Adds the fields of `x` that go to `in` (out::Json) to the object `o`, in their order.
+/// Adds the fields of `x` that go to `in` (sink::Json) to the object `o`, in their order.
 template <class T>
 void write_fields_json(JsonValue& o, const T& x, const FieldContext& c, unsigned in) {
   for_each_field<T>([&](const auto& f) {
@@ -102,7 +102,7 @@ void write_fields_json(JsonValue& o, const T& x, const FieldContext& c, unsigned
 
 /// The JSON object of `x`.
 template <class T>
-JsonValue to_json(const T& x, const FieldContext& c = {}, unsigned in = out::Json) {
+JsonValue to_json(const T& x, const FieldContext& c = {}, unsigned in = sink::Json) {
   JsonValue o = JsonValue::object();
   write_fields_json(o, x, c, in);
   return o;
@@ -115,7 +115,7 @@ void read_fields_json(const JsonValue& j, T& x, const FieldContext& c, const std
   if (!j.is_object()) throw Error(where + ": expected an object");
   for_each_field<T>([&](const auto& f) {
     if constexpr (std::decay_t<decltype(f)>::stored) {
-      if (!(f.in & out::Json)) return;
+      if (!(f.in & sink::Json)) return;
       const std::string key = c.expand(f.key());
       const auto it = j.find(key);
       if (it == j.end()) return;

@@ -53,7 +53,7 @@ template <class E>
 struct is_struct_vector<std::vector<E>> : std::bool_constant<is_described_v<E>> {};
 }  // namespace detail
 
-/// Appends the CSV columns of T (its fields with out::Csv, by csv_block, then in order; a
+/// Appends the CSV columns of T (its fields with sink::Csv, by csv_block, then in order; a
 /// per-joint field `x` gives x_<joint> for every name in c.names, a vector of structs one
 /// group per field of the struct).
 template <class T>
@@ -61,12 +61,12 @@ void csv_columns(std::vector<std::string>& cols, const FieldContext& c) {
   for (int block = 0; block < 3; ++block)
     for_each_field<T>([&](const auto& f) {
       using V = typename std::decay_t<decltype(f)>::Value;
-      if (!(f.in & out::Csv) || f.csv_block != block || !c.allows(f.only_if)) return;
+      if (!(f.in & sink::Csv) || f.csv_block != block || !c.allows(f.only_if)) return;
       if constexpr (std::is_same_v<V, std::vector<double>>) {
         for (const auto& j : *c.names) cols.push_back(std::string(f.column()) + "_" + j);
       } else if constexpr (detail::is_struct_vector<V>::value) {
         for_each_field<typename V::value_type>([&](const auto& g) {
-          if (!(g.in & out::Csv)) return;
+          if (!(g.in & sink::Csv)) return;
           for (const auto& j : *c.names) cols.push_back(std::string(g.column()) + "_" + j);
         });
       } else {
@@ -82,7 +82,7 @@ void csv_cells(std::vector<std::string>& cells, const T& x, const FieldContext& 
   for (int block = 0; block < 3; ++block)
     for_each_field<T>([&](const auto& f) {
       using V = typename std::decay_t<decltype(f)>::Value;
-      if (!(f.in & out::Csv) || f.csv_block != block || !c.allows(f.only_if)) return;
+      if (!(f.in & sink::Csv) || f.csv_block != block || !c.allows(f.only_if)) return;
       const bool valid = c.allows(f.valid_if);
       if constexpr (std::is_same_v<V, std::vector<double>>) {
         const auto& v = f.get(x);
@@ -90,7 +90,7 @@ void csv_cells(std::vector<std::string>& cells, const T& x, const FieldContext& 
       } else if constexpr (detail::is_struct_vector<V>::value) {
         const auto& v = f.get(x);
         for_each_field<typename V::value_type>([&](const auto& g) {
-          if (!(g.in & out::Csv)) return;
+          if (!(g.in & sink::Csv)) return;
           for (size_t j = 0; j < c.names->size(); ++j)
             cells.push_back(valid && j < v.size() ? detail::csv_cell(g.get(v[j])) : "nan");
         });

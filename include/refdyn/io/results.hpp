@@ -57,7 +57,7 @@ namespace refdyn {
 template <>
 struct Fields<io::JointTracking> {
   using S = io::JointTracking;
-  static constexpr unsigned in = out::All | out::Stat;
+  static constexpr unsigned in = sink::All | sink::Stat;
   static constexpr auto list() {
     return std::make_tuple(field("e0", &S::e0, "m or rad", in),
                            field("settle_time", &S::settle_time, "s", in) | JsonKey{"settle_time_rel_1e-3"} |
@@ -73,19 +73,19 @@ struct Fields<io::RunSummary> {
   static double max_e0(const S& s) { return s.max_over_joints(&io::JointTracking::e0); }
   static double max_settle(const S& s) { return s.max_over_joints(&io::JointTracking::settle_time); }
   static double max_late(const S& s) { return s.max_over_joints(&io::JointTracking::late_error); }
-  static constexpr unsigned record = out::Json | out::Wire | out::Python;
+  static constexpr unsigned record = sink::Json | sink::Wire | sink::Python;
   static constexpr auto list() {
     return std::make_tuple(field("status", &S::status, "", record),  // sweep.csv: "not_run" too (sweep_csv)
                            field("message", &S::message) | CsvColumn{nullptr, 2},
                            field("t_end", &S::t_end, "s"),
-                           field("steps", &S::steps, "", out::Wire | out::Python),
+                           field("steps", &S::steps, "", sink::Wire | sink::Python),
                            field("saturated_samples", &S::saturated_samples) | CsvColumn{nullptr, 1},
-                           field("final_max_abs_error", &S::final_max_abs_error, "m or rad", out::All | out::Stat),
-                           field("peak_abs_tau", &S::peak_abs_tau, "N or N m", out::All | out::Stat),
-                           derived("max_e0", &max_e0, "m or rad", out::Csv | out::Stat),
-                           derived("max_settle_time", &max_settle, "s", out::Csv | out::Stat) |
+                           field("final_max_abs_error", &S::final_max_abs_error, "m or rad", sink::All | sink::Stat),
+                           field("peak_abs_tau", &S::peak_abs_tau, "N or N m", sink::All | sink::Stat),
+                           derived("max_e0", &max_e0, "m or rad", sink::Csv | sink::Stat),
+                           derived("max_settle_time", &max_settle, "s", sink::Csv | sink::Stat) |
                                JsonKey{"max_settle_time_rel_1e-3"},
-                           derived("max_late_error", &max_late, "m or rad", out::Csv | out::Stat) |
+                           derived("max_late_error", &max_late, "m or rad", sink::Csv | sink::Stat) |
                                JsonKey{"max_max_abs_error_after_{late}s"},
                            field("joints", &S::joints) | CsvColumn{nullptr, 1} | Label{"joint"},
                            field("wall_time", &S::wall_time, "s", record) | JsonKey{"wall_time_s"});

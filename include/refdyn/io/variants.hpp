@@ -62,17 +62,17 @@ namespace refdyn {
 template <>
 struct Fields<io::VariantSummary> {
   using S = io::VariantSummary;
-  static constexpr unsigned record = out::Wire | out::Python;
+  static constexpr unsigned record = sink::Wire | sink::Python;
   static constexpr auto list() {
     return std::make_tuple(field("error", &S::error, "", record),
                            field("status", &S::status, "", record),
-                           field("message", &S::message, "", out::Json | record),
+                           field("message", &S::message, "", sink::Json | record),
                            field("t_end", &S::t_end, "s") | ValidIf{when::Ran},
                            field("max_constraint_residual", &S::max_constraint_residual, "m or rad") | ValidIf{when::Ran},
                            field("feasible", &S::feasible) | ValidIf{when::Ran},
                            field("violations", &S::violations) | ValidIf{when::Ran},
-                           field("peak_speed", &S::peak_speed, "m/s or rad/s", out::Csv | record),
-                           field("peak_effort", &S::peak_effort, "N or N m", out::Csv | record),
+                           field("peak_speed", &S::peak_speed, "m/s or rad/s", sink::Csv | record),
+                           field("peak_effort", &S::peak_effort, "N or N m", sink::Csv | record),
                            field("runs", &S::runs) | OnlyIf{when::Tracked},
                            field("runs_completed", &S::runs_completed) | OnlyIf{when::Tracked},
                            field("worst_final_error", &S::worst_final_error, "m or rad") |
@@ -81,7 +81,7 @@ struct Fields<io::VariantSummary> {
                            field("worst_peak_tau", &S::worst_peak_tau, "N or N m") | JsonKey{"worst_peak_abs_tau"} |
                                CsvColumn{"worst_peak_abs_tau"} | OnlyIf{when::Tracked} |
                                ValidIf{when::Ran | when::HasRuns},
-                           field("wall_time", &S::wall_time, "s", out::Json | record) | JsonKey{"wall_time_s"});
+                           field("wall_time", &S::wall_time, "s", sink::Json | record) | JsonKey{"wall_time_s"});
   }
 };
 }  // namespace refdyn

@@ -62,7 +62,7 @@ struct Fields<IntegrationSummary> {
                            field("message", &S::message),
                            field("steps", &S::steps),
                            field("rejected_steps", &S::rejected_steps),
-                           field("rhs_evaluations", &S::rhs_evaluations, "", out::Wire | out::Python),
+                           field("rhs_evaluations", &S::rhs_evaluations, "", sink::Wire | sink::Python),
                            field("t_end", &S::t_end, "s"),
                            field("max_constraint_residual", &S::max_constraint_residual, "m or rad"),
                            field("wall_time", &S::wall_time, "s") | JsonKey{"wall_time_s"});
