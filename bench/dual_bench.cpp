@@ -5,6 +5,7 @@
 // route), (b) the Jacobian ∂τ/∂(q, q̇) of the inverse dynamics (2n directions, the shape of the
 // ∂f/∂x an implicit integrator needs). Random standard-DH chains of 7 and 30 DOF. README
 // "Dual numbers" quotes the run.
+#include "dh_models.hpp"
 #include "dh_tables.hpp"
 
 #include "refdyn/multibody/model.hpp"
@@ -42,22 +43,7 @@ namespace {
 namespace mb = refdyn::multibody;
 
 refdyn::Model chain(int dof) {
-  const refdyn_bench::DHTable t = refdyn_bench::random_table(dof, 4000 + dof);
-  std::vector<refdyn::DHRow> rows;
-  for (const auto& l : t.links) {
-    refdyn::DHRow r;
-    r.type = l.prismatic ? refdyn::JointType::Prismatic : refdyn::JointType::Revolute;
-    r.theta = l.theta;
-    r.d = l.d;
-    r.a = l.a;
-    r.alpha = l.alpha;
-    r.inertia.mass = l.mass;
-    r.inertia.com = refdyn::Vec3(l.com[0], l.com[1], l.com[2]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) r.inertia.I_com(i, j) = l.I_com[3 * i + j];
-    rows.push_back(r);
-  }
-  return refdyn::build_model(refdyn::from_dh(rows));
+  return refdyn::build_model(refdyn_bench::description_from_table(refdyn_bench::random_table(dof, 4000 + dof)));
 }
 
 struct State {

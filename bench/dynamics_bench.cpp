@@ -16,6 +16,7 @@
 // same KKT peer. Every peer figure is printed with the KDL routine it calls.
 
 #include "bench_report.hpp"
+#include "dh_models.hpp"
 #include "dh_tables.hpp"
 #include "kdl_peer.hpp"
 
@@ -50,22 +51,7 @@ using refdyn_bench::KdlPeer;
 constexpr int kStates = 8;  // states cycled through by every timed loop (same for all sides)
 
 refdyn::Model model_from_table(const DHTable& t) {
-  std::vector<refdyn::DHRow> rows;
-  for (const auto& l : t.links) {
-    refdyn::DHRow r;
-    r.type = l.prismatic ? refdyn::JointType::Prismatic : refdyn::JointType::Revolute;
-    r.theta = l.theta;
-    r.d = l.d;
-    r.a = l.a;
-    r.alpha = l.alpha;
-    r.inertia.mass = l.mass;
-    r.inertia.com = refdyn::Vec3(l.com[0], l.com[1], l.com[2]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) r.inertia.I_com(i, j) = l.I_com[3 * i + j];
-    rows.push_back(r);
-  }
-  refdyn::ModelDescription d = refdyn::from_dh(rows, refdyn::DHConvention::Standard, t.name);
-  d.gravity = refdyn::Vec3(t.gravity[0], t.gravity[1], t.gravity[2]);
+  refdyn::ModelDescription d = refdyn_bench::description_from_table(t);
   d.add_point("tip", d.links.back().name, refdyn::Vec3(0.05, 0.0, 0.0));  // for the constrained FD
   d.add_point("ee", d.links.back().name, refdyn::Vec3::Zero());  // KDL's tip frame origin (CFDtip)
   return refdyn::build_model(d);
