@@ -35,22 +35,14 @@ struct Case {
 /// with general joint axes of non-unit length (build_model normalizes them) and fixed links; 30 %
 /// of the joints prismatic.
 std::vector<Case> random_models(std::mt19937& rng, const std::vector<int>& sizes = {1, 2, 3, 5, 8, 13, 21, 30}) {
+  std::normal_distribution<double> nd(0, 1);  // one for the whole family, as the draws were made before
+  auto non_unit_axes = [&nd](std::mt19937& r, ModelDescription& d) {
+    for (std::size_t i = 0; i < d.links.size(); ++i)
+      d.links[i].axis = Vec3(nd(r), nd(r), nd(r)).normalized() * (0.25 + 0.5 * static_cast<double>(i % 5));
+  };
   std::vector<Case> out;
-  std::normal_distribution<double> nd(0, 1);
-  for (int n : sizes)
-    for (int variant = 0; variant < 4; ++variant) {
-      test::RandomChainOptions o;
-      o.dof = n;
-      o.modified_dh = variant == 1;
-      o.with_fixed_joints = variant == 1 || variant == 3;
-      o.tree = variant >= 2;
-      ModelDescription d = test::random_chain(rng, o);
-      if (variant == 3)
-        for (std::size_t i = 0; i < d.links.size(); ++i)
-          d.links[i].axis = Vec3(nd(rng), nd(rng), nd(rng)).normalized() * (0.25 + 0.5 * static_cast<double>(i % 5));
-      const char* kind[] = {"standard chain", "modified chain +fixed", "tree", "tree, non-unit general axes +fixed"};
-      out.push_back({std::string(kind[variant]) + " n=" + std::to_string(n), build_model(d)});
-    }
+  for (auto& c : test::random_model_family(rng, sizes, non_unit_axes, "tree, non-unit general axes +fixed"))
+    out.push_back({c.label, build_model(c.desc)});
   return out;
 }
 

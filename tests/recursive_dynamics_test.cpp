@@ -44,19 +44,8 @@ void randomize_axes(std::mt19937& rng, ModelDescription& d) {
 /// tree with general joint axes (not only the DH z axis).
 std::vector<Case> random_models(std::mt19937& rng, const std::vector<int>& sizes = kSizes) {
   std::vector<Case> out;
-  for (int n : sizes) {
-    for (int variant = 0; variant < 4; ++variant) {
-      test::RandomChainOptions o;
-      o.dof = n;
-      o.modified_dh = variant == 1;
-      o.with_fixed_joints = variant == 1 || variant == 3;
-      o.tree = variant >= 2;
-      ModelDescription d = test::random_chain(rng, o);
-      if (variant == 3) randomize_axes(rng, d);
-      const char* kind[] = {"standard chain", "modified chain +fixed", "tree", "tree, general axes +fixed"};
-      out.push_back({std::string(kind[variant]) + " n=" + std::to_string(n), build_model(d), d});
-    }
-  }
+  for (auto& c : test::random_model_family(rng, sizes, randomize_axes, "tree, general axes +fixed"))
+    out.push_back({c.label, build_model(c.desc), c.desc});
   return out;
 }
 

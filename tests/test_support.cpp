@@ -55,6 +55,25 @@ Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale) {
   return v;
 }
 
+std::vector<RandomModelCase> random_model_family(std::mt19937& rng, const std::vector<int>& sizes,
+                                                 const std::function<void(std::mt19937&, ModelDescription&)>& general_axes,
+                                                 const std::string& general_label) {
+  std::vector<RandomModelCase> out;
+  const std::string kind[] = {"standard chain", "modified chain +fixed", "tree", general_label};
+  for (int n : sizes)
+    for (int variant = 0; variant < 4; ++variant) {
+      RandomChainOptions o;
+      o.dof = n;
+      o.modified_dh = variant == 1;
+      o.with_fixed_joints = variant == 1 || variant == 3;
+      o.tree = variant >= 2;
+      ModelDescription d = random_chain(rng, o);
+      if (variant == 3) general_axes(rng, d);
+      out.push_back({kind[variant] + " n=" + std::to_string(n), std::move(d)});
+    }
+  return out;
+}
+
 namespace {
 Mat3 random_rotation(std::mt19937& rng) {
   std::normal_distribution<double> n(0, 1);

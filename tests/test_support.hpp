@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <functional>
 #include <random>
 #include <string>
 #include <vector>
@@ -33,6 +34,18 @@ struct RandomChainOptions {
 ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt = {});
 
 Eigen::VectorXd random_vector(std::mt19937& rng, int n, double scale = 1.0);
+
+/// One random model of a family: its label ("standard chain n=5", …) and description.
+struct RandomModelCase {
+  std::string label;
+  ModelDescription desc;
+};
+/// For each size, four random models in this order: a standard-DH chain, a modified-DH chain
+/// with fixed links, a tree, and a tree with fixed links whose joint axes `general_axes` rewrites
+/// (labelled with `general_label`). The draws from rng follow that order.
+std::vector<RandomModelCase> random_model_family(std::mt19937& rng, const std::vector<int>& sizes,
+                                                 const std::function<void(std::mt19937&, ModelDescription&)>& general_axes,
+                                                 const std::string& general_label);
 
 /// The whole file as bytes ("" if it cannot be read).
 std::string read_file(const std::string& path);
