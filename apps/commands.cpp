@@ -348,7 +348,7 @@ int finish_family(const Problem& base, const std::vector<io::Variant>& variants,
   JsonValue summary =
       io::variants_summary_json(base.name, base.file, base.model.joint_name, variants, summaries, tracked, wall_time);
   summary["variant_folders"] = folders;
-  io::write_text_atomic(fs::path(out_dir) / "summary.json", summary.dump(2, 2) + "\n");
+  io::write_text_atomic(fs::path(out_dir) / "summary.json", json_text(summary, 2, 2) + "\n");
   size_t bad = 0, feasible = 0;
   for (size_t i = 0; i < summaries.size(); ++i) {
     const io::VariantSummary& s = summaries[i];

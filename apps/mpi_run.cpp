@@ -4,7 +4,12 @@
 
 #include "refdyn/common/error.hpp"
 
+#include "refdyn/common/fields.hpp"
+
 #include <cstdint>
+#include <functional>
+#include <string>
+#include <type_traits>
 #include <cstring>
 #include <limits>
 #include <vector>
@@ -38,16 +43,36 @@ bool mpi_available() { return true; }
 
 namespace {
 
+template <class V>
+struct is_vector : std::false_type {};
+template <class E>
+struct is_vector<std::vector<E>> : std::true_type {};
+
+/// The MPI payload of described structs (common/fields.hpp): every stored field marked
+/// sink::Wire, in the order listed: numbers as their bytes (bit-exact), strings and vectors with
+/// their length, enums as int32, flags as int32.
 class Writer {
  public:
   template <class T>
   void put(const T& x) {
-    const auto* b = reinterpret_cast<const char*>(&x);
-    bytes.insert(bytes.end(), b, b + sizeof(T));
-  }
-  void put(const std::string& s) {
-    put(static_cast<std::uint64_t>(s.size()));
-    bytes.insert(bytes.end(), s.begin(), s.end());
+    if constexpr (std::is_same_v<T, std::string>) {
+      put(static_cast<std::uint64_t>(x.size()));
+      bytes.insert(bytes.end(), x.begin(), x.end());
+    } else if constexpr (std::is_enum_v<T> || std::is_same_v<T, bool>) {
+      put(static_cast<std::int32_t>(x));
+    } else if constexpr (is_described_v<T>) {
+      for_each_field<T>([&](const auto& f) {
+        if constexpr (std::decay_t<decltype(f)>::stored)
+          if (f.in & sink::Wire) put(f.get(x));
+      });
+    } else if constexpr (is_vector<T>::value) {
+      put(static_cast<std::uint64_t>(x.size()));
+      for (const auto& e : x) put(e);
+    } else {
+      static_assert(std::is_arithmetic_v<T>);
+      const auto* b = reinterpret_cast<const char*>(&x);
+      bytes.insert(bytes.end(), b, b + sizeof(T));
+    }
   }
   std::vector<char> bytes;
 };
@@ -56,19 +81,38 @@ class Reader {
  public:
   Reader(const char* p, size_t n) : p_(p), end_(p + n) {}
   template <class T>
-  T get() {
+  void get(T& x) {
+    if constexpr (std::is_same_v<T, std::string>) {
+      const auto n = take<std::uint64_t>();
+      need(n);
+      x.assign(p_, p_ + n);
+      p_ += n;
+    } else if constexpr (std::is_enum_v<T>) {
+      x = static_cast<T>(take<std::int32_t>());
+    } else if constexpr (std::is_same_v<T, bool>) {
+      x = take<std::int32_t>() != 0;
+    } else if constexpr (is_described_v<T>) {
+      for_each_field<T>([&](const auto& f) {
+        if constexpr (std::decay_t<decltype(f)>::stored)
+          if (f.in & sink::Wire) get(f.ref(x));
+      });
+    } else if constexpr (is_vector<T>::value) {
+      const auto n = take<std::uint64_t>();
+      need(n);  // at least a byte each: a bad count fails here, not in resize
+      x.resize(n);
+      for (auto& e : x) get(e);
+    } else {
+      x = take<T>();
+    }
+  }
+  template <class T>
+  T take() {
+    static_assert(std::is_arithmetic_v<T>);
     need(sizeof(T));
     T x;
     std::memcpy(&x, p_, sizeof(T));
     p_ += sizeof(T);
     return x;
-  }
-  std::string get_string() {
-    const auto n = get<std::uint64_t>();
-    need(n);
-    std::string s(p_, p_ + n);
-    p_ += n;
-    return s;
   }
   bool done() const { return p_ == end_; }
 
@@ -79,6 +123,28 @@ class Reader {
   const char* p_;
   const char* end_;
 };
+
+/// Rank 0 receives the records (index, record) of the other ranks and marks them done.
+template <class Record, class Done>
+void gather_records(const MpiSession& mpi, std::vector<Record>& records, const Done& done, const char* what,
+                    const std::function<void(size_t)>& mark_done) {
+  Writer w;
+  if (mpi.rank() != 0)
+    for (size_t i = 0; i < records.size(); ++i) {
+      if (!done(i)) continue;
+      w.put(static_cast<std::uint64_t>(i));
+      w.put(records[i]);
+    }
+  const std::vector<char> all = mpi.gather_bytes(w.bytes);
+  if (mpi.rank() != 0) return;
+  Reader in(all.data(), all.size());
+  while (!in.done()) {
+    const auto i = in.take<std::uint64_t>();
+    if (i >= records.size()) throw Error(std::string("--mpi: a ") + what + " index from another rank is out of range (internal error)");
+    in.get(records[i]);
+    mark_done(i);
+  }
+}
 
 void check(int rc, const char* what) {
   if (rc != MPI_SUCCESS) throw Error(std::string("--mpi: ") + what + " failed (MPI error " + std::to_string(rc) + ")");
@@ -133,81 +199,18 @@ std::vector<char> MpiSession::gather_bytes(const std::vector<char>& mine) const 
 }
 
 void MpiSession::gather_runs(io::Results& res) const {
-  Writer w;
-  if (rank_ != 0)
-    for (size_t i = 0; i < res.runs.size(); ++i) {
-      const io::RunRecord& r = res.runs[i];
-      if (!r.done) continue;
-      const io::RunSummary& s = r.summary;
-      w.put(static_cast<std::uint64_t>(i));
-      w.put(static_cast<std::int32_t>(s.status));
-      w.put(s.message);
-      w.put(s.t_end), w.put(s.steps), w.put(s.saturated_samples);
-      w.put(s.final_max_abs_error), w.put(s.peak_abs_tau), w.put(s.wall_time);
-      w.put(static_cast<std::uint64_t>(s.joints.size()));
-      for (const auto& j : s.joints) w.put(j.e0), w.put(j.settle_time), w.put(j.late_error), w.put(j.peak_tau);
-    }
-  const std::vector<char> all = gather_bytes(w.bytes);
-  if (rank_ != 0) return;
-  Reader in(all.data(), all.size());
-  while (!in.done()) {
-    const auto i = in.get<std::uint64_t>();
-    if (i >= res.runs.size()) throw Error("--mpi: a run index from another rank is out of range (internal error)");
-    io::RunRecord& r = res.runs[i];
-    io::RunSummary& s = r.summary;
-    s.status = static_cast<IntegrationStatus>(in.get<std::int32_t>());
-    s.message = in.get_string();
-    s.t_end = in.get<double>(), s.steps = in.get<long>(), s.saturated_samples = in.get<long>();
-    s.final_max_abs_error = in.get<double>(), s.peak_abs_tau = in.get<double>(), s.wall_time = in.get<double>();
-    s.joints.resize(in.get<std::uint64_t>());
-    for (auto& j : s.joints)
-      j.e0 = in.get<double>(), j.settle_time = in.get<double>(), j.late_error = in.get<double>(), j.peak_tau = in.get<double>();
-    r.done = true;
-  }
+  std::vector<io::RunSummary> summaries(res.runs.size());
+  for (size_t i = 0; i < res.runs.size(); ++i)
+    if (rank_ != 0 && res.runs[i].done) summaries[i] = res.runs[i].summary;
+  gather_records(*this, summaries, [&](size_t i) { return res.runs[i].done; }, "run", [&](size_t i) {
+    res.runs[i].summary = std::move(summaries[i]);
+    res.runs[i].done = true;
+  });
 }
 
 void MpiSession::gather_variants(std::vector<io::VariantSummary>& summaries) const {
-  Writer w;
-  auto put_vector = [&w](const std::vector<double>& v) {
-    w.put(static_cast<std::uint64_t>(v.size()));
-    for (double x : v) w.put(x);
-  };
-  if (rank_ != 0)
-    for (size_t i = 0; i < summaries.size(); ++i) {
-      const io::VariantSummary& s = summaries[i];
-      if (!s.done) continue;
-      w.put(static_cast<std::uint64_t>(i));
-      w.put(s.error);
-      w.put(static_cast<std::int32_t>(s.status));
-      w.put(s.message);
-      w.put(s.t_end), w.put(s.max_constraint_residual), w.put(static_cast<std::int32_t>(s.feasible)), w.put(s.violations);
-      put_vector(s.peak_speed);
-      put_vector(s.peak_effort);
-      w.put(s.runs), w.put(s.runs_completed), w.put(s.worst_final_error), w.put(s.worst_peak_tau), w.put(s.wall_time);
-    }
-  const std::vector<char> all = gather_bytes(w.bytes);
-  if (rank_ != 0) return;
-  Reader in(all.data(), all.size());
-  auto get_vector = [&in] {
-    std::vector<double> v(in.get<std::uint64_t>());
-    for (double& x : v) x = in.get<double>();
-    return v;
-  };
-  while (!in.done()) {
-    const auto i = in.get<std::uint64_t>();
-    if (i >= summaries.size()) throw Error("--mpi: a variant index from another rank is out of range (internal error)");
-    io::VariantSummary& s = summaries[i];
-    s.error = in.get_string();
-    s.status = static_cast<IntegrationStatus>(in.get<std::int32_t>());
-    s.message = in.get_string();
-    s.t_end = in.get<double>(), s.max_constraint_residual = in.get<double>();
-    s.feasible = in.get<std::int32_t>() != 0, s.violations = in.get<long>();
-    s.peak_speed = get_vector();
-    s.peak_effort = get_vector();
-    s.runs = in.get<long>(), s.runs_completed = in.get<long>();
-    s.worst_final_error = in.get<double>(), s.worst_peak_tau = in.get<double>(), s.wall_time = in.get<double>();
-    s.done = true;
-  }
+  gather_records(*this, summaries, [&](size_t i) { return summaries[i].done; }, "variant",
+                 [&](size_t i) { summaries[i].done = true; });
 }
 
 #endif

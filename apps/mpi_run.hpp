@@ -37,10 +37,10 @@ class MpiSession {
   void gather_variants(std::vector<io::VariantSummary>& summaries) const;
   /// Collective: rank 0's value on every rank.
   int broadcast(int value) const;
+  /// Collective: every rank's bytes, concatenated in rank order, on rank 0 (empty elsewhere).
+  std::vector<char> gather_bytes(const std::vector<char>& mine) const;
 
  private:
-  /// Every rank's bytes, concatenated in rank order, on rank 0 (empty elsewhere).
-  std::vector<char> gather_bytes(const std::vector<char>& mine) const;
   int rank_ = 0, size_ = 1;
 };
 

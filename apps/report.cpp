@@ -5,6 +5,8 @@
 #include "report.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/json.hpp"
+#include "refdyn/io/csv.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/common/text.hpp"
@@ -280,77 +282,6 @@ std::string scenario_json(const Problem& p) {
   return o;
 }
 
-/// Reads a CSV written by refdyn (header, then numbers; "nan" for non-finite values).
-io::CsvTable read_csv(const fs::path& path) {
-  const std::string name = path.string();
-  const std::string text = io::read_text_file(name, "results file", std::size_t(1) << 30);
-  io::CsvTable t;
-  size_t pos = 0, line = 0;
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string ln = text.substr(pos, end - pos);
-    pos = end + 1;
-    ++line;
-    if (!ln.empty() && ln.back() == '\r') ln.pop_back();
-    if (ln.empty()) continue;
-    if (t.header.empty()) {
-      size_t a = 0;
-      while (true) {
-        const size_t b = ln.find(',', a);
-        t.header.push_back(ln.substr(a, b == std::string::npos ? std::string::npos : b - a));
-        if (b == std::string::npos) break;
-        a = b + 1;
-      }
-      continue;
-    }
-    std::vector<double> row;
-    row.reserve(t.header.size());
-    const char* s = ln.c_str();
-    while (true) {
-      char* e = nullptr;
-      const double v = std::strtod(s, &e);
-      if (e == s || (*e != ',' && *e != '\0'))
-        throw Error(name + ":" + std::to_string(line) + ": expected numbers separated by commas");
-      row.push_back(v);
-      if (*e == '\0') break;
-      s = e + 1;
-    }
-    if (row.size() != t.header.size())
-      throw Error(name + ":" + std::to_string(line) + ": expected " + std::to_string(t.header.size()) + " values, got " +
-                  std::to_string(row.size()));
-    t.rows.push_back(std::move(row));
-  }
-  if (t.header.empty() || t.rows.empty()) throw Error(name + ": no samples in it");
-  return t;
-}
-
-/// The value of the top-level string member `key` of summary.json (as written by refdyn).
-std::string summary_string(const std::string& json, const std::string& key) {
-  const std::regex re("\\n  \"" + key + "\": \"((?:[^\"\\\\]|\\\\.)*)\"");
-  std::smatch m;
-  if (!std::regex_search(json, m, re)) return "";
-  const std::string s = m[1].str();
-  std::string out;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (s[i] != '\\' || i + 1 >= s.size()) {
-      out += s[i];
-      continue;
-    }
-    const char c = s[++i];
-    if (c == 'n') out += '\n';
-    else if (c == 't') out += '\t';
-    else if (c == 'r') out += '\r';
-    else if (c == 'u' && i + 4 < s.size()) {
-      const long cp = std::strtol(s.substr(i + 1, 4).c_str(), nullptr, 16);
-      i += 4;
-      if (cp < 0x80) out += static_cast<char>(cp);
-      else return "";  // refdyn writes UTF-8 as is; anything else is not ours
-    } else out += c;
-  }
-  return out;
-}
-
 }  // namespace
 
 void require_report_template() {
@@ -432,8 +363,8 @@ std::string report_html(const ReportInput& in) {
 void write_report(const fs::path& dir, const Problem& problem, const io::Results& r, const JsonValue& summary) {
   ReportInput in;
   in.problem = &problem;
-  in.summary_json = summary.dump(2, 2);
-  in.feasibility_json = r.feasibility.to_json().dump(0);
+  in.summary_json = json_text(summary, 2, 2);
+  in.feasibility_json = r.feasibility.json();
   in.plan = io::trajectory_table(r.plan);
   for (const auto& run : r.runs)  // the runs whose trajectories were kept (RunOptions::keep_trajectories)
     if (in.runs.size() < kReportMaxRuns && !run.result.joints.empty())
@@ -460,13 +391,18 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
   };
   in.summary_json = json_file("summary.json");
   in.feasibility_json = json_file("feasibility.json");
+  const JsonValue summary = parse_json(in.summary_json, (dir / "summary.json").string());
+  auto text_member = [&](const char* key) {
+    const auto it = summary.find(key);
+    return it != summary.end() && it->is_string() ? it->get<std::string>() : std::string();
+  };
   std::unique_ptr<Problem> problem;
   if (!scenario.empty()) {
     problem = io::load_problem(scenario, opt.max_input_bytes);
-  } else if (in.summary_json.find("\"study\": \"paper three-link manipulator\"") != std::string::npos) {
+  } else if (text_member("study") == "paper three-link manipulator") {
     problem = io::parse_problem(kPaperScenarioYaml, "examples/paper/paper.yaml");
   } else {
-    const std::string file = summary_string(in.summary_json, "file");
+    const std::string file = text_member("file");
     if (file.empty())
       throw Error("results folder '" + dir_name + "': summary.json names no scenario file (hint: --scenario FILE)");
     if (!fs::exists(file))
@@ -475,20 +411,28 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
     problem = io::load_problem(file, opt.max_input_bytes);
   }
   in.problem = problem.get();
-  in.plan = read_csv(dir / "plan.csv");
+  in.plan = io::read_csv_numbers((dir / "plan.csv").string());
   // The runs summary.json lists, in its order (not whatever track_*.csv an older run left).
   // The first kReportMaxRuns of them; none when the run CSVs were not written (--run-csv none).
-  static const std::regex label_re("\\{\"label\": \"([A-Za-z0-9._+=-]+)\"");
-  const bool run_csv = in.summary_json.find("\"track_csv\": false") == std::string::npos;
-  for (auto it = std::sregex_iterator(in.summary_json.begin(), in.summary_json.end(), label_re);
-       run_csv && in.runs.size() < kReportMaxRuns && it != std::sregex_iterator(); ++it) {
-    const std::string name = (*it)[1].str();
-    const fs::path f = dir / ("track_" + name + ".csv");
-    if (!fs::exists(f))
-      throw Error("results folder '" + dir_name + "': summary.json lists the run '" + name + "' but there is no " +
-                  f.filename().string());
-    in.runs.emplace_back(name, read_csv(f));
-  }
+  const auto track_csv = summary.find("track_csv");
+  const bool run_csv = track_csv == summary.end() || !track_csv->is_boolean() || track_csv->get<bool>();
+  const auto runs = summary.find("runs");
+  if (run_csv && runs != summary.end() && runs->is_array())
+    for (const JsonValue& run : *runs) {
+      if (in.runs.size() >= kReportMaxRuns) break;
+      const auto label = run.find("label");
+      if (label == run.end() || !label->is_string()) continue;
+      const std::string name = label->get<std::string>();
+      // Experiment names are file-safe (check_output_name); anything else is not a run of ours.
+      if (name.empty() || name.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._+=-") !=
+                              std::string::npos)
+        continue;
+      const fs::path f = dir / ("track_" + name + ".csv");
+      if (!fs::exists(f))
+        throw Error("results folder '" + dir_name + "': summary.json lists the run '" + name + "' but there is no " +
+                    f.filename().string());
+      in.runs.emplace_back(name, io::read_csv_numbers(f.string()));
+    }
   const std::string html = report_html(in);  // everything is formed before anything is written
   const fs::path out = output.empty() ? dir / "report.html" : fs::path(output);
   io::write_text_atomic(out, html);

@@ -11,6 +11,8 @@
 
 #include "refdyn/constraints/constraints.hpp"
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/fields.hpp"
+#include "refdyn/common/json.hpp"
 #include "refdyn/simulate/feasibility.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
@@ -30,6 +32,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace py = pybind11;
@@ -54,17 +57,39 @@ py::tuple table_of(const Trajectory& tr) {
   return py::make_tuple(tab.header, a);
 }
 
-py::dict summary_of(const IntegrationSummary& s) {
+/// Python values of described fields (common/fields.hpp): numbers, text, enums as their names,
+/// structs as dicts of their sink::Python fields, vectors as lists.
+template <class V>
+py::object py_of(const V& v);
+
+template <class T>
+py::dict py_dict(const T& x) {
   py::dict d;
-  d["status"] = std::string(to_string(s.status));
+  for_each_field<T>([&](const auto& f) {
+    if (f.in & sink::Python) d[f.name] = py_of(f.get(x));
+  });
+  return d;
+}
+
+template <class V>
+py::object py_of(const V& v) {
+  if constexpr (std::is_enum_v<V>) {
+    return py::str(to_string(v));
+  } else if constexpr (is_described_v<V>) {
+    return py_dict(v);
+  } else if constexpr (std::is_arithmetic_v<V> || std::is_same_v<V, std::string>) {
+    return py::cast(v);
+  } else {
+    py::list l;
+    for (const auto& e : v) l.append(py_of(e));
+    return l;
+  }
+}
+
+/// An integration's summary (IntegrationSummary's fields) and "ok".
+py::dict summary_of(const IntegrationSummary& s) {
+  py::dict d = py_dict(s);
   d["ok"] = s.ok();
-  d["message"] = s.message;
-  d["steps"] = s.steps;
-  d["rejected_steps"] = s.rejected_steps;
-  d["rhs_evaluations"] = s.rhs_evaluations;
-  d["t_end"] = s.t_end;
-  d["wall_time"] = s.wall_time;
-  d["max_constraint_residual"] = s.max_constraint_residual;
   return d;
 }
 
@@ -136,14 +161,8 @@ py::array_t<double> out(const Eigen::MatrixBase<Derived>& m) {
   return r;
 }
 
-py::dict limits_dict(const JointLimits& l) {
-  py::dict d;
-  d["lower"] = l.lower;
-  d["upper"] = l.upper;
-  d["velocity"] = l.velocity;
-  d["effort"] = l.effort;
-  return d;
-}
+/// {lower, upper, velocity, effort} (Fields<JointLimits>, as in feasibility.json).
+py::dict limits_dict(const JointLimits& l) { return py_dict(l); }
 
 std::shared_ptr<PyModel> urdf_model(const ModelDescription& d) { return std::make_shared<PyModel>(build_model(d)); }
 
@@ -344,9 +363,11 @@ PYBIND11_MODULE(_refdyn, m) {
       })
       .def("run_table", [](const PyResults& r, size_t i) { return table_of(r.results.runs.at(i).result); })
       .def("run_summary", [](const PyResults& r, size_t i) {
-        const auto& res = r.results.runs.at(i).result;
-        py::dict d = summary_of(res.summary);
-        d["saturated_samples"] = res.saturated_samples;
+        // The run's integration summary and its metrics (RunSummary's fields: saturated
+        // samples, final and peak values, per joint e0, settle time, late error, peak |tau|).
+        const io::RunRecord& run = r.results.runs.at(i);
+        py::dict d = summary_of(run.result.summary);
+        for (const auto& [k, v] : py_dict(run.summary)) d[k] = v;
         return d;
       })
       .def("run_layout", [](const PyResults& r, size_t i) { return layout_of(r.results.runs.at(i).result); })
@@ -354,7 +375,7 @@ PYBIND11_MODULE(_refdyn, m) {
       .def_property_readonly("feasibility_text", [](const PyResults& r) { return r.results.feasibility.text(); })
       .def_property_readonly("feasible", [](const PyResults& r) { return r.results.feasibility.feasible(); })
       .def_property_readonly("summary_json", [](const PyResults& r) {
-        return io::summary_json(*r.problem, r.results).dump(0);
+        return json_text(io::summary_json(*r.problem, r.results), 0);
       })
       .def("write", [](const PyResults& r, const std::string& dir) {
         io::write_results(dir, *r.problem, r.results, io::summary_json(*r.problem, r.results));

@@ -4,6 +4,7 @@
 # texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX;
 # libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
 # chromium + python3-pil: the report's browser test, tests/report_browser_test.py;
+# nlohmann-json3-dev: JSON values, reading and writing (common/json.hpp);
 # libopenmpi-dev + openmpi-bin: `refdyn track --mpi` and its test, tests/mpi_test.sh).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
@@ -11,7 +12,7 @@ PACKAGES=(
   cmake g++ make pkg-config
   libeigen3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libyaml-cpp-dev libcli11-dev libginac-dev
+  libyaml-cpp-dev libcli11-dev libginac-dev nlohmann-json3-dev
   liburdfdom-dev liborocos-kdl-dev libmujoco-dev
   python3 python3-matplotlib
   clang-14 libclang-rt-14-dev llvm-14

@@ -3,6 +3,9 @@
 // with exit code 2, one line "refdyn: error: FILE:LINE: KEY: message" on stderr, and nothing
 // written; usage errors give exit code 1, --help exit code 0; the minimal valid scenario
 // (tests/data/good/minimal.yaml) is checked and planned.
+#include "refdyn/common/json.hpp"
+#include "refdyn/io/csv.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -356,18 +359,12 @@ TEST(GoodScenario, PlanWritesResultsIntoAnExistingFolderQuietly) {
 // ---------------------------------------------------------------------------------------------
 // Output folders that cannot be written, missing inputs.
 
-/// Columns of a CSV file written by refdyn, by header name.
+/// Columns of a CSV file written by refdyn, by header name (refdyn::io::read_csv_numbers).
 std::map<std::string, std::vector<double>> read_columns(const fs::path& file) {
-  std::istringstream in(read_text(file));
-  std::string line, cell;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  for (std::istringstream h(line); std::getline(h, cell, ',');) names.push_back(cell);
+  const refdyn::io::CsvTable t = refdyn::io::read_csv_numbers(file.string());
   std::map<std::string, std::vector<double>> cols;
-  while (std::getline(in, line)) {
-    std::istringstream r(line);
-    for (size_t c = 0; c < names.size() && std::getline(r, cell, ','); ++c) cols[names[c]].push_back(std::stod(cell));
-  }
+  for (const auto& row : t.rows)
+    for (size_t c = 0; c < t.header.size(); ++c) cols[t.header[c]].push_back(row[c]);
   return cols;
 }
 
@@ -665,26 +662,8 @@ TEST(Limits, InputFilesAreBoundedAndDevicesRefused) {
 const fs::path kGoodDir = kSource / "tests/data/good";
 const fs::path kStoppedDir = kSource / "tests/data/stopped";
 
-/// The cells of one CSV line (RFC 4180 quotes).
-std::vector<std::string> csv_cells(const std::string& line) {
-  std::vector<std::string> cells(1);
-  bool quoted = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char ch = line[i];
-    if (quoted) {
-      if (ch == '"' && i + 1 < line.size() && line[i + 1] == '"') cells.back() += '"', ++i;
-      else if (ch == '"') quoted = false;
-      else cells.back() += ch;
-    } else if (ch == '"') {
-      quoted = true;
-    } else if (ch == ',') {
-      cells.emplace_back();
-    } else {
-      cells.back() += ch;
-    }
-  }
-  return cells;
-}
+/// The cells of one CSV line (refdyn::io::parse_csv: RFC 4180 quotes).
+std::vector<std::string> csv_cells(const std::string& line) { return refdyn::io::parse_csv(line, "line").header; }
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> out;
@@ -834,19 +813,24 @@ TEST(Trust, TrackingAPlanThatLeftTheWorkspaceIsNeverASuccess) {
   EXPECT_GT(t_end, 0.5);
   EXPECT_LT(t_end, 2.0);
   // Every run: its status, its time (the plan's end) and the reason, in sweep.csv.
-  const auto sweep = lines_of(read_text(out / "sweep.csv"));
-  ASSERT_EQ(sweep.size(), 41u);
-  const auto head = csv_cells(sweep[0]);
-  ASSERT_EQ(head.back(), "message");
-  const size_t t_col = std::find(head.begin(), head.end(), "t_end") - head.begin();
-  ASSERT_LT(t_col, head.size());
-  for (size_t k = 1; k < sweep.size(); ++k) {
-    const auto cells = csv_cells(sweep[k]);
-    ASSERT_EQ(cells.size(), head.size()) << sweep[k];
-    EXPECT_EQ(cells[2], "reference stopped early") << sweep[k];
-    EXPECT_NEAR(std::strtod(cells[t_col].c_str(), nullptr), t_end, 1e-9) << sweep[k];
-    EXPECT_TRUE(contains(cells.back(), "where the plan stopped (residual above tolerance")) << sweep[k];
+  const refdyn::io::CsvText sweep = refdyn::io::parse_csv(read_text(out / "sweep.csv"), "sweep.csv");
+  ASSERT_EQ(sweep.rows.size(), 40u);
+  ASSERT_EQ(sweep.header.back(), "message");
+  const int t_col = sweep.column("t_end");
+  ASSERT_GE(t_col, 0);
+  for (const auto& cells : sweep.rows) {
+    EXPECT_EQ(cells[2], "reference stopped early") << cells[1];
+    EXPECT_NEAR(std::strtod(cells[t_col].c_str(), nullptr), t_end, 1e-9) << cells[1];
+    EXPECT_TRUE(contains(cells.back(), "where the plan stopped (residual above tolerance")) << cells.back();
   }
+  // summary.json read back (nlohmann): every run's status and end time.
+  const refdyn::JsonValue js = refdyn::parse_json(summary, "summary.json");
+  ASSERT_EQ(js["runs"].size(), 40u);
+  for (const auto& run : js["runs"]) {
+    EXPECT_EQ(run["status"], "reference stopped early");
+    EXPECT_NEAR(run["t_end"].get<double>(), t_end, 1e-9);
+  }
+  EXPECT_EQ(js["statistics"]["completed"], 0);
   const std::string report = read_text(out / "report.html");
   EXPECT_TRUE(contains(report, "reference stopped early"));  // from summary.json, shown in the runs table
 }

@@ -106,8 +106,8 @@ TEST(ParallelRuns, ThreadsGiveTheBitsOfOneThread) {
       expect_same_summary(par.runs[i].summary, serial.runs[i].summary, name);
     }
     EXPECT_EQ(io::sweep_csv(*p, par), io::sweep_csv(*p, serial));
-    EXPECT_EQ(without_wall_times(io::summary_json(*p, par).dump(2, 2)),
-              without_wall_times(io::summary_json(*p, serial).dump(2, 2)));
+    EXPECT_EQ(without_wall_times(json_text(io::summary_json(*p, par), 2, 2)),
+              without_wall_times(json_text(io::summary_json(*p, serial), 2, 2)));
   }
 }
 
@@ -211,7 +211,7 @@ TEST(SweepStatistics, SweepCsvHasOneRowPerRunAndTheSweepValues) {
   EXPECT_EQ(rows[5].rfind("5,damped,success,,0.6,", 0), 0u) << rows[5] << " (no sweep value: empty cell)";
   // The statistics summarize the same per-run numbers.
   const JsonValue s = io::summary_json(*p, r);
-  const std::string js = s.dump(2, 2);
+  const std::string js = json_text(s, 2, 2);
   const std::string st = js.substr(js.find("\"statistics\""));
   for (const char* key : {"\"runs\": 6,", "\"completed\": 6,", "\"stopped_early\": 0,"})
     EXPECT_NE(st.find(key), std::string::npos) << key << " not in " << st.substr(0, 300);
@@ -315,7 +315,7 @@ TEST(StoppedPlan, RunsOnAStoppedPlanAreNeverASuccess) {
         << run.summary.message;
   }
   EXPECT_GE(on_stopped_plan, 1);
-  EXPECT_NE(io::summary_json(*p, r).dump(2, 2).find("\"completed\": 0,"), std::string::npos);
+  EXPECT_NE(json_text(io::summary_json(*p, r), 2, 2).find("\"completed\": 0,"), std::string::npos);
 }
 
 TEST(StoppedPlan, Rk4PlanIsCutAtItsLastSampleWithinTheTolerance) {
@@ -334,8 +334,8 @@ TEST(StoppedPlan, Rk4PlanIsCutAtItsLastSampleWithinTheTolerance) {
     EXPECT_EQ(run.summary.status, IntegrationStatus::ReferenceStopped) << run.experiment->name << ": " << run.summary.message;
     EXPECT_EQ(run.summary.t_end, ps.t_end) << run.experiment->name;
   }
-  const std::string js = io::summary_json(*p, r).dump(2, 2);
-  EXPECT_NE(js.find("\"residual_tolerance\": " + JsonValue(1e-4).dump(0)), std::string::npos) << JsonValue(1e-4).dump(0);
+  const std::string js = json_text(io::summary_json(*p, r), 2, 2);
+  EXPECT_NE(js.find("\"residual_tolerance\": " + json_text(JsonValue(1e-4), 0)), std::string::npos) << json_text(JsonValue(1e-4), 0);
   EXPECT_NE(js.find("\"t_end\": " + fmt(ps.t_end)), std::string::npos);
   const std::string csv = io::sweep_csv(*p, r);
   EXPECT_NE(csv.find(",message\n"), std::string::npos);

@@ -2,6 +2,7 @@
 // parameters rewritten (checked against the rewritten YAML, bit for bit); threads and shards
 // give the bits of one thread; invalid variants are reported and do not stop the others; the
 // section's errors name their key.
+#include "refdyn/io/csv.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
 #include "test_support.hpp"
@@ -108,16 +109,9 @@ TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {
   // Each folder holds its own variant: at t0 (same position, velocity projected onto the speed
   // 2πR/Tp) the joint speeds of R = 0.2, Tp = 1 are three times those of Tp = 3.
   auto first_qd1 = [&](const std::string& name) {
-    std::istringstream in(test::read_file(d1 / name / "plan.csv"));
-    std::string header, row, cell;
-    std::getline(in, header);
-    std::getline(in, row);
-    std::istringstream h(header), r(row);
-    while (std::getline(h, cell, ',')) {
-      std::string x;
-      std::getline(r, x, ',');
-      if (cell == "qd_q1") return std::stod(x);
-    }
+    const io::CsvTable t = io::read_csv_numbers((d1 / name / "plan.csv").string());
+    for (size_t c = 0; c < t.header.size(); ++c)
+      if (t.header[c] == "qd_q1") return t.rows.at(0)[c];
     return std::nan("");
   };
   const double fast = first_qd1("R0.2_T1"), slow = first_qd1("R0.2_T3");
@@ -144,7 +138,7 @@ TEST(Variants, AnInvalidVariantIsReportedAndTheOthersRun) {
   EXPECT_NE(s[1].error.find("violates constraint"), std::string::npos) << s[1].error;
   const std::string csv = io::variants_csv({"psi1", "psi2", "z3"}, v, s, false);
   EXPECT_NE(csv.find("\n1,z0.6,invalid,0.6,"), std::string::npos) << csv;
-  const std::string js = io::variants_summary_json("p", "f", {"psi1", "psi2", "z3"}, v, s, false, 0).dump(2, 2);
+  const std::string js = json_text(io::variants_summary_json("p", "f", {"psi1", "psi2", "z3"}, v, s, false, 0), 2, 2);
   EXPECT_NE(js.find("\"valid\": 1,"), std::string::npos) << js;
 }
 

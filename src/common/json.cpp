@@ -1,8 +1,10 @@
 #include "refdyn/common/json.hpp"
 
+#include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 namespace refdyn {
@@ -76,59 +78,68 @@ std::string json_quote(std::string_view s) {
   return o + "\"";
 }
 
-JsonValue& JsonValue::operator[](const std::string& key) {
-  if (kind_ == Kind::Null) kind_ = Kind::Object;
-  for (auto& [k, v] : members_)
-    if (k == key) return v;
-  members_.emplace_back(key, JsonValue());
-  return members_.back().second;
-}
-
-JsonValue& JsonValue::push_back(JsonValue v) {
-  if (kind_ == Kind::Null) kind_ = Kind::Array;
-  items_.push_back(std::move(v));
-  return items_.back();
-}
-
-std::string JsonValue::dump(int indent, int depth) const {
-  std::string out;
-  write(out, indent, depth, 0);
-  return out;
-}
-
-void JsonValue::write(std::string& out, int indent, int depth, int level) const {
+namespace {
+void write(const JsonValue& v, std::string& out, int indent, int depth, int level) {
   const bool pretty = indent > 0 && level < depth;
   const std::string pad = pretty ? "\n" + std::string(static_cast<size_t>(indent * (level + 1)), ' ') : "";
   const std::string close_pad = pretty ? "\n" + std::string(static_cast<size_t>(indent * level), ' ') : "";
-  switch (kind_) {
-    case Kind::Null: out += "null"; break;
-    case Kind::Bool: out += b_ ? "true" : "false"; break;
-    case Kind::Number: out += std::isfinite(x_) ? fmt(x_) : "null"; break;
-    case Kind::Integer:
-      out += unsigned_ ? std::to_string(static_cast<unsigned long long>(i_)) : std::to_string(i_);
+  using T = JsonValue::value_t;
+  switch (v.type()) {
+    case T::null:
+    case T::discarded: out += "null"; break;
+    case T::boolean: out += v.get<bool>() ? "true" : "false"; break;
+    case T::number_float: {
+      const double x = v.get<double>();
+      out += std::isfinite(x) ? fmt(x) : "null";
       break;
-    case Kind::String: out += json_quote(s_); break;
-    case Kind::Array:
+    }
+    case T::number_integer: out += std::to_string(v.get<std::int64_t>()); break;
+    case T::number_unsigned: out += std::to_string(v.get<std::uint64_t>()); break;
+    case T::string: out += json_quote(v.get_ref<const std::string&>()); break;
+    case T::binary: throw Error("json_text: binary values have no JSON text");
+    case T::array: {
       out += "[";
-      for (size_t i = 0; i < items_.size(); ++i) {
-        out += i ? (pretty ? "," : ", ") : "";
+      size_t i = 0;
+      for (const auto& item : v) {
+        out += i++ ? (pretty ? "," : ", ") : "";
         out += pad;
-        items_[i].write(out, indent, depth, level + 1);
+        write(item, out, indent, depth, level + 1);
       }
-      out += items_.empty() ? "" : close_pad;
+      out += v.empty() ? "" : close_pad;
       out += "]";
       break;
-    case Kind::Object:
+    }
+    case T::object: {
       out += "{";
-      for (size_t i = 0; i < members_.size(); ++i) {
-        out += i ? (pretty ? "," : ", ") : "";
+      size_t i = 0;
+      for (const auto& [key, item] : v.items()) {
+        out += i++ ? (pretty ? "," : ", ") : "";
         out += pad;
-        out += json_quote(members_[i].first) + ": ";
-        members_[i].second.write(out, indent, depth, level + 1);
+        out += json_quote(key) + ": ";
+        write(item, out, indent, depth, level + 1);
       }
-      out += members_.empty() ? "" : close_pad;
+      out += v.empty() ? "" : close_pad;
       out += "}";
       break;
+    }
+  }
+}
+}  // namespace
+
+std::string json_text(const JsonValue& v, int indent, int depth) {
+  std::string out;
+  write(v, out, indent, depth, 0);
+  return out;
+}
+
+JsonValue parse_json(std::string_view text, const std::string& source) {
+  try {
+    return JsonValue::parse(text.begin(), text.end());
+  } catch (const nlohmann::json::parse_error& e) {
+    std::string what = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 2: ..."
+    const auto at = what.find("] ");
+    if (at != std::string::npos) what = what.substr(at + 2);
+    throw Error(source + ": not valid JSON (" + what + ")");
   }
 }
 

@@ -1,6 +1,8 @@
 #include "refdyn/io/results.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/fields_json.hpp"
+#include "refdyn/io/csv.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/common/version.hpp"
 
@@ -263,23 +265,14 @@ JsonValue distribution_json(const Distribution& d) {
   return o;
 }
 
-namespace {
-
-/// The largest finite value (NaN when none): a run's settle time is that of its slowest joint.
-double max_finite(const std::vector<JointTracking>& js, double JointTracking::*field) {
+double RunSummary::max_over_joints(double JointTracking::*field) const {
   double m = std::nan("");
-  for (const auto& j : js)
+  for (const auto& j : joints)
     if (std::isfinite(j.*field) && !(m >= j.*field)) m = j.*field;
   return m;
 }
 
-/// A CSV text field (RFC 4180): quoted when it holds a comma, a quote or a line break.
-std::string csv_text(const std::string& x) {
-  if (x.find_first_of(",\"\r\n") == std::string::npos) return x;
-  std::string q = "\"";
-  for (char ch : x) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-  return q + "\"";
-}
+namespace {
 
 /// The sweep parameters over all runs, in order of first appearance.
 std::vector<std::string> sweep_names(const Results& res) {
@@ -290,38 +283,40 @@ std::vector<std::string> sweep_names(const Results& res) {
   return names;
 }
 
+/// What the run fields need beyond a RunSummary: the joint names and the start of the "late"
+/// window (the middle of the integration span) in the late-error key.
+FieldContext run_context(const Problem& p) {
+  FieldContext c;
+  c.names = &p.model.joint_name;
+  c.late = fmt(0.5 * (p.integrator.t0 + p.integrator.t1));
+  return c;
+}
+
 }  // namespace
 
 std::string sweep_csv(const Problem& p, const Results& res) {
   const std::vector<std::string> params = sweep_names(res);
-  const std::vector<std::string>& joints = p.model.joint_name;
+  const FieldContext c = run_context(p);
   bool sampled = false;  // a `sample` column when some run is a Monte Carlo sample
   for (const RunRecord& r : res.runs) sampled = sampled || r.experiment->sample >= 0;
-  std::string s = "index,name,status";
-  if (sampled) s += ",sample";
-  for (const auto& k : params) s += "," + k;
-  s += ",t_end,final_max_abs_error,peak_abs_tau,max_e0,max_settle_time,max_late_error,saturated_samples";
-  for (const char* f : {"e0_", "settle_", "late_", "peak_tau_"})
-    for (const auto& j : joints) s += "," + std::string(f) + j;
-  s += ",message\n";
-  auto num = [](double x) { return std::isfinite(x) ? fmt(x) : std::string("nan"); };
+  std::vector<std::string> head = {"index", "name", "status"};
+  if (sampled) head.push_back("sample");
+  head.insert(head.end(), params.begin(), params.end());
+  csv_columns<RunSummary>(head, c);
+  std::string s = csv_line(head);
   for (size_t i = 0; i < res.runs.size(); ++i) {
     const RunRecord& r = res.runs[i];
-    const RunSummary& m = r.summary;
-    s += std::to_string(i) + "," + r.experiment->name + "," + (r.done ? to_string(m.status) : "not_run");
-    if (sampled) s += "," + (r.experiment->sample >= 0 ? std::to_string(r.experiment->sample) : std::string());
+    std::vector<std::string> cells = {std::to_string(i), r.experiment->name,
+                                      r.done ? to_string(r.summary.status) : "not_run"};
+    if (sampled) cells.push_back(r.experiment->sample >= 0 ? std::to_string(r.experiment->sample) : std::string());
     for (const auto& k : params) {
-      s += ",";
+      std::string cell;
       for (const auto& [name, v] : r.experiment->sweep)
-        if (name == k) s += num(v);
+        if (name == k) cell += csv_number(v);
+      cells.push_back(cell);
     }
-    s += "," + num(m.t_end) + "," + num(m.final_max_abs_error) + "," + num(m.peak_abs_tau) + "," +
-         num(max_finite(m.joints, &JointTracking::e0)) + "," + num(max_finite(m.joints, &JointTracking::settle_time)) +
-         "," + num(max_finite(m.joints, &JointTracking::late_error)) + "," + std::to_string(m.saturated_samples);
-    for (double JointTracking::*f : {&JointTracking::e0, &JointTracking::settle_time, &JointTracking::late_error,
-                                     &JointTracking::peak_tau})
-      for (size_t j = 0; j < joints.size(); ++j) s += "," + (j < m.joints.size() ? num(m.joints[j].*f) : std::string("nan"));
-    s += "," + csv_text(m.message) + "\n";
+    csv_cells(cells, r.summary, c);
+    s += csv_line(cells);
   }
   return s;
 }
@@ -332,27 +327,20 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   s["scenario"] = p.name;
   s["file"] = p.file;
   s["wall_time_s"] = res.wall_time;
-  const IntegrationSummary& ps = res.plan.summary;
-  JsonValue& plan = s["plan"] = JsonValue::object();
-  plan["status"] = to_string(ps.status);
-  plan["message"] = ps.message;
-  plan["steps"] = ps.steps;
-  plan["rejected_steps"] = ps.rejected_steps;
-  plan["t_end"] = ps.t_end;
-  plan["max_constraint_residual"] = ps.max_constraint_residual;
+  JsonValue& plan = s["plan"] = to_json(res.plan.summary);
+  const JsonValue wall = plan["wall_time_s"];  // the plan's context, then its wall time last
+  plan.erase("wall_time_s");
   plan["residual_from"] = p.residual_from;
   plan["residual_tolerance"] = number_or_null(p.residual_tolerance);
   if (p.residual_from > p.integrator.t0)
-    plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = ps.max_constraint_residual;
-  plan["wall_time_s"] = ps.wall_time;
+    plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = res.plan.summary.max_constraint_residual;
+  plan["wall_time_s"] = wall;
   s["feasibility"] = res.feasibility.to_json();
   if (res.runs.empty()) return s;
-  const double late = 0.5 * (p.integrator.t0 + p.integrator.t1);
-  const std::string late_key = "max_abs_error_after_" + fmt(late) + "s";
+  const FieldContext c = run_context(p);
   JsonValue& runs = s["runs"] = JsonValue::array();
   for (const RunRecord& rr : res.runs) {
-    const RunSummary& r = rr.summary;
-    JsonValue& o = runs.push_back(JsonValue::object());
+    JsonValue o = JsonValue::object();
     o["label"] = rr.experiment->name;
     if (!rr.experiment->sweep.empty()) {
       JsonValue& sw = o["sweep"] = JsonValue::object();
@@ -364,58 +352,39 @@ JsonValue summary_json(const Problem& p, const Results& res) {
     }
     o["controller"] = rr.experiment->controller_type;
     o["plant_force_elements"] = static_cast<int>(rr.experiment->plant_forces.elements().size());
-    o["status"] = rr.done ? to_string(r.status) : "not_run";
-    o["message"] = r.message;
-    o["t_end"] = r.t_end;
-    o["saturated_samples"] = r.saturated_samples;
-    o["final_max_abs_error"] = r.final_max_abs_error;
-    o["peak_abs_tau"] = r.peak_abs_tau;
-    JsonValue& js = o["joints"] = JsonValue::array();
-    for (size_t j = 0; j < r.joints.size(); ++j) {
-      JsonValue& e = js.push_back(JsonValue::object());
-      e["joint"] = p.model.joint_name[j];
-      e["e0"] = r.joints[j].e0;
-      e["settle_time_rel_1e-3"] = r.joints[j].settle_time;
-      e[late_key] = r.joints[j].late_error;
-      e["peak_abs_tau"] = r.joints[j].peak_tau;
-    }
-    o["wall_time_s"] = r.wall_time;
+    write_fields_json(o, rr.summary, c);
+    if (!rr.done) o["status"] = "not_run";
+    runs.push_back(std::move(o));
   }
-  // Statistics over the runs (the aggregate of a sweep or Monte Carlo study).
+  // Statistics over the runs (the aggregate of a sweep or Monte Carlo study): a distribution of
+  // every field marked sink::Stat, overall and per joint.
   JsonValue& st = s["statistics"] = JsonValue::object();
   long ok = 0;
-  std::vector<double> fin, peak, e0, settle, lateE;
-  for (const RunRecord& rr : res.runs) {
-    const RunSummary& r = rr.summary;
-    ok += rr.done && r.ok();
-    fin.push_back(r.final_max_abs_error);
-    peak.push_back(r.peak_abs_tau);
-    e0.push_back(max_finite(r.joints, &JointTracking::e0));
-    settle.push_back(max_finite(r.joints, &JointTracking::settle_time));
-    lateE.push_back(max_finite(r.joints, &JointTracking::late_error));
-  }
+  for (const RunRecord& rr : res.runs) ok += rr.done && rr.summary.ok();
   st["runs"] = static_cast<long>(res.runs.size());
   st["completed"] = ok;
   st["stopped_early"] = static_cast<long>(res.runs.size()) - ok;
   st["percentiles"] = "linear between order statistics (numpy default); NaN values counted as missing";
-  st["final_max_abs_error"] = distribution_json(distribution_of(fin));
-  st["peak_abs_tau"] = distribution_json(distribution_of(peak));
-  st["max_e0"] = distribution_json(distribution_of(e0));
-  st["max_settle_time_rel_1e-3"] = distribution_json(distribution_of(settle));
-  st["max_" + late_key] = distribution_json(distribution_of(lateE));
+  for_each_field<RunSummary>([&](const auto& f) {
+    if constexpr (std::is_same_v<typename std::decay_t<decltype(f)>::Value, double>) {
+      if (!(f.in & sink::Stat)) return;
+      std::vector<double> v;
+      for (const RunRecord& rr : res.runs) v.push_back(f.get(rr.summary));
+      st[c.expand(f.key())] = distribution_json(distribution_of(std::move(v)));
+    }
+  });
   JsonValue& sj = st["joints"] = JsonValue::array();
-  for (int j = 0; j < p.model.nv; ++j) {
-    JsonValue& o = sj.push_back(JsonValue::object());
+  for (size_t j = 0; j < static_cast<size_t>(p.model.nv); ++j) {
+    JsonValue o = JsonValue::object();
     o["joint"] = p.model.joint_name[j];
-    for (const auto& [key, f] : {std::pair<std::string, double JointTracking::*>{"e0", &JointTracking::e0},
-                                 {"settle_time_rel_1e-3", &JointTracking::settle_time},
-                                 {late_key, &JointTracking::late_error},
-                                 {"peak_abs_tau", &JointTracking::peak_tau}}) {
+    for_each_field<JointTracking>([&](const auto& f) {
+      if (!(f.in & sink::Stat)) return;
       std::vector<double> v;
       for (const RunRecord& rr : res.runs)
-        v.push_back(static_cast<size_t>(j) < rr.summary.joints.size() ? rr.summary.joints[j].*f : std::nan(""));
-      o[key] = distribution_json(distribution_of(std::move(v)));
-    }
+        v.push_back(j < rr.summary.joints.size() ? f.get(rr.summary.joints[j]) : std::nan(""));
+      o[c.expand(f.key())] = distribution_json(distribution_of(std::move(v)));
+    });
+    sj.push_back(std::move(o));
   }
   return s;
 }
@@ -426,9 +395,9 @@ void write_results(const fs::path& dir, const Problem& p, const Results& res, co
   for (const RunRecord& r : res.runs)
     if (!res.runs_written && r.done && !r.result.joints.empty())
       write_csv_atomic(dir / ("track_" + r.experiment->name + ".csv"), trajectory_table(r.result));
-  write_text_atomic(dir / "feasibility.json", res.feasibility.to_json().dump(0) + "\n");
+  write_text_atomic(dir / "feasibility.json", res.feasibility.json() + "\n");
   if (!res.runs.empty()) write_text_atomic(dir / "sweep.csv", sweep_csv(p, res));
-  write_text_atomic(dir / "summary.json", summary.dump(2, 2) + "\n");
+  write_text_atomic(dir / "summary.json", json_text(summary, 2, 2) + "\n");
 }
 
 }  // namespace refdyn::io

@@ -1,6 +1,8 @@
 #include "refdyn/io/variants.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/fields_json.hpp"
+#include "refdyn/io/csv.hpp"
 #include "refdyn/scenario/problem.hpp"
 #include "refdyn/scenario/registry.hpp"
 #include "refdyn/common/text.hpp"
@@ -158,12 +160,23 @@ std::string status_of(const VariantSummary& s) {
   return to_string(s.status);
 }
 
-std::string num(double x) { return std::isfinite(x) ? fmt(x) : std::string("nan"); }
-
 double value_of(const Variant& v, const std::string& name) {
   for (const auto& [k, x] : v.values)
     if (k == name) return x;
   return std::nan("");
+}
+
+/// What the variant fields need beyond a VariantSummary: the joint names, whether runs were
+/// tracked, and (per variant) whether it ran and had runs.
+FieldContext variant_context(const std::vector<std::string>& joints, bool tracked, const VariantSummary* m) {
+  FieldContext c;
+  c.names = &joints;
+  if (tracked) c.holds |= when::Tracked;
+  if (m && m->done && m->error.empty()) {
+    c.holds |= when::Ran;
+    if (m->runs) c.holds |= when::HasRuns;
+  }
+  return c;
 }
 
 }  // namespace
@@ -171,29 +184,19 @@ double value_of(const Variant& v, const std::string& name) {
 std::string variants_csv(const std::vector<std::string>& joints, const std::vector<Variant>& variants,
                          const std::vector<VariantSummary>& summaries, bool tracked) {
   const std::vector<std::string> params = parameter_names(variants);
-  std::string s = "index,name,status";
-  for (const auto& k : params) s += "," + k;
-  s += ",t_end,max_constraint_residual,feasible,violations";
-  for (const auto& j : joints) s += ",peak_speed_" + j;
-  for (const auto& j : joints) s += ",peak_effort_" + j;
-  if (tracked) s += ",runs,runs_completed,worst_final_max_abs_error,worst_peak_abs_tau";
-  s += "\n";
+  std::vector<std::string> head = {"index", "name", "status"};
+  head.insert(head.end(), params.begin(), params.end());
+  csv_columns<VariantSummary>(head, variant_context(joints, tracked, nullptr));
+  std::string s = csv_line(head);
   for (size_t i = 0; i < variants.size(); ++i) {
     const VariantSummary& m = summaries[i];
-    const bool ran = m.done && m.error.empty();
-    s += std::to_string(i) + "," + variants[i].name + "," + status_of(m);
+    std::vector<std::string> cells = {std::to_string(i), variants[i].name, status_of(m)};
     for (const auto& k : params) {
       const double x = value_of(variants[i], k);
-      s += "," + (std::isnan(x) ? std::string() : num(x));
+      cells.push_back(std::isnan(x) ? std::string() : csv_number(x));
     }
-    s += "," + (ran ? num(m.t_end) : "nan") + "," + (ran ? num(m.max_constraint_residual) : "nan") + "," +
-         (ran ? (m.feasible ? "1" : "0") : "") + "," + (ran ? std::to_string(m.violations) : "");
-    for (size_t j = 0; j < joints.size(); ++j) s += "," + (j < m.peak_speed.size() ? num(m.peak_speed[j]) : "nan");
-    for (size_t j = 0; j < joints.size(); ++j) s += "," + (j < m.peak_effort.size() ? num(m.peak_effort[j]) : "nan");
-    if (tracked)
-      s += "," + std::to_string(m.runs) + "," + std::to_string(m.runs_completed) + "," +
-           (ran && m.runs ? num(m.worst_final_error) : "nan") + "," + (ran && m.runs ? num(m.worst_peak_tau) : "nan");
-    s += "\n";
+    csv_cells(cells, m, variant_context(joints, tracked, &m));
+    s += csv_line(cells);
   }
   return s;
 }
@@ -212,7 +215,7 @@ JsonValue variants_summary_json(const std::string& scenario, const std::string& 
   std::vector<double> residual;
   for (size_t i = 0; i < variants.size(); ++i) {
     const VariantSummary& m = summaries[i];
-    JsonValue& o = vs.push_back(JsonValue::object());
+    JsonValue o = JsonValue::object();
     o["name"] = variants[i].name;
     JsonValue& val = o["values"] = JsonValue::object();
     for (const auto& [k, x] : variants[i].values) val[k] = x;
@@ -221,24 +224,15 @@ JsonValue variants_summary_json(const std::string& scenario, const std::string& 
     if (!m.error.empty()) {
       o["message"] = m.error;
       residual.push_back(std::nan(""));
+      vs.push_back(std::move(o));
       continue;
     }
     valid += m.done;
     planned += m.done && m.status == IntegrationStatus::Success;
     feasible += m.done && m.feasible;
-    o["message"] = m.message;
-    o["t_end"] = m.t_end;
-    o["max_constraint_residual"] = m.max_constraint_residual;
-    o["feasible"] = m.feasible;
-    o["violations"] = m.violations;
-    if (tracked) {
-      o["runs"] = m.runs;
-      o["runs_completed"] = m.runs_completed;
-      o["worst_final_max_abs_error"] = m.worst_final_error;
-      o["worst_peak_abs_tau"] = m.worst_peak_tau;
-    }
-    o["wall_time_s"] = m.wall_time;
+    write_fields_json(o, m, variant_context(joints, tracked, &m));
     residual.push_back(m.max_constraint_residual);
+    vs.push_back(std::move(o));
   }
   JsonValue& st = s["statistics"] = JsonValue::object();
   st["variants"] = static_cast<long>(variants.size());
@@ -255,7 +249,7 @@ JsonValue variants_summary_json(const std::string& scenario, const std::string& 
       speed.push_back(ran ? m.peak_speed[j] : std::nan(""));
       effort.push_back(ran ? m.peak_effort[j] : std::nan(""));
     }
-    JsonValue& o = sj.push_back(JsonValue::object());
+    JsonValue& o = sj.emplace_back(JsonValue::object());
     o["joint"] = joints[j];
     o["peak_speed"] = distribution_json(distribution_of(speed));
     o["peak_effort"] = distribution_json(distribution_of(effort));

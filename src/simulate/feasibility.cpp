@@ -1,6 +1,7 @@
 #include "refdyn/simulate/feasibility.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/fields_json.hpp"
 #include "refdyn/common/text.hpp"
 
 #include <cmath>
@@ -105,42 +106,11 @@ std::string FeasibilityReport::text() const {
 }
 
 JsonValue FeasibilityReport::to_json() const {
-  JsonValue o = JsonValue::object();
-  o["feasible"] = feasible();
-  if (!complete) o["incomplete_reason"] = incomplete_reason;
-  JsonValue& js = o["joints"] = JsonValue::array();
-  for (const auto& j : joints) {
-    JsonValue& e = js.push_back(JsonValue::object());
-    e["joint"] = j.joint;
-    e["q_min"] = j.q_min;
-    e["q_max"] = j.q_max;
-    e["peak_speed"] = j.peak_speed;
-    e["t_peak_speed"] = j.t_peak_speed;
-    e["peak_acceleration"] = j.peak_acceleration;
-    e["t_peak_acceleration"] = j.t_peak_acceleration;
-    e["peak_effort"] = j.peak_effort;
-    e["t_peak_effort"] = j.t_peak_effort;
-    JsonValue& l = e["limits"] = JsonValue::object();
-    l["lower"] = j.limits.lower;
-    l["upper"] = j.limits.upper;
-    l["velocity"] = j.limits.velocity;
-    l["effort"] = j.limits.effort;
-  }
-  JsonValue& vs = o["violations"] = JsonValue::array();
-  for (const auto& v : violations) {
-    JsonValue& e = vs.push_back(JsonValue::object());
-    e["joint"] = v.joint;
-    e["quantity"] = v.quantity;
-    e["limit"] = v.limit;
-    e["worst"] = v.worst;
-    JsonValue& iv = e["intervals"] = JsonValue::array();
-    for (const auto& [a, b] : v.intervals) {
-      JsonValue& pair = iv.push_back(JsonValue::array());
-      pair.push_back(a);
-      pair.push_back(b);
-    }
-  }
-  return o;
+  FieldContext c;
+  if (!complete) c.holds |= when::Incomplete;
+  return refdyn::to_json(*this, c);
 }
+
+std::string FeasibilityReport::json() const { return json_text(to_json(), 0); }
 
 }  // namespace refdyn

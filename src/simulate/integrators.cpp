@@ -29,6 +29,15 @@ const char* to_string(IntegrationStatus s) {
   return "?";
 }
 
+bool from_string(const std::string& text, IntegrationStatus& s) {
+  for (int k = 0; k <= static_cast<int>(IntegrationStatus::ReferenceStopped); ++k)
+    if (text == to_string(static_cast<IntegrationStatus>(k))) {
+      s = static_cast<IntegrationStatus>(k);
+      return true;
+    }
+  return false;
+}
+
 void IntegratorOptions::validate() const {
   auto need = [](bool ok, const char* what, const std::string& expected, double got) {
     if (!ok) throw Error(expected_got(std::string("integrator option ") + what, expected, fmt(got)));

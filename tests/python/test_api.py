@@ -126,6 +126,14 @@ def test_track_on_threads_gives_the_bits_of_one_thread():
     assert st["peak_abs_tau"]["max"] == max(r["peak_abs_tau"] for r in two.summary["runs"])
     with pytest.raises(refdyn.Error, match="jobs"):
         refdyn.track(d, jobs=-1)
+    # A run's summary dict carries its metrics (the RunSummary fields), the numbers of summary.json.
+    for rec in two.summary["runs"]:
+        s = two.runs[rec["label"]].summary
+        assert s["status"] == rec["status"] and s["ok"]
+        for key in ("t_end", "saturated_samples", "final_max_abs_error", "peak_abs_tau"):
+            assert s[key] == rec[key], key
+        assert [j["e0"] for j in s["joints"]] == [j["e0"] for j in rec["joints"]]
+        assert [j["peak_tau"] for j in s["joints"]] == [j["peak_abs_tau"] for j in rec["joints"]]
 
 
 def test_stopped_plan_is_a_status_not_an_exception():

@@ -11,6 +11,7 @@
 
 #include "refdyn/simulate/feasibility.hpp"
 #include "refdyn/io/output.hpp"
+#include "refdyn/common/fields.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/scenario/problem.hpp"
 
@@ -43,7 +44,56 @@ struct RunSummary {
   std::vector<JointTracking> joints;  ///< tracking_metrics(·, 1e-3, late_from)
   double wall_time = 0;            ///< [s] (not in sweep.csv: it differs between executions)
   bool ok() const { return status == IntegrationStatus::Success; }
+  /// The largest finite value of a per-joint metric (NaN when none): a run's settle time is
+  /// that of its slowest joint.
+  double max_over_joints(double JointTracking::*metric) const;
 };
+
+}  // namespace refdyn::io
+
+namespace refdyn {
+// The fields of a run (common/fields.hpp): summary.json "runs" and "statistics", sweep.csv
+// (its per-joint columns <csv>_<joint>), the MPI payloads, the Python dicts.
+template <>
+struct Fields<io::JointTracking> {
+  using S = io::JointTracking;
+  static constexpr unsigned in = sink::All | sink::Stat;
+  static constexpr auto list() {
+    return std::make_tuple(field("e0", &S::e0, "m or rad", in),
+                           field("settle_time", &S::settle_time, "s", in) | JsonKey{"settle_time_rel_1e-3"} |
+                               CsvColumn{"settle"},
+                           field("late_error", &S::late_error, "m or rad", in) |
+                               JsonKey{"max_abs_error_after_{late}s"} | CsvColumn{"late"},
+                           field("peak_tau", &S::peak_tau, "N or N m", in) | JsonKey{"peak_abs_tau"});
+  }
+};
+template <>
+struct Fields<io::RunSummary> {
+  using S = io::RunSummary;
+  static double max_e0(const S& s) { return s.max_over_joints(&io::JointTracking::e0); }
+  static double max_settle(const S& s) { return s.max_over_joints(&io::JointTracking::settle_time); }
+  static double max_late(const S& s) { return s.max_over_joints(&io::JointTracking::late_error); }
+  static constexpr unsigned record = sink::Json | sink::Wire | sink::Python;
+  static constexpr auto list() {
+    return std::make_tuple(field("status", &S::status, "", record),  // sweep.csv: "not_run" too (sweep_csv)
+                           field("message", &S::message) | CsvColumn{nullptr, 2},
+                           field("t_end", &S::t_end, "s"),
+                           field("steps", &S::steps, "", sink::Wire | sink::Python),
+                           field("saturated_samples", &S::saturated_samples) | CsvColumn{nullptr, 1},
+                           field("final_max_abs_error", &S::final_max_abs_error, "m or rad", sink::All | sink::Stat),
+                           field("peak_abs_tau", &S::peak_abs_tau, "N or N m", sink::All | sink::Stat),
+                           derived("max_e0", &max_e0, "m or rad", sink::Csv | sink::Stat),
+                           derived("max_settle_time", &max_settle, "s", sink::Csv | sink::Stat) |
+                               JsonKey{"max_settle_time_rel_1e-3"},
+                           derived("max_late_error", &max_late, "m or rad", sink::Csv | sink::Stat) |
+                               JsonKey{"max_max_abs_error_after_{late}s"},
+                           field("joints", &S::joints) | CsvColumn{nullptr, 1} | Label{"joint"},
+                           field("wall_time", &S::wall_time, "s", record) | JsonKey{"wall_time_s"});
+  }
+};
+}  // namespace refdyn
+
+namespace refdyn::io {
 
 struct RunOptions {
   bool track = false;          ///< also run the experiments

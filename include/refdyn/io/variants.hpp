@@ -53,6 +53,41 @@ struct VariantSummary {
   bool ok() const { return done && error.empty() && status == IntegrationStatus::Success && runs_completed == runs; }
 };
 
+}  // namespace refdyn::io
+
+namespace refdyn {
+// The fields of a variant (common/fields.hpp): summary.json "variants", variants.csv (per-joint
+// columns <name>_<joint>), the MPI payloads. `done` is not sent: a received record is done;
+// status and error are written as one status ("invalid", "not_run", the plan's) by the writers.
+template <>
+struct Fields<io::VariantSummary> {
+  using S = io::VariantSummary;
+  static constexpr unsigned record = sink::Wire | sink::Python;
+  static constexpr auto list() {
+    return std::make_tuple(field("error", &S::error, "", record),
+                           field("status", &S::status, "", record),
+                           field("message", &S::message, "", sink::Json | record),
+                           field("t_end", &S::t_end, "s") | ValidIf{when::Ran},
+                           field("max_constraint_residual", &S::max_constraint_residual, "m or rad") | ValidIf{when::Ran},
+                           field("feasible", &S::feasible) | ValidIf{when::Ran},
+                           field("violations", &S::violations) | ValidIf{when::Ran},
+                           field("peak_speed", &S::peak_speed, "m/s or rad/s", sink::Csv | record),
+                           field("peak_effort", &S::peak_effort, "N or N m", sink::Csv | record),
+                           field("runs", &S::runs) | OnlyIf{when::Tracked},
+                           field("runs_completed", &S::runs_completed) | OnlyIf{when::Tracked},
+                           field("worst_final_error", &S::worst_final_error, "m or rad") |
+                               JsonKey{"worst_final_max_abs_error"} | CsvColumn{"worst_final_max_abs_error"} |
+                               OnlyIf{when::Tracked} | ValidIf{when::Ran | when::HasRuns},
+                           field("worst_peak_tau", &S::worst_peak_tau, "N or N m") | JsonKey{"worst_peak_abs_tau"} |
+                               CsvColumn{"worst_peak_abs_tau"} | OnlyIf{when::Tracked} |
+                               ValidIf{when::Ran | when::HasRuns},
+                           field("wall_time", &S::wall_time, "s", sink::Json | record) | JsonKey{"wall_time_s"});
+  }
+};
+}  // namespace refdyn
+
+namespace refdyn::io {
+
 struct VariantOptions {
   bool track = false;
   int jobs = 1;                      ///< threads (0: every core); each runs one variant at a time

@@ -2,7 +2,8 @@
 /// Feasibility of a planned motion (paper section 1.4, first purpose): the speeds,
 /// accelerations and generalized forces the joints must deliver, against the model's limits.
 
-#include "refdyn/common/json.hpp"
+#include "refdyn/common/fields.hpp"
+#include "refdyn/common/json_fwd.hpp"
 #include "refdyn/multibody/model.hpp"
 
 #include <string>
@@ -36,8 +37,49 @@ struct FeasibilityReport {
   std::string incomplete_reason;
   bool feasible() const { return complete && violations.empty(); }
   std::string text() const;      ///< printable table and list of violations
-  JsonValue to_json() const;     ///< the same as a JSON object
-  std::string json() const { return to_json().dump(0); }
+  JsonValue to_json() const;     ///< the same as a JSON object (the fields below)
+  std::string json() const;      ///< feasibility.json: its compact text
+};
+
+// The fields of feasibility.json (common/fields.hpp), in its order.
+template <>
+struct Fields<JointLimits> {
+  using S = JointLimits;
+  static constexpr auto list() {
+    return std::make_tuple(field("lower", &S::lower, "m or rad"), field("upper", &S::upper, "m or rad"),
+                           field("velocity", &S::velocity, "m/s or rad/s"), field("effort", &S::effort, "N or N m"));
+  }
+};
+template <>
+struct Fields<JointFeasibility> {
+  using S = JointFeasibility;
+  static constexpr auto list() {
+    return std::make_tuple(field("joint", &S::joint), field("q_min", &S::q_min, "m or rad"),
+                           field("q_max", &S::q_max, "m or rad"), field("peak_speed", &S::peak_speed, "m/s or rad/s"),
+                           field("t_peak_speed", &S::t_peak_speed, "s"),
+                           field("peak_acceleration", &S::peak_acceleration, "m/s^2 or rad/s^2"),
+                           field("t_peak_acceleration", &S::t_peak_acceleration, "s"),
+                           field("peak_effort", &S::peak_effort, "N or N m"), field("t_peak_effort", &S::t_peak_effort, "s"),
+                           field("limits", &S::limits));
+  }
+};
+template <>
+struct Fields<FeasibilityViolation> {
+  using S = FeasibilityViolation;
+  static constexpr auto list() {
+    return std::make_tuple(field("joint", &S::joint), field("quantity", &S::quantity), field("limit", &S::limit),
+                           field("worst", &S::worst), field("intervals", &S::intervals, "s"));
+  }
+};
+template <>
+struct Fields<FeasibilityReport> {
+  using S = FeasibilityReport;
+  static bool feasible(const S& r) { return r.feasible(); }
+  static constexpr auto list() {
+    return std::make_tuple(derived("feasible", &feasible),
+                           field("incomplete_reason", &S::incomplete_reason) | OnlyIf{when::Incomplete},
+                           field("joints", &S::joints), field("violations", &S::violations));
+  }
 };
 
 /// Samples t (size K); q, qd, qdd, effort: K vectors of size nq each. `effort` is what the

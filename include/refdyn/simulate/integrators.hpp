@@ -4,6 +4,8 @@
 /// Summary says whether the run reached t1 and, if not, when and why it stopped; the state and
 /// everything observed up to then are kept.
 
+#include "refdyn/common/fields.hpp"
+
 #include <Eigen/Core>
 #include <functional>
 #include <string>
@@ -36,6 +38,8 @@ enum class IntegrationStatus {
   ReferenceStopped,  ///< a closed loop reached the end of a plan that itself stopped early
 };
 const char* to_string(IntegrationStatus s);
+/// The status named by to_string(s); false when `text` names none.
+bool from_string(const std::string& text, IntegrationStatus& s);
 
 struct IntegrationSummary {
   IntegrationStatus status = IntegrationStatus::Success;
@@ -47,6 +51,22 @@ struct IntegrationSummary {
   double wall_time = 0.0;        ///< [s]
   double max_constraint_residual = 0.0;  ///< filled by callers that integrate constrained systems
   bool ok() const { return status == IntegrationStatus::Success; }
+};
+
+/// The plan summary's fields (summary.json "plan", the Python dicts; common/fields.hpp).
+template <>
+struct Fields<IntegrationSummary> {
+  using S = IntegrationSummary;
+  static constexpr auto list() {
+    return std::make_tuple(field("status", &S::status),
+                           field("message", &S::message),
+                           field("steps", &S::steps),
+                           field("rejected_steps", &S::rejected_steps),
+                           field("rhs_evaluations", &S::rhs_evaluations, "", sink::Wire | sink::Python),
+                           field("t_end", &S::t_end, "s"),
+                           field("max_constraint_residual", &S::max_constraint_residual, "m or rad"),
+                           field("wall_time", &S::wall_time, "s") | JsonKey{"wall_time_s"});
+  }
 };
 
 /// ẋ = f(t, x); dx has the size of x.
