@@ -17,7 +17,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <regex>
 
 extern "C" const char refdyn_report_template[];  // apps/CMakeLists.txt (.incbin)
 
@@ -46,23 +45,20 @@ std::string script_safe(const std::string& s) {
   return out;
 }
 
-/// A number in JSON with `digits` significant digits (null when not finite).
-void num(std::string& out, double x, int digits = 6) {
-  if (!std::isfinite(x)) {
-    out += "null";
-    return;
-  }
+/// A JSON number with `digits` significant digits (null when not finite): the double nearest
+/// the rounded decimal, which json_text writes as that decimal (shortest round trip).
+JsonValue num(double x, int digits = 6) {
+  if (!std::isfinite(x)) return JsonValue();
   char b[32];
   std::snprintf(b, sizeof b, "%.*g", digits, x);
-  out += b;
-}
-std::string num(double x, int digits = 17) {
-  std::string s;
-  num(s, x, digits);
-  return s;
+  return JsonValue(std::strtod(b, nullptr));
 }
 
-std::string str(const std::string& s) { return json_quote(s); }
+JsonValue strings(const std::vector<std::string>& v) {
+  JsonValue a = JsonValue::array();
+  for (const auto& x : v) a.push_back(x);
+  return a;
+}
 
 /// Sample indices 0, s, 2s, ... plus the last one: at most about `n` of them.
 std::vector<size_t> decimate(size_t K, int n) {
@@ -104,19 +100,17 @@ std::vector<std::vector<double>> resample(const io::CsvTable& t, const std::vect
 }
 
 /// {"columns": [...], "data": [[column values], ...]} of the rows (one array per column).
-void table_json(std::string& out, const std::vector<std::string>& header, const std::vector<std::vector<double>>& rows) {
-  out += "{\"columns\":[";
-  for (size_t c = 0; c < header.size(); ++c) out += (c ? "," : "") + str(header[c]);
-  out += "],\"data\":[";
+JsonValue table_json(const std::vector<std::string>& header, const std::vector<std::vector<double>>& rows) {
+  JsonValue data = JsonValue::array();
   for (size_t c = 0; c < header.size(); ++c) {
-    out += c ? ",[" : "[";
-    for (size_t r = 0; r < rows.size(); ++r) {
-      if (r) out += ',';
-      num(out, rows[r][c], c == 0 ? 7 : 6);
-    }
-    out += ']';
+    JsonValue col = JsonValue::array();
+    for (const auto& r : rows) col.push_back(num(r[c], c == 0 ? 7 : 6));
+    data.push_back(std::move(col));
   }
-  out += "]}";
+  JsonValue o = JsonValue::object();
+  o["columns"] = strings(header);
+  o["data"] = std::move(data);
+  return o;
 }
 
 /// Joint coordinates of a row: the q_<joint> columns in model order.
@@ -136,11 +130,11 @@ std::vector<int> q_columns(const Model& m, const io::CsvTable& t, const std::str
 /// The forward kinematics of the rows (frames of the replay): per frame the body origins O,
 /// the link-frame origins L (DH frames), the body orientations R (quaternion x, y, z, w; only
 /// with `rotations`) and the model's points P, each flattened.
-void kinematics_json(std::string& out, const Model& m, const std::vector<std::vector<double>>& rows,
-                     const std::vector<int>& qcols, bool rotations) {
+JsonValue kinematics_json(const Model& m, const std::vector<std::vector<double>>& rows, const std::vector<int>& qcols,
+                          bool rotations) {
   Data data(m);
   Eigen::VectorXd q(m.nq);
-  std::string O = "[", L = "[", R = "[", P = "[";
+  JsonValue O = JsonValue::array(), L = JsonValue::array(), R = JsonValue::array(), P = JsonValue::array();
   const int nb = static_cast<int>(m.parent.size()), np = static_cast<int>(m.point_name.size());
   for (const auto& row : rows) {
     bool ok = true;
@@ -148,11 +142,8 @@ void kinematics_json(std::string& out, const Model& m, const std::vector<std::ve
       q[j] = row[qcols[j]];
       ok = ok && std::isfinite(q[j]);
     }
-    auto put = [&](std::string& s, const double* v, int count, int digits) {
-      for (int a = 0; a < count; ++a) {
-        if (s.back() != '[') s += ',';
-        num(s, ok ? v[a] : std::nan(""), digits);
-      }
+    auto put = [&](JsonValue& a, const double* v, int count, int digits) {
+      for (int k = 0; k < count; ++k) a.push_back(num(ok ? v[k] : std::nan(""), digits));
     };
     if (ok) forward_kinematics(m, data, q);
     for (int i = 0; i < nb; ++i) {
@@ -170,29 +161,12 @@ void kinematics_json(std::string& out, const Model& m, const std::vector<std::ve
       put(P, r.data(), 3, 7);
     }
   }
-  out += "{\"O\":" + O + "],\"L\":" + L + "],\"P\":" + P + "]";
-  if (rotations) out += ",\"R\":" + R + "]";
-  out += "}";
-}
-
-/// The ellipse of a point_on_ellipse constraint, read back from its description
-/// "point P on surface ((x - cx)/a)^2 + ((y - cy)/b)^2 - 1 = 0" (numbers round-trip).
-bool ellipse_of(const Constraint& c, std::string& out) {
-  static const std::regex re(
-      R"(^point (.+) on surface \(\(x - ([^)]+)\)/([^)]+)\)\^2 \+ \(\(y - ([^)]+)\)/([^)]+)\)\^2 - 1 = 0$)");
-  std::smatch m;
-  const std::string d = c.describe();
-  if (!std::regex_match(d, m, re)) return false;
-  double v[4];
-  for (int i = 0; i < 4; ++i) {
-    const std::string s = m[i + 2].str();
-    char* end = nullptr;
-    v[i] = std::strtod(s.c_str(), &end);
-    if (end == s.c_str() || *end || !std::isfinite(v[i])) return false;
-  }
-  out += "{\"constraint\":" + str(c.name) + ",\"point\":" + str(m[1].str()) + ",\"cx\":" + num(v[0]) +
-         ",\"a\":" + num(v[1]) + ",\"cy\":" + num(v[2]) + ",\"b\":" + num(v[3]) + "}";
-  return true;
+  JsonValue o = JsonValue::object();
+  o["O"] = std::move(O);
+  o["L"] = std::move(L);
+  o["P"] = std::move(P);
+  if (rotations) o["R"] = std::move(R);
+  return o;
 }
 
 /// The 3D view's "up": against gravity (the four-bar, gravity along −y, stands in the x-y plane);
@@ -203,82 +177,133 @@ Vec3 view_up(const Model& m) {
   return Vec3(-m.gravity / g) + Vec3::Zero();  // + 0: no "-0" in the page
 }
 
-std::string scenario_json(const Problem& p) {
-  const Model& m = p.model;
-  std::string o = "{\"name\":" + str(p.name) + ",\"file\":" + str(p.file);
-  const Vec3 up = view_up(m);
-  o += ",\"model\":{\"name\":" + str(m.name) + ",\"dof\":" + std::to_string(m.nq) + ",\"total_mass\":" +
-       num(m.total_mass()) + ",\"gravity\":[" + num(m.gravity.x()) + "," + num(m.gravity.y()) + "," +
-       num(m.gravity.z()) + "],\"up\":[" + num(up.x()) + "," + num(up.y()) + "," + num(up.z()) + "],\"joints\":[";
+JsonValue vec_json(const Vec3& v, int digits) {
+  JsonValue a = JsonValue::array();
+  for (int k = 0; k < 3; ++k) a.push_back(num(v[k], digits));
+  return a;
+}
+
+JsonValue model_json(const Model& m) {
+  JsonValue o = JsonValue::object();
+  o["name"] = m.name;
+  o["dof"] = m.nq;
+  o["total_mass"] = num(m.total_mass(), 17);
+  o["gravity"] = vec_json(m.gravity, 17);
+  o["up"] = vec_json(view_up(m), 17);
+  JsonValue& joints = o["joints"] = JsonValue::array();
   for (int i = 0; i < m.nq; ++i) {
     const JointLimits& l = m.limits[i];
-    o += std::string(i ? "," : "") + "{\"joint\":" + str(m.joint_name[i]) + ",\"body\":" + str(m.body_name[i]) +
-         ",\"type\":" + str(to_string(m.joint_type[i])) + ",\"parent\":" +
-         str(m.parent[i] < 0 ? std::string("base") : m.body_name[m.parent[i]]) + ",\"axis\":[" + num(m.axis[i].x(), 6) +
-         "," + num(m.axis[i].y(), 6) + "," + num(m.axis[i].z(), 6) + "],\"mass\":" + num(m.inertia[i].m, 6) +
-         ",\"lower\":" + num(l.lower) + ",\"upper\":" + num(l.upper) + ",\"velocity\":" + num(l.velocity) +
-         ",\"effort\":" + num(l.effort) + "}";
+    JsonValue j = JsonValue::object();
+    j["joint"] = m.joint_name[i];
+    j["body"] = m.body_name[i];
+    j["type"] = to_string(m.joint_type[i]);
+    j["parent"] = m.parent[i] < 0 ? std::string("base") : m.body_name[m.parent[i]];
+    j["axis"] = vec_json(m.axis[i], 6);
+    j["mass"] = num(m.inertia[i].m, 6);
+    j["lower"] = num(l.lower, 17);
+    j["upper"] = num(l.upper, 17);
+    j["velocity"] = num(l.velocity, 17);
+    j["effort"] = num(l.effort, 17);
+    joints.push_back(std::move(j));
   }
-  o += "],\"points\":[";
-  for (size_t i = 0; i < m.point_name.size(); ++i)
-    o += std::string(i ? "," : "") + "{\"name\":" + str(m.point_name[i]) + ",\"body\":" +
-         str(m.point_body[i] < 0 ? std::string("world") : m.body_name[m.point_body[i]]) + "}";
-  o += "],\"parent\":[";
-  for (size_t i = 0; i < m.parent.size(); ++i) o += (i ? "," : "") + std::to_string(m.parent[i]);
-  o += "],\"point_body\":[";
-  for (size_t i = 0; i < m.point_body.size(); ++i) o += (i ? "," : "") + std::to_string(m.point_body[i]);
-  o += "]},\"constraints\":[";
-  std::string ellipses;
-  int k = 0;
+  JsonValue& points = o["points"] = JsonValue::array();
+  for (size_t i = 0; i < m.point_name.size(); ++i) {
+    JsonValue pt = JsonValue::object();
+    pt["name"] = m.point_name[i];
+    pt["body"] = m.point_body[i] < 0 ? std::string("world") : m.body_name[m.point_body[i]];
+    points.push_back(std::move(pt));
+  }
+  o["parent"] = m.parent;
+  o["point_body"] = m.point_body;
+  return o;
+}
+
+/// The constraints as built (name, role, order, time dependence, equation) and the task
+/// geometry they record (the ellipses of point_on_ellipse constraints, for the 3D view).
+void constraints_json(const Problem& p, JsonValue& o) {
+  // (Locals, assigned at the end: a reference into an ordered_json object is invalidated by the
+  // next member added to it.)
+  JsonValue cs = JsonValue::array(), ellipses = JsonValue::array();
   for (const auto& c : p.constraints.constraints()) {
-    o += std::string(k++ ? "," : "") + "{\"name\":" + str(c->name) + ",\"role\":" + str(to_string(c->origin)) +
-         ",\"order\":" + str(c->first_order() ? "first order (velocity)" : "holonomic (position)") +
-         ",\"time\":" + str(c->rheonomic() ? "rheonomic" : "scleronomic") + ",\"rows\":" + std::to_string(c->rows()) +
-         ",\"equation\":" + str(c->describe()) + "}";
-    std::string e;
-    if (ellipse_of(*c, e)) ellipses += (ellipses.empty() ? "" : ",") + e;
-  }
-  o += "],\"ellipses\":[" + ellipses + "],\"forces\":[";
-  k = 0;
-  for (const auto& f : p.forces.elements()) o += std::string(k++ ? "," : "") + str(f->name());
-  o += "]";
-  // The partition and its conditioning at t0, as `refdyn check` prints them.
-  {
-    auto planner = p.make_planner();
-    const Eigen::VectorXd x = p.initial_state(*planner);
-    Eigen::VectorXd dx(x.size());
-    planner->derivative(p.integrator.t0, x, dx);
-    if (const std::optional<PlannerPartition> part = planner->partition()) {
-      o += ",\"partition\":{\"independent\":[";
-      for (size_t i = 0; i < part->independent.size(); ++i) o += (i ? "," : "") + str(m.joint_name[part->independent[i]]);
-      o += "],\"dependent\":[";
-      for (size_t i = 0; i < part->dependent.size(); ++i) o += (i ? "," : "") + str(m.joint_name[part->dependent[i]]);
-      o += "],\"automatic\":" + std::string(p.automatic_independent ? "true" : "false") +
-           ",\"condition_t0\":" + num(part->condition) + "}";
-    } else {
-      o += ",\"partition\":null";  // none: the planner solves a KKT system (jerk problems)
+    JsonValue r = JsonValue::object();
+    r["name"] = c->name;
+    r["role"] = to_string(c->origin);
+    r["order"] = order_label(c->order());
+    r["time"] = c->rheonomic() ? "rheonomic" : "scleronomic";
+    r["rows"] = c->rows();
+    r["equation"] = c->describe();
+    cs.push_back(std::move(r));
+    if (const std::optional<TaskGeometry> g = c->geometry(); g && g->kind == "ellipse") {
+      JsonValue e = JsonValue::object();
+      e["constraint"] = c->name;
+      e["point"] = g->point;
+      for (const char* k : {"cx", "a", "cy", "b"}) e[k] = num(g->value(k), 17);
+      ellipses.push_back(std::move(e));
     }
   }
+  o["constraints"] = std::move(cs);
+  o["ellipses"] = std::move(ellipses);
+}
+
+/// The partition recorded in summary.json (plan.partition_t0, written when the plan was made);
+/// null for a KKT planner or results of a refdyn that did not record it.
+JsonValue recorded_partition(const JsonValue& summary) {
+  const auto plan = summary.find("plan");
+  if (plan == summary.end() || !plan->is_object()) return JsonValue();
+  const auto part = plan->find("partition_t0");
+  if (part == plan->end() || !part->is_object()) return JsonValue();
+  JsonValue o = JsonValue::object();
+  for (const char* k : {"independent", "dependent", "automatic"}) o[k] = part->value(k, JsonValue());
+  o["condition_t0"] = part->value("condition", JsonValue());
+  return o;
+}
+
+JsonValue solver_json(const Problem& p) {
   const ReferenceDynamicsOptions& ro = p.options;
   const IntegratorOptions& in = p.integrator;
-  o += ",\"solver\":{\"solver\":" + str(ro.solver == ReferenceSolver::Projection ? "projection" : "lagrange") +
-       ",\"baumgarte_alpha\":" + num(ro.alpha) + ",\"baumgarte_beta\":" + num(ro.beta) + ",\"beta_first_order\":" +
-       num(ro.beta_first_order) + ",\"automatic_partition\":" + (ro.automatic_partition ? "true" : "false") +
-       ",\"max_condition\":" + num(ro.max_condition) + ",\"integrator\":" + str(to_string(in.method)) +
-       ",\"step\":" + num(in.step) + ",\"t0\":" + num(in.t0) + ",\"t1\":" + num(in.t1) +
-       ",\"output_interval\":" + num(in.output_interval) + ",\"rtol\":" + num(in.rtol) + ",\"atol\":" +
-       num(in.atol) + ",\"residual_from\":" + num(p.residual_from) + "}";
-  o += ",\"report_points\":[";
-  for (size_t i = 0; i < p.report_points.size(); ++i) o += (i ? "," : "") + str(p.report_points[i]);
-  o += "],\"experiments\":[";
-  for (size_t i = 0; i < p.experiments.size(); ++i) {
-    const Experiment& e = *p.experiments[i];
-    o += std::string(i ? "," : "") + "{\"name\":" + str(e.name) + ",\"controller\":" + str(e.controller_type) +
-         ",\"plant_force_elements\":" + std::to_string(e.plant_forces.elements().size()) + ",\"sweep\":{";
-    for (size_t s = 0; s < e.sweep.size(); ++s) o += (s ? "," : "") + str(e.sweep[s].first) + ":" + num(e.sweep[s].second);
-    o += "}}";
+  JsonValue o = JsonValue::object();
+  o["solver"] = ro.solver == ReferenceSolver::Projection ? "projection" : "lagrange";
+  o["baumgarte_alpha"] = num(ro.alpha, 17);
+  o["baumgarte_beta"] = num(ro.beta, 17);
+  o["beta_first_order"] = num(ro.beta_first_order, 17);
+  o["automatic_partition"] = ro.automatic_partition;
+  o["max_condition"] = num(ro.max_condition, 17);
+  o["integrator"] = to_string(in.method);
+  for (const auto& [k, v] : {std::pair<const char*, double>{"step", in.step}, {"t0", in.t0}, {"t1", in.t1},
+                             {"output_interval", in.output_interval}, {"rtol", in.rtol}, {"atol", in.atol},
+                             {"residual_from", p.residual_from}})
+    o[k] = num(v, 17);
+  return o;
+}
+
+JsonValue experiments_json(const Problem& p) {
+  JsonValue a = JsonValue::array();
+  for (const auto& e : p.experiments) {
+    JsonValue o = JsonValue::object();
+    o["name"] = e->name;
+    o["controller"] = e->controller_type;
+    o["plant_force_elements"] = static_cast<int>(e->plant_forces.elements().size());
+    JsonValue& sw = o["sweep"] = JsonValue::object();
+    for (const auto& [k, v] : e->sweep) sw[k] = num(v, 17);
+    a.push_back(std::move(o));
   }
-  o += "]}";
+  return a;
+}
+
+/// The scenario part of the page: what the problem recorded when it was built, and the
+/// partition summary.json recorded when the plan was made (nothing is re-run).
+JsonValue scenario_json(const Problem& p, const JsonValue& summary) {
+  JsonValue o = JsonValue::object();
+  o["name"] = p.name;
+  o["file"] = p.file;
+  o["model"] = model_json(p.model);
+  constraints_json(p, o);
+  JsonValue& forces = o["forces"] = JsonValue::array();
+  for (const auto& f : p.forces.elements()) forces.push_back(f->name());
+  o["partition"] = recorded_partition(summary);
+  o["solver"] = solver_json(p);
+  o["report_points"] = strings(p.report_points);
+  o["experiments"] = experiments_json(p);
   return o;
 }
 
@@ -299,43 +324,35 @@ std::string report_html(const ReportInput& in) {
   std::vector<std::vector<int>> run_q;
   for (const auto& [name, t] : in.runs) run_q.push_back(q_columns(m, t, "track_" + name + ".csv"));
 
-  std::string d = "{\"version\":1,\"scenario\":" + scenario_json(p);
+  JsonValue data = JsonValue::object();
+  data["version"] = 1;
+  data["scenario"] = scenario_json(p, parse_json(in.summary_json, "summary.json"));
   // Plots: every column of plan.csv at about kReportPlotPoints samples; the runs resampled on
   // the same times (linear interpolation; RK4 runs share the plan's samples).
   const auto pidx = decimate(in.plan.rows.size(), kReportPlotPoints);
   std::vector<double> grid;
   std::vector<std::vector<double>> prow;
   for (size_t k : pidx) grid.push_back(in.plan.rows[k][0]), prow.push_back(in.plan.rows[k]);
-  d += ",\"decimation\":{\"plan_samples\":" + std::to_string(in.plan.rows.size()) + ",\"plot_samples\":" +
-       std::to_string(grid.size()) + "}";
-  d += ",\"plot\":{\"plan\":";
-  table_json(d, in.plan.header, prow);
-  d += ",\"runs\":[";
-  for (size_t r = 0; r < in.runs.size(); ++r) {
-    d += (r ? ",{" : "{") + std::string("\"name\":") + str(in.runs[r].first) + ",\"table\":";
-    table_json(d, in.runs[r].second.header, resample(in.runs[r].second, grid));
-    d += "}";
-  }
-  d += "]}";
+  data["decimation"] = {{"plan_samples", in.plan.rows.size()}, {"plot_samples", grid.size()}};
+  JsonValue& plot = data["plot"] = JsonValue::object();
+  plot["plan"] = table_json(in.plan.header, prow);
+  JsonValue& plot_runs = plot["runs"] = JsonValue::array();
+  for (const auto& [name, table] : in.runs)
+    plot_runs.push_back({{"name", name}, {"table", table_json(table.header, resample(table, grid))}});
   // Replay: forward kinematics at about kReportReplayFrames frames.
   const auto ridx = decimate(in.plan.rows.size(), kReportReplayFrames);
   std::vector<double> rgrid;
   std::vector<std::vector<double>> rrow;
   for (size_t k : ridx) rgrid.push_back(in.plan.rows[k][0]), rrow.push_back(in.plan.rows[k]);
-  d += ",\"replay\":{\"t\":[";
-  for (size_t k = 0; k < rgrid.size(); ++k) {
-    if (k) d += ',';
-    num(d, rgrid[k], 7);
-  }
-  d += "],\"plan\":";
-  kinematics_json(d, m, rrow, plan_q, true);
-  d += ",\"runs\":[";
-  for (size_t r = 0; r < in.runs.size(); ++r) {
-    d += (r ? ",{" : "{") + std::string("\"name\":") + str(in.runs[r].first) + ",\"frames\":";
-    kinematics_json(d, m, resample(in.runs[r].second, rgrid), run_q[r], false);
-    d += "}";
-  }
-  d += "]}}";
+  JsonValue& replay = data["replay"] = JsonValue::object();
+  JsonValue& rt = replay["t"] = JsonValue::array();
+  for (double t : rgrid) rt.push_back(num(t, 7));
+  replay["plan"] = kinematics_json(m, rrow, plan_q, true);
+  JsonValue& replay_runs = replay["runs"] = JsonValue::array();
+  for (size_t r = 0; r < in.runs.size(); ++r)
+    replay_runs.push_back(
+        {{"name", in.runs[r].first}, {"frames", kinematics_json(m, resample(in.runs[r].second, rgrid), run_q[r], false)}});
+  const std::string d = json_text(data, -1);  // minimal separators: the page is large
 
   // The markers are located in the template once, so nothing inserted can be taken for one.
   const std::string t = tpl;

@@ -845,3 +845,70 @@ TEST(Trust, CheckSaysWhichNormTheConditionNumberUses) {
 }
 
 }  // namespace
+
+namespace {
+using refdyn::json_text;
+using refdyn::JsonValue;
+using refdyn::parse_json;
+
+/// The data object a report page carries (<script id="refdyn-data">).
+JsonValue report_data(const fs::path& html) {
+  const std::string page = read_text(html);
+  const std::string open = "<script type=\"application/json\" id=\"refdyn-data\">";
+  const size_t a = page.find(open);
+  const size_t b = page.find("</script>", a);
+  if (a == std::string::npos || b == std::string::npos) return JsonValue();
+  return parse_json(page.substr(a + open.size(), b - a - open.size()), html.string());
+}
+}  // namespace
+
+// The report shows what was recorded (issue 20): the partition as summary.json recorded it when
+// the plan was made, each constraint's order and the task geometry as the problem recorded them
+// when it was built. Nothing is re-run: an edited summary.json shows in the page.
+TEST(Report, ShowsRecordedPartitionOrdersAndGeometry) {
+  Scratch s;
+  const fs::path dir = s.root() / "paper";
+  Result r = run(s, "plan " + quote(kSource / "examples/paper/paper.yaml") + " -q -o " + quote(dir) + " --report");
+  ASSERT_EQ(r.code, 0) << describe(r);
+  const JsonValue summary = parse_json(read_text(dir / "summary.json"), "summary.json");
+  const JsonValue& part = summary["plan"]["partition_t0"];
+  ASSERT_TRUE(part.is_object()) << json_text(summary["plan"]);
+  EXPECT_EQ(part["independent"], JsonValue::parse(R"(["psi1"])"));
+  EXPECT_EQ(part["dependent"], JsonValue::parse(R"(["psi2", "z3"])"));
+  EXPECT_GT(part["condition"].get<double>(), 1.0);
+  JsonValue data = report_data(dir / "report.html");
+  ASSERT_TRUE(data.is_object());
+  const JsonValue& sc = data["scenario"];
+  EXPECT_EQ(sc["partition"]["independent"], part["independent"]);
+  EXPECT_EQ(sc["partition"]["condition_t0"], part["condition"]);
+  ASSERT_EQ(sc["ellipses"].size(), 1u) << json_text(sc["ellipses"]);
+  const JsonValue& e = sc["ellipses"][0];
+  EXPECT_EQ(e["point"], "E");
+  // The numbers of the built constraint, the same as its equation's text.
+  const std::string eq = sc["constraints"][0]["equation"].get<std::string>();
+  for (const char* k : {"a", "b"}) EXPECT_TRUE(contains(eq, json_text(e[k], 0))) << eq << " " << k;
+  EXPECT_EQ(sc["constraints"][0]["order"], "holonomic (position)");
+
+  // Edit the recorded partition: `refdyn report` shows the edit (it does not plan again).
+  JsonValue edited = summary;
+  edited["plan"]["partition_t0"]["independent"] = JsonValue::parse(R"(["z3"])");
+  std::ofstream(dir / "summary.json") << json_text(edited, 2, 2) << "\n";
+  r = run(s, "report " + quote(dir) + " -q");
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_EQ(report_data(dir / "report.html")["scenario"]["partition"]["independent"], JsonValue::parse(R"(["z3"])"));
+  // Results without a recorded partition (an older refdyn): the page says nothing about it.
+  edited["plan"].erase("partition_t0");
+  std::ofstream(dir / "summary.json") << json_text(edited, 2, 2) << "\n";
+  r = run(s, "report " + quote(dir) + " -q");
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_TRUE(report_data(dir / "report.html")["scenario"]["partition"].is_null());
+
+  // Acceleration-level rows are labelled by their order (they were all "holonomic" before).
+  const fs::path tray = s.root() / "tray";
+  r = run(s, "plan " + quote(kSource / "examples/waiter_tray/waiter_tray.yaml") + " -q -o " + quote(tray) + " --report");
+  ASSERT_EQ(r.code, 0) << describe(r);
+  const JsonValue tray_data = report_data(tray / "report.html");
+  std::set<std::string> orders;
+  for (const JsonValue& c : tray_data["scenario"]["constraints"]) orders.insert(c["order"].get<std::string>());
+  EXPECT_TRUE(orders.count("acceleration (order 2)")) << json_text(tray_data["scenario"]["constraints"]);
+}

@@ -237,6 +237,8 @@ TEST(Fields, JsonTextFormat) {
             "  \"s\": \"a\\\"b\\\\\\n\\u0001\\u007f\\ufffd\",\n  \"a\": [\n    1,\n    {\"deep\": [1e+21]}\n  ],\n"
             "  \"e\": []\n}");
   EXPECT_EQ(json_text(v["a"], 0), "[1, {\"deep\": [1e+21]}]");
+  EXPECT_EQ(json_text(v["a"], -1), "[1,{\"deep\":[1e+21]}]");  // minimal: the report's data
+  EXPECT_EQ(parse_json(json_text(v, -1), "minimal"), parse_json(json_text(v, 2, 2), "pretty"));
   EXPECT_THROW(parse_json("{\"a\": }", "f.json"), Error);
   try {
     parse_json("{\"a\": 1,\n \"b\" 2}", "f.json");

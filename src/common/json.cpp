@@ -83,6 +83,8 @@ void write(const JsonValue& v, std::string& out, int indent, int depth, int leve
   const bool pretty = indent > 0 && level < depth;
   const std::string pad = pretty ? "\n" + std::string(static_cast<size_t>(indent * (level + 1)), ' ') : "";
   const std::string close_pad = pretty ? "\n" + std::string(static_cast<size_t>(indent * level), ' ') : "";
+  const char* comma = pretty ? "," : indent < 0 ? "," : ", ";
+  const char* colon = indent < 0 ? ":" : ": ";
   using T = JsonValue::value_t;
   switch (v.type()) {
     case T::null:
@@ -101,7 +103,7 @@ void write(const JsonValue& v, std::string& out, int indent, int depth, int leve
       out += "[";
       size_t i = 0;
       for (const auto& item : v) {
-        out += i++ ? (pretty ? "," : ", ") : "";
+        out += i++ ? comma : "";
         out += pad;
         write(item, out, indent, depth, level + 1);
       }
@@ -113,9 +115,9 @@ void write(const JsonValue& v, std::string& out, int indent, int depth, int leve
       out += "{";
       size_t i = 0;
       for (const auto& [key, item] : v.items()) {
-        out += i++ ? (pretty ? "," : ", ") : "";
+        out += i++ ? comma : "";
         out += pad;
-        out += json_quote(key) + ": ";
+        out += json_quote(key) + colon;
         write(item, out, indent, depth, level + 1);
       }
       out += v.empty() ? "" : close_pad;

@@ -11,6 +11,22 @@ namespace refdyn {
 
 const char* to_string(ConstraintOrigin o) { return o == ConstraintOrigin::Material ? "material" : "programmed"; }
 
+const char* order_label(int order) {
+  switch (order) {
+    case 0: return "holonomic (position)";
+    case 1: return "first order (velocity)";
+    case 2: return "acceleration (order 2)";
+    case 3: return "jerk (order 3)";
+    default: return "unknown";
+  }
+}
+
+double TaskGeometry::value(const std::string& k) const {
+  for (const auto& [name, v] : values)
+    if (name == k) return v;
+  return std::nan("");
+}
+
 namespace {
 
 // ---------------- surfaces ----------------
@@ -28,6 +44,9 @@ class EllipticCylinder final : public ImplicitSurface {
   }
   std::string describe() const override {
     return "((x - " + fmt(cx_) + ")/" + fmt(a_) + ")^2 + ((y - " + fmt(cy_) + ")/" + fmt(b_) + ")^2 - 1";
+  }
+  std::optional<TaskGeometry> geometry() const override {
+    return TaskGeometry{"ellipse", "", {{"cx", cx_}, {"cy", cy_}, {"a", a_}, {"b", b_}}};
   }
   std::optional<SymbolicForm> symbolic(const std::string& P) const override {
     return symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" + P +
@@ -49,6 +68,9 @@ class Sphere final : public ImplicitSurface {
     return v;
   }
   std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
+  std::optional<TaskGeometry> geometry() const override {
+    return TaskGeometry{"sphere", "", {{"cx", c_.x()}, {"cy", c_.y()}, {"cz", c_.z()}, {"r", R_}}};
+  }
   std::optional<SymbolicForm> symbolic(const std::string& P) const override {
     std::string s;
     for (int k = 0; k < 3; ++k)
@@ -114,6 +136,11 @@ class PointOnSurface final : public Constraint {
   }
   std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
   std::optional<SymbolicForm> symbolic() const override { return s_->symbolic(pn_); }
+  std::optional<TaskGeometry> geometry() const override {
+    std::optional<TaskGeometry> g = s_->geometry();
+    if (g) g->point = pn_;
+    return g;
+  }
  private:
   int p_;
   std::string pn_;

@@ -93,6 +93,21 @@ void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
   for_each_index(p.experiments.size(), o.shard, o.num_shards, o.jobs, run, after);
 }
 
+/// The partition a fresh planner takes at (t0, x0) — the one `refdyn check` prints (a planner of
+/// its own: the plan's planner starts untouched). None for a KKT planner or a failing derivative
+/// (the plan then reports the failure).
+std::optional<PlannerPartition> partition_at_t0(const Problem& p) {
+  try {
+    const auto planner = p.make_planner();
+    const Eigen::VectorXd x = p.initial_state(*planner);
+    Eigen::VectorXd dx(x.size());
+    planner->derivative(p.integrator.t0, x, dx);
+    return planner->partition();
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
 }  // namespace
 
 Results run_problem(const Problem& p, const RunOptions& o) {
@@ -101,6 +116,7 @@ Results run_problem(const Problem& p, const RunOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   Results res;
   res.planner = p.make_planner();
+  res.partition_t0 = partition_at_t0(p);
   res.plan = plan_problem(p, *res.planner, o.progress ? o.progress("planning", p.integrator.t0, p.integrator.t1)
                                                  : std::function<void(double)>());
   const int n = p.model.nv;
@@ -321,6 +337,21 @@ std::string sweep_csv(const Problem& p, const Results& res) {
   return s;
 }
 
+static JsonValue partition_json(const Model& m, const std::optional<PlannerPartition>& part, bool automatic) {
+  if (!part) return JsonValue();  // a KKT planner: no partition
+  auto names = [&](const std::vector<int>& idx) {
+    JsonValue a = JsonValue::array();
+    for (int i : idx) a.push_back(m.joint_name[i]);
+    return a;
+  };
+  JsonValue o = JsonValue::object();
+  o["independent"] = names(part->independent);
+  o["dependent"] = names(part->dependent);
+  o["automatic"] = automatic;
+  o["condition"] = number_or_null(part->condition);
+  return o;
+}
+
 JsonValue summary_json(const Problem& p, const Results& res) {
   JsonValue s = JsonValue::object();
   s["refdyn_version"] = version();
@@ -334,6 +365,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   plan["residual_tolerance"] = number_or_null(p.residual_tolerance);
   if (p.residual_from > p.integrator.t0)
     plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = res.plan.summary.max_constraint_residual;
+  plan["partition_t0"] = partition_json(p.model, res.partition_t0, p.automatic_independent);
   plan["wall_time_s"] = wall;
   s["feasibility"] = res.feasibility.to_json();
   if (res.runs.empty()) return s;

@@ -17,7 +17,8 @@
 namespace refdyn {
 
 /// The JSON text of `v`. indent > 0: one member or item per line up to `depth` levels, then
-/// compact; indent 0: compact (", " and ": " separators).
+/// compact; indent 0: compact (", " and ": " separators); indent < 0: minimal ("," and ":",
+/// for large machine-read texts such as the report's data).
 std::string json_text(const JsonValue& v, int indent = 2, int depth = 2);
 
 /// Parses JSON text (nlohmann). Throws refdyn::Error "SOURCE: not valid JSON (...)".

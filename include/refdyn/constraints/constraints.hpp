@@ -27,6 +27,19 @@ enum class ConstraintOrigin { Material, Programmed };
 /// 1 velocity (first order), 2 acceleration. (Jerk, p = 3, is not implemented.)
 enum class ConstraintOrder { Position = 0, Velocity = 1, Acceleration = 2 };
 const char* to_string(ConstraintOrigin o);
+/// "holonomic (position)", "first order (velocity)", "acceleration (order 2)", "jerk (order 3)"
+/// for orders 0…3.
+const char* order_label(int order);
+
+/// The task geometry a constraint prescribes, recorded when it is built (for the report's plots):
+/// a kind ("ellipse": centre cx, cy and half-axes a, b in the x–y plane; "sphere": centre cx, cy,
+/// cz and radius r) with its numbers, and the point the constraint holds on it.
+struct TaskGeometry {
+  std::string kind;
+  std::string point;
+  std::vector<std::pair<std::string, double>> values;  ///< in the order listed above
+  double value(const std::string& name) const;          ///< NaN if absent
+};
 
 /// World-frame kinematics of a point, computed once per evaluation and shared by constraints.
 struct PointState {
@@ -75,6 +88,8 @@ class Constraint {
   /// The rows as texts of the expression language (symbolic_form.hpp): Φ(q, t) for holonomic
   /// rows, c(q, q̇, t) for first-order ones; none for a kind without a closed form.
   virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+  /// The geometry of the task, for kinds that hold a point on a known curve or surface.
+  virtual std::optional<TaskGeometry> geometry() const { return std::nullopt; }
 
   std::string name;
   ConstraintOrigin origin = ConstraintOrigin::Programmed;
@@ -99,6 +114,8 @@ class ImplicitSurface {
   virtual std::string describe() const = 0;
   /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
   virtual std::optional<SymbolicForm> symbolic(const std::string& /*point*/) const { return std::nullopt; }
+  /// Its kind and numbers (TaskGeometry, without the point), where the kind is a known shape.
+  virtual std::optional<TaskGeometry> geometry() const { return std::nullopt; }
 };
 using SurfacePtr = std::shared_ptr<const ImplicitSurface>;
 

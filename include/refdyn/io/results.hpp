@@ -19,6 +19,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -125,6 +126,9 @@ struct RunRecord {
 
 struct Results {
   std::unique_ptr<Planner> planner;  ///< the plan's (Problem::make_planner)
+  /// The coordinate partition at t0 (the plan's first evaluation), recorded for summary.json and
+  /// the report; none for a KKT planner (jerk problems) or when the derivative at t0 failed.
+  std::optional<PlannerPartition> partition_t0;
   Plan plan;
   FeasibilityReport feasibility;
   std::vector<RunRecord> runs;  ///< one per experiment of the Problem, in its order (if tracked)
