@@ -3,7 +3,9 @@
 //   parser.cpp      front end: lexer and recursive-descent parser (names, precedence, errors)
 //   lowering.cpp    GiNaC: expression building, parameter substitution, differentiation,
 //                   error location
-//   compiler.cpp    tape compiler: SSA, CSE, constant folding, fusion, register allocation,
+//   compiler.cpp    tape compiler, front end: GiNaC → SSA (ssa.hpp) with CSE and constant
+//                   folding
+//   tape_backend.cpp tape compiler, back end: fusion, register allocation, output layout,
 //                   quadratic kernel set-up
 //   interpreter.cpp interpreter loop and closed-form kernels
 //   expression.cpp  the public Expression API
@@ -362,7 +364,7 @@ unsigned serial_clamp();
 bool has_piecewise(const GiNaC::ex& e);
 
 // ------------------------------------------------------------------------------------------
-// Tape compiler (compiler.cpp)
+// Tape compiler (compiler.cpp, tape_backend.cpp)
 // ------------------------------------------------------------------------------------------
 /// Compiles value (+ gradient + Hessian, per impl.order) into impl's program: SSA with CSE and
 /// constant folding, fusion, register allocation, output layout, quadratic kernel set-up.

@@ -411,6 +411,72 @@ struct FrontEnd {
     (void)id;
   }
 
+  /// An unknown call-like name: a variable that is not listed or a misspelt function, whichever
+  /// is closer (`call`: the whole call as written, without spaces).
+  [[noreturn]] void fail_unknown_call(const Token& id, std::size_t close, const std::string& call) {
+    int best_var = 1 << 30, best_fn = 1 << 30;
+    std::string var_name, fn_name;
+    for (const std::string& v : variables) {
+      int d = edit_distance(call, v);
+      if (d < best_var) best_var = d, var_name = v;
+    }
+    for (const auto& fs : kFunctions) {
+      int d = edit_distance(id.s, fs.name);
+      if (d < best_fn) best_fn = d, fn_name = fs.name;
+    }
+    const int allowed_var = std::max<int>(2, static_cast<int>(call.size()) / 3);
+    const int allowed_fn = std::max<int>(2, static_cast<int>(id.s.size()) / 3);
+    std::string suggestion;
+    if (best_var <= allowed_var && best_var <= best_fn)
+      suggestion = " (did you mean '" + var_name + "'?)";
+    else if (best_fn <= allowed_fn && best_fn < static_cast<int>(fn_name.size()))
+      suggestion = " (did you mean the function '" + fn_name + "'?)";
+    else
+      suggestion = did_you_mean(call, candidates());
+    fail_at(text, id.pos, toks[close].pos + 1 - id.pos,
+            "unknown identifier '" + call + "'" + suggestion, identifiers_hint());
+  }
+
+  /// The arguments of a call of f (the next token is its '('), checked against f's arity.
+  std::uint32_t parse_call(const Token& id, std::size_t start, const FunctionSpec* f) {
+    next();  // '('
+    std::vector<std::uint32_t> args;
+    Cmp cmp = Cmp::Lt;
+    {
+      Level level(*this);
+      if (f->fn == Fn::If) {
+        if (peek().kind != Tok::RParen) parse_condition(args, cmp, id);
+      } else if (peek().kind != Tok::RParen) {
+        args.push_back(parse_sum());
+      }
+      while (peek().kind == Tok::Comma) {
+        next();
+        args.push_back(parse_sum());
+      }
+    }
+    if (peek().kind != Tok::RParen)
+      error_at(peek(), "expected ',' or ')' in the arguments of " + id.s + "(), got " +
+                           describe(peek()),
+               is_comparison(peek().kind)
+                   ? "comparisons are allowed only as the condition of if(cond, a, b)"
+                   : "check that parentheses are balanced");
+    next();
+    // if(): the condition counts as one argument (two operands).
+    const int got = static_cast<int>(args.size()) - (f->fn == Fn::If && !args.empty() ? 1 : 0);
+    if (got != f->arity)
+      fail_at(text, id.pos, toks[k - 1].pos + 1 - id.pos,
+              "function '" + id.s + "' takes " + std::to_string(f->arity) + " argument" +
+                  (f->arity == 1 ? "" : "s") + ", got " + std::to_string(got),
+              f->fn == Fn::If      ? "write if(x < y, a, b)"
+              : f->fn == Fn::Clamp ? "write clamp(x, lo, hi)"
+              : f->arity == 1      ? "write " + id.s + "(u)"
+                                   : "write " + id.s + "(u, v)");
+    AstNode node = compound(AstKind::Call);
+    node.fn = f->fn;
+    node.cmp = cmp;
+    return add(std::move(node), start, args);
+  }
+
   std::uint32_t parse_identifier() {
     std::size_t start = k;
     const Token id = next();
@@ -435,67 +501,8 @@ struct FrontEnd {
           return variable(static_cast<int>(it - variables.begin()), id, start);
         }
       }
-      if (!f) {
-        call_text();
-        // Unknown: a variable that is not listed or a misspelt function, whichever is closer.
-        int best_var = 1 << 30, best_fn = 1 << 30;
-        std::string var_name, fn_name;
-        for (const std::string& v : variables) {
-          int d = edit_distance(call, v);
-          if (d < best_var) best_var = d, var_name = v;
-        }
-        for (const auto& fs : kFunctions) {
-          int d = edit_distance(id.s, fs.name);
-          if (d < best_fn) best_fn = d, fn_name = fs.name;
-        }
-        const int allowed_var = std::max<int>(2, static_cast<int>(call.size()) / 3);
-        const int allowed_fn = std::max<int>(2, static_cast<int>(id.s.size()) / 3);
-        std::string suggestion;
-        if (best_var <= allowed_var && best_var <= best_fn)
-          suggestion = " (did you mean '" + var_name + "'?)";
-        else if (best_fn <= allowed_fn && best_fn < static_cast<int>(fn_name.size()))
-          suggestion = " (did you mean the function '" + fn_name + "'?)";
-        else
-          suggestion = did_you_mean(call, candidates());
-        fail_at(text, id.pos, toks[close].pos + 1 - id.pos,
-                "unknown identifier '" + call + "'" + suggestion, identifiers_hint());
-      }
-      next();  // '('
-      std::vector<std::uint32_t> args;
-      Cmp cmp = Cmp::Lt;
-      {
-        Level level(*this);
-        if (f->fn == Fn::If) {
-          if (peek().kind != Tok::RParen) parse_condition(args, cmp, id);
-        } else if (peek().kind != Tok::RParen) {
-          args.push_back(parse_sum());
-        }
-        while (peek().kind == Tok::Comma) {
-          next();
-          args.push_back(parse_sum());
-        }
-      }
-      if (peek().kind != Tok::RParen)
-        error_at(peek(), "expected ',' or ')' in the arguments of " + id.s + "(), got " +
-                             describe(peek()),
-                 is_comparison(peek().kind)
-                     ? "comparisons are allowed only as the condition of if(cond, a, b)"
-                     : "check that parentheses are balanced");
-      next();
-      // if(): the condition counts as one argument (two operands).
-      const int got = static_cast<int>(args.size()) - (f->fn == Fn::If && !args.empty() ? 1 : 0);
-      if (got != f->arity)
-        fail_at(text, id.pos, toks[k - 1].pos + 1 - id.pos,
-                "function '" + id.s + "' takes " + std::to_string(f->arity) + " argument" +
-                    (f->arity == 1 ? "" : "s") + ", got " + std::to_string(got),
-                f->fn == Fn::If      ? "write if(x < y, a, b)"
-                : f->fn == Fn::Clamp ? "write clamp(x, lo, hi)"
-                : f->arity == 1      ? "write " + id.s + "(u)"
-                                     : "write " + id.s + "(u, v)");
-      AstNode node = compound(AstKind::Call);
-      node.fn = f->fn;
-      node.cmp = cmp;
-      return add(std::move(node), start, args);
+      if (!f) fail_unknown_call(id, close, call_text());
+      return parse_call(id, start, f);
     }
     // Plain identifier.
     auto it = std::find(variables.begin(), variables.end(), id.s);

@@ -99,51 +99,41 @@ void validate_inertia(const LinkInertia& in, const std::string& link) {
     throw Error(where + ": a massless link cannot have rotational inertia");
 }
 
-}  // namespace
-
-Model build_model(const ModelDescription& d) {
-  check_finite_se3(d.base, "model base transform");
-  if (!d.gravity.allFinite()) throw Error("model gravity: expected finite numbers, got NaN or infinity");
+/// Checks link i of d (name, parent, transforms, axis, inertia, limits) and records its name.
+void validate_link(const ModelDescription& d, int i, std::map<std::string, int>& link_by_name) {
   const int nl = static_cast<int>(d.links.size());
-  std::map<std::string, int> link_by_name;
-  for (int i = 0; i < nl; ++i) {
-    const LinkSpec& l = d.links[i];
-    std::string where = "link " + std::to_string(i) + " ('" + l.name + "')";
-    if (l.name.empty()) throw Error("link " + std::to_string(i) + ": expected a name, got an empty one");
-    if (!link_by_name.emplace(l.name, i).second)
-      throw Error(where + ": duplicate link name (hint: every link needs its own name)");
-    if (l.parent < -1 || l.parent >= nl)
-      throw Error(expected_got(where + " parent", "-1 (base) or an existing link index",
-                               std::to_string(l.parent)));
-    if (l.parent >= i)
-      throw Error(expected_got(where + " parent", "a link listed before it (index < " + std::to_string(i) + ")",
-                               std::to_string(l.parent), "list parents before their children"));
-    check_finite_se3(l.placement, where + " placement");
-    check_finite_se3(l.link_offset, where + " link offset");
-    if (!std::isfinite(l.offset)) throw Error(where + ": joint offset must be finite");
-    if (l.type != JointType::Fixed) {
-      if (!l.axis.allFinite() || l.axis.norm() < 1e-12)
-        throw Error(expected_got(where + " joint axis", "a non-zero finite vector", "zero or NaN"));
-    }
-    validate_inertia(l.inertia, l.name);
-    const JointLimits& lim = l.limits;
-    if (std::isnan(lim.lower) || std::isnan(lim.upper) || std::isnan(lim.velocity) || std::isnan(lim.effort))
-      throw Error(where + " limits: NaN is not a limit (leave a limit out to mean 'unlimited')");
-    if (lim.lower > lim.upper)
-      throw Error(expected_got(where + " position limits", "lower <= upper", fmt(lim.lower) + " > " + fmt(lim.upper)));
-    if (lim.velocity < 0 || lim.effort < 0)
-      throw Error(where + " limits: velocity and effort limits must be >= 0");
+  const LinkSpec& l = d.links[i];
+  std::string where = "link " + std::to_string(i) + " ('" + l.name + "')";
+  if (l.name.empty()) throw Error("link " + std::to_string(i) + ": expected a name, got an empty one");
+  if (!link_by_name.emplace(l.name, i).second)
+    throw Error(where + ": duplicate link name (hint: every link needs its own name)");
+  if (l.parent < -1 || l.parent >= nl)
+    throw Error(expected_got(where + " parent", "-1 (base) or an existing link index",
+                             std::to_string(l.parent)));
+  if (l.parent >= i)
+    throw Error(expected_got(where + " parent", "a link listed before it (index < " + std::to_string(i) + ")",
+                             std::to_string(l.parent), "list parents before their children"));
+  check_finite_se3(l.placement, where + " placement");
+  check_finite_se3(l.link_offset, where + " link offset");
+  if (!std::isfinite(l.offset)) throw Error(where + ": joint offset must be finite");
+  if (l.type != JointType::Fixed) {
+    if (!l.axis.allFinite() || l.axis.norm() < 1e-12)
+      throw Error(expected_got(where + " joint axis", "a non-zero finite vector", "zero or NaN"));
   }
+  validate_inertia(l.inertia, l.name);
+  const JointLimits& lim = l.limits;
+  if (std::isnan(lim.lower) || std::isnan(lim.upper) || std::isnan(lim.velocity) || std::isnan(lim.effort))
+    throw Error(where + " limits: NaN is not a limit (leave a limit out to mean 'unlimited')");
+  if (lim.lower > lim.upper)
+    throw Error(expected_got(where + " position limits", "lower <= upper", fmt(lim.lower) + " > " + fmt(lim.upper)));
+  if (lim.velocity < 0 || lim.effort < 0)
+    throw Error(where + " limits: velocity and effort limits must be >= 0");
+}
 
-  // Fold fixed joints: each link maps to a movable body (or -1 = world) plus a fixed pose of
-  // the link frame in that body's frame.
-  std::vector<int> body_of(nl, -1);
-  std::vector<SE3> link_in_body(nl);  // pose of link frame in its body frame (or world)
-  static std::atomic<std::uint64_t> next_id{1};
-  ModelData m;
-  m.id = next_id++;
-  m.name = d.name;
-  m.gravity = d.gravity;
+/// Folds fixed joints: each link maps to a movable body (body_of, −1 = world) plus a fixed pose
+/// of the link frame in that body's frame (link_in_body); the movable ones become m's bodies.
+void fold_links(const ModelDescription& d, ModelData& m, std::vector<int>& body_of, std::vector<SE3>& link_in_body) {
+  const int nl = static_cast<int>(d.links.size());
   for (int i = 0; i < nl; ++i) {
     const LinkSpec& l = d.links[i];
     // pose of the joint frame relative to the frame of the body the parent belongs to
@@ -171,12 +161,11 @@ Model build_model(const ModelDescription& d) {
     m.joint_name.push_back(l.joint_name.empty() ? l.name : l.joint_name);
     m.limits.push_back(l.limits);
   }
-  m.nv = m.nq;
-  m.support.resize(m.nq);
-  for (int i = 0; i < m.nq; ++i) {
-    if (m.parent[i] >= 0) m.support[i] = m.support[m.parent[i]];
-    m.support[i].push_back(i);
-  }
+}
+
+/// The named points of d, on the bodies their links were folded into.
+void add_points(const ModelDescription& d, const std::map<std::string, int>& link_by_name,
+                const std::vector<int>& body_of, const std::vector<SE3>& link_in_body, ModelData& m) {
   for (size_t k = 0; k < d.points.size(); ++k) {
     const PointSpec& p = d.points[k];
     std::string where = "point '" + p.name + "'";
@@ -202,6 +191,32 @@ Model build_model(const ModelDescription& d) {
     m.point_body.push_back(body);
     m.point_position.push_back(pose.act_point(p.position));
   }
+}
+
+}  // namespace
+
+Model build_model(const ModelDescription& d) {
+  check_finite_se3(d.base, "model base transform");
+  if (!d.gravity.allFinite()) throw Error("model gravity: expected finite numbers, got NaN or infinity");
+  const int nl = static_cast<int>(d.links.size());
+  std::map<std::string, int> link_by_name;
+  for (int i = 0; i < nl; ++i) validate_link(d, i, link_by_name);
+
+  std::vector<int> body_of(nl, -1);
+  std::vector<SE3> link_in_body(nl);  // pose of link frame in its body frame (or world)
+  static std::atomic<std::uint64_t> next_id{1};
+  ModelData m;
+  m.id = next_id++;
+  m.name = d.name;
+  m.gravity = d.gravity;
+  fold_links(d, m, body_of, link_in_body);
+  m.nv = m.nq;
+  m.support.resize(m.nq);
+  for (int i = 0; i < m.nq; ++i) {
+    if (m.parent[i] >= 0) m.support[i] = m.support[m.parent[i]];
+    m.support[i].push_back(i);
+  }
+  add_points(d, link_by_name, body_of, link_in_body, m);
   return Model(std::move(m));
 }
 

@@ -3,7 +3,8 @@
 //   model.cpp     the bodies of a Model as GiNaC expressions (the kinematics and Newton–Euler
 //                 are the generic core's, refdyn/multibody/, instantiated for GiNaC::ex)
 //   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
-//   emit.cpp      C99 (with common-subexpression elimination), LaTeX and JSON writers
+//   emit_c.cpp    C99 writer (with common-subexpression elimination)
+//   emit.cpp      LaTeX and JSON writers (printer.hpp: the printer the writers share)
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/scenario/spec.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
