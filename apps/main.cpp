@@ -28,6 +28,117 @@ std::string usage_message(const CLI::ParseError& e, int argc, char** argv, const
   return msg + " (run 'refdyn --help')";
 }
 
+
+/// Every option of every command, filled in by CLI11.
+struct Args {
+  std::string file, out_dir = "results";
+  bool quiet = false, report = false;
+  std::string scenario, report_out;
+  std::string formats = "c,latex,json", prefix;
+  refdyn::app::InputOptions in;
+  refdyn::app::RunConfig run;
+};
+
+struct Commands {
+  CLI::App *check, *plan, *track, *plot, *paper, *report, *generate, *kinds;
+};
+
+const std::vector<std::string> kCommandNames{"check", "plan", "track", "plot", "report", "paper", "generate", "kinds"};
+
+void add_input_options(CLI::App* c, Args& a) {
+  c->add_option("--max-input-size", a.in.max_input_bytes, "Largest scenario or URDF file read [bytes]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+}
+
+void add_run_options(CLI::App* c, Args& a, const char* what) {
+  c->add_option("-j,--jobs", a.run.jobs,
+                std::string("Threads running ") + what + " (0: every core; default: every core, 1 per rank with --mpi); "
+                "results do not depend on it")
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--run-csv", a.run.run_csv,
+                std::string("Per-run files (track_<name>.csv; for variants: a folder each): all, none, or auto (all up "
+                            "to 100); the aggregate (sweep.csv / variants.csv, summary.json) always"))
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "all", "none"}));
+  c->add_flag("--mpi", a.run.mpi,
+              "Spread the runs or variants over MPI ranks (mpirun -np N refdyn ... --mpi; DIR on a shared file "
+              "system); the files are those of one process (docs/sweeps.md)");
+}
+
+/// The output options plan, track and paper share.
+void add_output_options(CLI::App* c, Args& a) {
+  c->add_option("-o,--output", a.out_dir, "Output folder")->capture_default_str();
+  c->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
+  c->add_flag("--report", a.report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
+}
+
+/// check, plan, track: the commands that read a scenario and solve it.
+void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
+  c.check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
+  c.check->add_option("file", a.file, "Scenario file (YAML)")->required();
+  add_input_options(c.check, a);
+
+  c.plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
+  c.plan->add_option("file", a.file, "Scenario file (YAML)")->required();
+  add_output_options(c.plan, a);
+  add_input_options(c.plan, a);
+  add_run_options(c.plan, a, "the scenario's variants");
+
+  c.track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
+  c.track->add_option("file", a.file, "Scenario file (YAML)")->required();
+  add_output_options(c.track, a);
+  add_run_options(c.track, a, "experiments (or variants)");
+  add_input_options(c.track, a);
+}
+
+/// plot, paper, report, generate, kinds.
+void add_other_commands(CLI::App& app, Args& a, Commands& c) {
+  c.plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
+  c.plot->add_option("dir", a.out_dir, "Results folder written by plan, track or paper")->required();
+
+  c.paper = app.add_subcommand("paper", "Run the paper's three-link manipulator study (the main job)");
+  add_output_options(c.paper, a);
+  c.paper->add_option("-j,--jobs", a.run.jobs, "Threads running the four tracking runs (0 or default: every core)")
+      ->check(CLI::NonNegativeNumber);
+
+  c.report = app.add_subcommand(
+      "report", "Write DIR/report.html: one self-contained HTML file with the summary, interactive plots and a 3D replay");
+  c.report->add_option("dir", a.out_dir, "Results folder written by plan, track or paper")->required();
+  c.report->add_option("--scenario", a.scenario,
+                       "Scenario file of the results (default: the one summary.json names; built in for paper results)");
+  c.report->add_option("-o,--output", a.report_out, "Report file (default: DIR/report.html)");
+  c.report->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
+  add_input_options(c.report, a);
+
+  c.generate = app.add_subcommand(
+      "generate", "Generate the reference dynamics as equations and code: equations.tex, reference_dynamics.c/.h, .json");
+  c.generate->add_option("file", a.file, "Scenario file (YAML)")->required();
+  c.generate->add_option("-o,--output", a.out_dir, "Output folder")->capture_default_str();
+  c.generate->add_option("--format", a.formats, "Comma-separated outputs: c, latex, json")->capture_default_str();
+  c.generate->add_option("--prefix", a.prefix, "Prefix of the C identifiers (default: rd_<scenario name>_)");
+  c.generate->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
+  add_input_options(c.generate, a);
+
+  c.kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
+}
+
+/// Runs the chosen command; refdyn::Error and the rest are mapped to exit codes by the caller.
+int dispatch(const Commands& c, Args& a) {
+  using namespace refdyn::app;
+  if (*c.check) return run_check(a.file, a.in);
+  if (a.report) require_report_template();
+  a.run.report = a.report;
+  if (*c.plan) return run_plan(a.file, a.out_dir, a.quiet, a.in, a.run);
+  if (*c.track) return run_track(a.file, a.out_dir, a.quiet, a.in, a.run);
+  if (*c.plot) return run_plot(a.out_dir);
+  if (*c.report) return run_report(a.out_dir, a.scenario, a.report_out, a.quiet, a.in);
+  if (*c.paper) return run_paper_command(a.out_dir, a.quiet, a.report, a.run.jobs < 0 ? 0 : a.run.jobs);
+  if (*c.generate) return run_generate(a.file, a.out_dir, a.formats, a.prefix, a.quiet, a.in);
+  if (*c.kinds) return run_kinds();
+  return kOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -40,84 +151,10 @@ int main(int argc, char** argv) {
       "Examples: examples/*/*.yaml.");
   app.set_version_flag("--version", std::string("refdyn ") + refdyn::version(), "Print the version and exit");
   app.require_subcommand(1);
-  std::string file, out_dir = "results";
-  bool quiet = false, report = false;
-  std::string scenario, report_out;
-  InputOptions in;
-
-  auto input_options = [&](CLI::App* c) {
-    c->add_option("--max-input-size", in.max_input_bytes, "Largest scenario or URDF file read [bytes]")
-        ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-  };
-
-  auto* check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
-  check->add_option("file", file, "Scenario file (YAML)")->required();
-  input_options(check);
-
-  auto* plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
-  plan->add_option("file", file, "Scenario file (YAML)")->required();
-  plan->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
-  plan->add_flag("-q,--quiet", quiet, "Print nothing on success");
-  plan->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
-  input_options(plan);
-  RunConfig run;
-  auto run_options = [&run](CLI::App* c, const char* what) {
-    c->add_option("-j,--jobs", run.jobs,
-                  std::string("Threads running ") + what + " (0: every core; default: every core, 1 per rank with --mpi); "
-                  "results do not depend on it")
-        ->check(CLI::NonNegativeNumber);
-    c->add_option("--run-csv", run.run_csv,
-                  std::string("Per-run files (track_<name>.csv; for variants: a folder each): all, none, or auto (all up "
-                              "to 100); the aggregate (sweep.csv / variants.csv, summary.json) always"))
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "all", "none"}));
-    c->add_flag("--mpi", run.mpi,
-                "Spread the runs or variants over MPI ranks (mpirun -np N refdyn ... --mpi; DIR on a shared file "
-                "system); the files are those of one process (docs/sweeps.md)");
-  };
-  run_options(plan, "the scenario's variants");
-
-  auto* track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
-  track->add_option("file", file, "Scenario file (YAML)")->required();
-  track->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
-  track->add_flag("-q,--quiet", quiet, "Print nothing on success");
-  track->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
-  run_options(track, "experiments (or variants)");
-  input_options(track);
-
-  auto* plot = app.add_subcommand("plot", "Draw the figures (PNG + PDF) of a results folder");
-  plot->add_option("dir", out_dir, "Results folder written by plan, track or paper")->required();
-
-  auto* paper = app.add_subcommand("paper", "Run the paper's three-link manipulator study (the main job)");
-  paper->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
-  paper->add_flag("-q,--quiet", quiet, "Print nothing on success");
-  paper->add_flag("--report", report, "Also write report.html (interactive plots, 3D replay; docs/report.md)");
-  paper->add_option("-j,--jobs", run.jobs, "Threads running the four tracking runs (0 or default: every core)")
-      ->check(CLI::NonNegativeNumber);
-
-  auto* rep = app.add_subcommand(
-      "report", "Write DIR/report.html: one self-contained HTML file with the summary, interactive plots and a 3D replay");
-  rep->add_option("dir", out_dir, "Results folder written by plan, track or paper")->required();
-  rep->add_option("--scenario", scenario,
-                  "Scenario file of the results (default: the one summary.json names; built in for paper results)");
-  rep->add_option("-o,--output", report_out, "Report file (default: DIR/report.html)");
-  rep->add_flag("-q,--quiet", quiet, "Print nothing on success");
-  input_options(rep);
-
-  std::string formats = "c,latex,json", prefix;
-  auto* generate = app.add_subcommand(
-      "generate", "Generate the reference dynamics as equations and code: equations.tex, reference_dynamics.c/.h, .json");
-  generate->add_option("file", file, "Scenario file (YAML)")->required();
-  generate->add_option("-o,--output", out_dir, "Output folder")->capture_default_str();
-  generate->add_option("--format", formats, "Comma-separated outputs: c, latex, json")->capture_default_str();
-  generate->add_option("--prefix", prefix, "Prefix of the C identifiers (default: rd_<scenario name>_)");
-  generate->add_flag("-q,--quiet", quiet, "Print nothing on success");
-  input_options(generate);
-
-  auto* kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
-
-  const std::vector<std::string> commands{"check", "plan", "track", "plot", "report", "paper", "generate", "kinds"};
+  Args args;
+  Commands commands{};
+  add_scenario_commands(app, args, commands);
+  add_other_commands(app, args, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -128,20 +165,11 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? kOk : kUsage;
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "refdyn: error: %s\n", usage_message(e, argc, argv, commands).c_str());
+    std::fprintf(stderr, "refdyn: error: %s\n", usage_message(e, argc, argv, kCommandNames).c_str());
     return kUsage;
   }
   try {
-    if (*check) return run_check(file, in);
-    if (report) require_report_template();
-    run.report = report;
-    if (*plan) return run_plan(file, out_dir, quiet, in, run);
-    if (*track) return run_track(file, out_dir, quiet, in, run);
-    if (*plot) return run_plot(out_dir);
-    if (*rep) return run_report(out_dir, scenario, report_out, quiet, in);
-    if (*paper) return run_paper_command(out_dir, quiet, report, run.jobs < 0 ? 0 : run.jobs);
-    if (*generate) return run_generate(file, out_dir, formats, prefix, quiet, in);
-    if (*kinds) return run_kinds();
+    return dispatch(commands, args);
   } catch (const refdyn::Error& e) {
     std::string msg = e.what();
     for (char& ch : msg)
@@ -155,5 +183,4 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "refdyn: internal error: %s (please report)\n", e.what());
     return kInternal;
   }
-  return kOk;
 }
