@@ -265,20 +265,11 @@ auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec
 /// on different joints: psi_dr_j1, psi_dr_j2; a single unnamed drive keeps psi_dr). Names that
 /// still coincide are an error.
 void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
-  std::vector<ForceElementPtr> built;
+  std::vector<NewForceElement> built;  // labelled here, then published to `out`
   for (const EntrySpec& e : entries) {
-    std::vector<std::pair<double, std::string>> recorded;
-    c.recorder = &recorded;
-    ForceElementPtr f;
-    try {
-      f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
-    } catch (...) {
-      c.recorder = nullptr;
-      throw;
-    }
-    c.recorder = nullptr;
-    std::const_pointer_cast<ForceElement>(f)->label = e.name;
-    std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
+    NewForceElement f =
+        build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
+    f->label = e.name;
     built.push_back(std::move(f));
   }
   std::map<std::string, int> uses;
@@ -289,7 +280,7 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
     if (!entries[i].name.empty() || !joint.is_scalar() || joint.text.empty()) continue;
     for (const auto& s : built[i]->signal_names())
       if (uses[s] > 1) {
-        std::const_pointer_cast<ForceElement>(built[i])->label = joint.text;
+        built[i]->label = joint.text;
         break;
       }
   }
@@ -488,7 +479,8 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
   for (const auto& [name, value] : spec.parameters) {
     if (name == "pi" || name == "e" || name == "deg" || name == "t")
       c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
-    c.params[name] = c.number(value, "parameters." + name);
+    const auto set = spec.parameter_values.find(name);
+    c.params[name] = set != spec.parameter_values.end() ? set->second.value : c.number(value, "parameters." + name);
   }
   return c;
 }
@@ -539,8 +531,8 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   // URDF <mimic> joints: material couplings, before the file's own constraints.
   for (const MimicSpec& mm : spec.model.mimics) {
     try {
-      ConstraintPtr con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
-      std::const_pointer_cast<Constraint>(con)->name = "mimic_" + mm.joint;
+      NewConstraint con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
+      con->name = "mimic_" + mm.joint;
       s->constraints.add(con);
     } catch (const Error& e) {
       c.fail(spec.model.value["urdf"], "model.urdf", e.what());
@@ -552,23 +544,12 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (e.fields["origin"])
       origin = c.choice(e.fields["origin"], e.key + ".origin", {"material", "programmed"}) == "material"
                    ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
-    std::vector<std::pair<double, std::string>> recorded;
-    c.recorder = &recorded;
-    ConstraintPtr con;
-    try {
-      con = build_entry(c, constraint_kinds(), e, "kind",
-                        [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
-    } catch (...) {
-      c.recorder = nullptr;
-      throw;
-    }
-    c.recorder = nullptr;
+    NewConstraint con = build_entry(c, constraint_kinds(), e, "kind",
+                                    [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
     check_name(c, e.fields["name"], e.key + ".name", e.name);
-    auto mut = std::const_pointer_cast<Constraint>(con);
-    mut->name = e.name;
-    mut->symbolic_inputs = {std::move(recorded), c.params};
+    con->name = e.name;
     if (e.fields["record"]) {
-      mut->record_as = c.string(e.fields["record"], e.key + ".record");
+      con->record_as = c.string(e.fields["record"], e.key + ".record");
       if (!con->target()) c.fail(e.fields["record"], e.key + ".record", "this constraint prescribes no function of time to record");
     }
     try {

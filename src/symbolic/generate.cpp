@@ -115,6 +115,14 @@ class Binder {
   std::vector<ex> values_;
 };
 
+/// A form's parameters with the scenario's added (the form's own win) when its texts contain
+/// scenario texts of numbers (Number, from the reader's Quantity), which name them.
+std::optional<SymbolicForm> with_scenario_parameters(std::optional<SymbolicForm> form, const Problem& problem) {
+  if (form && form->scenario_texts)
+    for (const auto& [name, v] : problem.parameters) form->parameters.emplace(name, v);
+  return form;
+}
+
 std::string identifier(const std::string& s) {
   std::string r;
   for (char ch : s) r += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
@@ -218,8 +226,7 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     if (c.order() >= 3)
       throw Error(where + " is of order jerk: the generated equations cover position, velocity and acceleration "
                   "constraints (docs/generate.md)");
-    std::optional<SymbolicForm> form = c.symbolic();
-    if (form) c.symbolic_inputs.apply(*form);
+    std::optional<SymbolicForm> form = with_scenario_parameters(c.symbolic(), problem);
     if (!form)
       throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
     if (static_cast<int>(form->rows.size()) != c.rows())
@@ -275,9 +282,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
     const ForceElement& e = *problem.forces.elements()[k];
     const std::string where = "generate: force element " + e.name();
-    std::optional<SymbolicForm> form = e.symbolic();
+    std::optional<SymbolicForm> form = with_scenario_parameters(e.symbolic(), problem);
     if (!form) throw Error(where + " has no symbolic form");
-    e.symbolic_inputs.apply(*form);
     const int off = problem.forces.state_offset(static_cast<int>(k));
     if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())
       throw Error(where + ": inconsistent symbolic form");
