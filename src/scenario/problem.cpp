@@ -79,8 +79,43 @@ JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::st
   return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
 }
 
+/// The numbers of a model node (already checked by read_model) as Quantities.
+struct ModelNumberReader {
+  const SpecReader& c;
+  ModelNumbers::Vec vec(const SpecValue& n, const std::string& k) const {
+    return {c.quantity(n[0], k + "[0]"), c.quantity(n[1], k + "[1]"), c.quantity(n[2], k + "[2]")};
+  }
+  std::optional<Quantity> opt(const SpecValue& parent, const char* f, const std::string& k) const {
+    if (!parent[f]) return std::nullopt;
+    return c.quantity(parent[f], k + "." + f);
+  }
+  std::optional<ModelNumbers::Vec> opt_vec(const SpecValue& parent, const char* f, const std::string& k) const {
+    if (!parent[f]) return std::nullopt;
+    return vec(parent[f], k + "." + f);
+  }
+  ModelNumbers::Pose pose(const SpecValue& n, const std::string& k) const {
+    return {opt_vec(n, "xyz", k), opt_vec(n, "rpy", k)};
+  }
+  /// mass, com and inertia of a link.
+  void inertia(const SpecValue& l, const std::string& k, ModelNumbers::Link& out) const {
+    out.mass = opt(l, "mass", k);
+    out.com = opt_vec(l, "com", k);
+    if (const SpecValue& I = l["inertia"]) {
+      const std::string ik = k + ".inertia";
+      out.inertia_matrix = I.size() == 3 && I[0].is_list();
+      if (out.inertia_matrix) {
+        for (int r = 0; r < 3; ++r)
+          for (const Quantity& x : vec(I[r], ik + "[" + std::to_string(r) + "]")) out.inertia.push_back(x);
+      } else {
+        for (size_t i = 0; i < I.size(); ++i) out.inertia.push_back(c.quantity(I[i], ik + "[" + std::to_string(i) + "]"));
+      }
+    }
+  }
+};
+
 ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
-                            std::map<std::string, int>& link_lines) {
+                            std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers) {
+  const ModelNumberReader nr{c};
   const std::string key = "model";
   c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
   const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
@@ -95,6 +130,9 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
     std::vector<DHRow> rows;
     std::vector<std::string> link_names;
+    numbers.emplace();
+    numbers->dh = true;
+    numbers->standard = conv == DHConvention::Standard;
     for (size_t i = 0; i < js.size(); ++i) {
       const SpecValue& j = js[i];
       const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
@@ -110,6 +148,16 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       r.limits = read_limits(c, j["limits"], k + ".limits");
       rows.push_back(r);
       link_names.push_back(j["link"] ? c.string(j["link"], k + ".link") : r.name);
+      ModelNumbers::Link L;
+      L.name = link_names.back();
+      L.parent = static_cast<int>(i) - 1;
+      L.type = r.type;
+      L.theta = nr.opt(j, "theta", k);
+      L.d = nr.opt(j, "d", k);
+      L.a = nr.opt(j, "a", k);
+      L.alpha = nr.opt(j, "alpha", k);
+      nr.inertia(j, k, L);
+      numbers->links.push_back(std::move(L));
       link_lines[link_names.back()] = j.where.line;
     }
     d = from_dh(rows, conv);
@@ -120,6 +168,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   } else if (const SpecValue& ls = m["links"]) {
     if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
     std::map<std::string, int> index;
+    numbers.emplace();
     for (size_t i = 0; i < ls.size(); ++i) {
       const SpecValue& l = ls[i];
       const std::string k = "model.links[" + std::to_string(i) + "]";
@@ -147,6 +196,15 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       s.offset = c.number_or(l, "offset", k, 0.0);
       s.inertia = read_inertia(c, l, k);
       s.limits = read_limits(c, l["limits"], k + ".limits");
+      ModelNumbers::Link L;
+      L.name = s.name;
+      L.parent = s.parent;
+      L.type = s.type;
+      L.origin = l["origin"] ? nr.pose(l["origin"], k + ".origin") : ModelNumbers::Pose{};
+      L.link_offset = l["link_offset"] ? nr.pose(l["link_offset"], k + ".link_offset") : ModelNumbers::Pose{};
+      L.offset = nr.opt(l, "offset", k);
+      nr.inertia(l, k, L);
+      numbers->links.push_back(std::move(L));
       index[s.name] = static_cast<int>(d.links.size());
       link_lines[s.name] = l.where.line;
       d.add_link(s);
@@ -158,6 +216,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   if (m["name"]) d.name = c.string(m["name"], "model.name");
   if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
   if (m["base"]) d.base = c.pose(m["base"], "model.base");
+  if (numbers && m["base"]) numbers->base = nr.pose(m["base"], "model.base");
   if (const SpecValue& ps = m["points"]) {
     if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
     for (const auto& kv : ps.entries) {
@@ -177,6 +236,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       // A point named like an existing one (e.g. URDF link points) replaces it.
       std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
       d.add_point(name, link, pos);
+      if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
     }
   }
   return d;
@@ -491,7 +551,8 @@ namespace {
 std::unique_ptr<Problem> build_model_section(const SpecReader& c, const ScenarioSpec& spec) {
   const std::string& source = spec.file;
   std::map<std::string, int> link_lines;
-  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines);
+  std::optional<ModelNumbers> numbers;
+  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines, numbers);
   if (!spec.model.value["name"]) description.name = spec.name;
   std::unique_ptr<Problem> s;
   try {
@@ -522,7 +583,7 @@ std::unique_ptr<Problem> build_model_section(const SpecReader& c, const Scenario
       }
   }
   s->parameters = c.params;
-  s->model_spec = spec.model.value;
+  s->model_numbers = std::move(numbers);
   const Model& m = s->model;
   if (m.nv == 0)
     c.fail(spec.model.value, "model",

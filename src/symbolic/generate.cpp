@@ -280,8 +280,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
 
   // --- the model: as the scenario wrote it (parameters stay symbols), else the compiled numbers ---
   symbolic_detail::SymbolicBodies bodies;
-  if (problem.model_spec && !problem.model_spec["urdf"]) {
-    bodies = symbolic_detail::bodies_from_spec(model, problem.model_spec, [&](const SpecValue& v) {
+  if (problem.model_numbers) {
+    bodies = symbolic_detail::bodies_from_numbers(model, *problem.model_numbers, [&](const Quantity& v) {
       return B.parse(v.text, problem.parameters, "generate: " + v.where.file + ":" + std::to_string(v.where.line));
     });
   } else {

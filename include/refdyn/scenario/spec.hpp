@@ -10,6 +10,7 @@
 #include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/multibody/model.hpp"
 
+#include <array>
 #include <map>
 #include <optional>
 #include <string>
@@ -34,6 +35,37 @@ struct Quantity {
   SourceLocation where;
   bool literal = true;  ///< the text is a plain number (no parameter, no operator)
   Number number() const { return literal ? Number(value) : Number(value, text); }
+};
+
+/// The numbers of a `model:` section written as dh: or links:, as the reader read them (every
+/// one a Quantity: value, text, where), in the section's structure: what the code generator
+/// (symbolic/model.cpp) builds its symbolic bodies from, so the parameters stay symbols.
+struct ModelNumbers {
+  using Vec = std::array<Quantity, 3>;
+  struct Pose {
+    std::optional<Vec> xyz, rpy;
+  };
+  struct Link {
+    std::string name;       ///< the link's name
+    int parent = -1;        ///< index into links; −1: the base
+    JointType type = JointType::Revolute;
+    std::optional<Quantity> theta, d, a, alpha;  ///< dh:
+    Pose origin, link_offset;                    ///< links:
+    std::optional<Quantity> offset;              ///< links:
+    std::optional<Quantity> mass;
+    std::optional<Vec> com;
+    std::vector<Quantity> inertia;  ///< as written: 3 (diagonal), 6 (Ixx Iyy Izz Ixy Ixz Iyz) or 9 (3x3, rows)
+    bool inertia_matrix = false;    ///< the 9 values were written as a 3x3 list
+  };
+  struct Point {
+    std::string name, link;
+    std::optional<Vec> position;
+  };
+  bool dh = false;        ///< dh: (else links:)
+  bool standard = true;   ///< dh: convention
+  std::vector<Link> links;
+  Pose base;
+  std::vector<Point> points;  ///< in the order written (a later one replaces one of the same name)
 };
 
 /// A value as written: nothing, a scalar text, a list or a mapping (entries in file order).
