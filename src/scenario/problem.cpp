@@ -113,6 +113,31 @@ struct ModelNumberReader {
   }
 };
 
+/// model.points: name: {link, position} (a point named like an existing one replaces it).
+void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecValue& ps, ModelDescription& d,
+                 std::optional<ModelNumbers>& numbers) {
+  if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
+  for (const auto& kv : ps.entries) {
+    const std::string& name = kv.key;
+    const std::string k = "model.points." + name;
+    c.keys(kv.value, k, {"link", "position"});
+    const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
+    Vec3 pos = Vec3::Zero();
+    if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
+    bool known = link == "world" || link == "base";
+    std::vector<std::string> names;
+    for (const auto& l : d.links) {
+      names.push_back(l.name);
+      known = known || l.name == link;
+    }
+    if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
+    // A point named like an existing one (e.g. URDF link points) replaces it.
+    std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
+    d.add_point(name, link, pos);
+    if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
+  }
+}
+
 ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
                             std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers) {
   const ModelNumberReader nr{c};
@@ -217,28 +242,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
   if (m["base"]) d.base = c.pose(m["base"], "model.base");
   if (numbers && m["base"]) numbers->base = nr.pose(m["base"], "model.base");
-  if (const SpecValue& ps = m["points"]) {
-    if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
-    for (const auto& kv : ps.entries) {
-      const std::string& name = kv.key;
-      const std::string k = "model.points." + name;
-      c.keys(kv.value, k, {"link", "position"});
-      const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
-      Vec3 pos = Vec3::Zero();
-      if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
-      bool known = link == "world" || link == "base";
-      std::vector<std::string> names;
-      for (const auto& l : d.links) {
-        names.push_back(l.name);
-        known = known || l.name == link;
-      }
-      if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
-      // A point named like an existing one (e.g. URDF link points) replaces it.
-      std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
-      d.add_point(name, link, pos);
-      if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
-    }
-  }
+  if (const SpecValue& ps = m["points"]) read_points(c, nr, ps, d, numbers);
   return d;
 }
 
