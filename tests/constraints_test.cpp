@@ -51,8 +51,8 @@ std::vector<Case> model_zoo(std::mt19937& rng, int dof) {
   return out;
 }
 
-ConstraintPtr renamed(ConstraintPtr c, const std::string& name) {
-  std::const_pointer_cast<Constraint>(c)->name = name;
+ConstraintPtr renamed(NewConstraint c, const std::string& name) {
+  c->name = name;
   return c;
 }
 

@@ -2,6 +2,7 @@
 // Trajectories and result files. Checked against independent routes: the built-in C++ paper
 // study (bit for bit), a re-evaluation of the reference dynamics at every recorded sample, the
 // closed-form steady state of PD and PID loops, and the integrators' stage order.
+#include "refdyn/common/error.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/models/paper_study.hpp"
@@ -210,6 +211,49 @@ experiments:
 // only one recording them (the paper's psi_dr), and is suffixed with its joint when several
 // would record the same name; a named one is suffixed with its name; names that still coincide
 // are an error located at the second element.
+// SpecReader::quantity: one evaluation gives the value, the text as written and where; an
+// expression's text travels with the number into the built object (its symbolic form), a
+// literal's does not.
+TEST(Spec, QuantityKeepsTextAndLocation) {
+  SpecReader c("q.yaml", {{"m2", 3.0}});
+  const Quantity e = c.quantity(SpecValue::scalar("m2 * 0.5", {"q.yaml", 7}), "forces[0].stiffness");
+  EXPECT_EQ(e.value, 1.5);
+  EXPECT_EQ(e.text, "m2 * 0.5");
+  EXPECT_EQ(e.where.file, "q.yaml");
+  EXPECT_EQ(e.where.line, 7);
+  EXPECT_FALSE(e.literal);
+  EXPECT_EQ(e.number().text, "m2 * 0.5");
+  EXPECT_EQ(symbolic_number(e.number()), "(m2 * 0.5)");
+  const Quantity l = c.quantity(SpecValue::scalar("0.3", {"q.yaml", 8}), "x");
+  EXPECT_EQ(l.value, 0.3);
+  EXPECT_EQ(l.text, "0.3");
+  EXPECT_TRUE(l.literal);
+  EXPECT_TRUE(l.number().text.empty());
+  EXPECT_EQ(symbolic_number(l.number()), symbolic_number(0.3));
+  try {
+    c.quantity(SpecValue::scalar("m3 + 1", {"q.yaml", 9}), "forces[0].damping");
+    ADD_FAILURE() << "expected an error";
+  } catch (const Error& err) {
+    EXPECT_EQ(std::string(err.what()).rfind("q.yaml:9: forces[0].damping: ", 0), 0u) << err.what();
+  }
+  // The built object carries the texts: a spring written with k and a literal rest.
+  const auto p = io::parse_problem(R"(name: q
+parameters: {k: 2}
+model:
+  dh:
+    joints:
+      - {name: j1, type: revolute, a: 0.5, mass: 1, com: [-0.25, 0, 0], inertia: [0.01, 0.05, 0.05]}
+forces:
+  - {type: spring, joint: j1, stiffness: 2*k, rest: 0.25}
+initial: {q: {j1: 0.1}}
+integrator: {method: rk4, step: 1e-3, t0: 0, t1: 0.01}
+)", "q.yaml");
+  const auto form = p->forces.elements()[0]->symbolic();
+  ASSERT_TRUE(form);
+  EXPECT_TRUE(form->scenario_texts);
+  EXPECT_EQ(form->rows[0], "-(2*k)*(q(j1) - " + symbolic_number(0.25) + ")");
+}
+
 TEST(Spec, UnnamedForceElementsAreToldApartByTheirJoints) {
   auto drive = [](const std::string& joint, const std::string& name) {
     return "  - {type: flexible_drive, joint: " + joint + ", stiffness: 50, damping: 2" +

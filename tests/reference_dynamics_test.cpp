@@ -39,8 +39,8 @@ IntegratorOptions rk4(double t1, double h, double t0 = 0.0) {
   return o;
 }
 
-ConstraintPtr renamed(ConstraintPtr c, const std::string& name) {
-  std::const_pointer_cast<Constraint>(c)->name = name;
+ConstraintPtr renamed(NewConstraint c, const std::string& name) {
+  c->name = name;
   return c;
 }
 

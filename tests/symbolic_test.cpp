@@ -198,6 +198,51 @@ TEST(GenerateSymbolic, ReadyMadeKindsKeepTheScenarioNames) {
   EXPECT_NE(h.find("double Tz;"), std::string::npos);
 }
 
+// The names come from the numbers themselves (SpecReader::quantity → Number), not from matching
+// values back to texts: two parameters with the same value keep their own names, and a literal
+// equal to a parameter's value stays a number (value matching named both `k`, or neither).
+TEST(GenerateSymbolic, EqualValuesKeepTheirOwnNames) {
+  const std::string yaml = R"(name: same_values
+parameters: {k: 0.5, r: 0.5, L1: 0.5}
+model:
+  gravity: [0, 0, 0]
+  dh:
+    joints:
+      - {name: j1, type: revolute, a: L1, mass: 1, com: [-0.25, 0, 0], inertia: [0.01, 0.05, 0.05]}
+      - {name: j2, type: revolute, a: 0.4, mass: 1, com: [-0.2, 0, 0], inertia: [0.005, 0.02, 0.02]}
+  points:
+    E: {link: j2, position: [0, 0, 0]}
+constraints:
+  - {name: tip_x, kind: point_coordinate, point: E, axis: x, function: 0.7}
+partition: {independent: [j2]}
+forces:
+  - {type: spring, joint: j1, stiffness: k, rest: r}
+  - {type: spring, joint: j2, stiffness: k, rest: 0.5}
+initial: {q: {j1: 0.3, j2: 1.2}, consistency: project}
+integrator: {method: rk4, step: 1e-3, t0: 0, t1: 0.01}
+)";
+  const auto problem = io::parse_problem(yaml, "same_values.yaml");
+  const std::string json = generate_symbolic(*problem).json();
+  const std::map<std::string, double> params = json_parameters(json);
+  EXPECT_EQ(params.count("k"), 1u) << json;
+  EXPECT_EQ(params.count("r"), 1u) << json;
+  const std::size_t q = json.find("\"Q\"");
+  ASSERT_NE(q, std::string::npos);
+  const std::string Q = json.substr(q, json.find(']', q) - q);
+  const std::size_t second = Q.find("\", \"");
+  ASSERT_NE(second, std::string::npos) << Q;
+  const std::string q1 = Q.substr(0, second), q2 = Q.substr(second);
+  const std::regex k(R"(\bk\b)"), r(R"(\br\b)"), half(R"(0\.5\b)");
+  // j1: −k (q1 − r): both names, no 0.5
+  EXPECT_TRUE(std::regex_search(q1, k)) << q1;
+  EXPECT_TRUE(std::regex_search(q1, r)) << q1;
+  EXPECT_FALSE(std::regex_search(q1, half)) << q1;
+  // j2: −k (q2 − 0.5): the literal stays a number, r (same value) does not appear
+  EXPECT_TRUE(std::regex_search(q2, k)) << q2;
+  EXPECT_FALSE(std::regex_search(q2, r)) << q2;
+  EXPECT_TRUE(std::regex_search(q2, half)) << q2;
+}
+
 TEST(GenerateSymbolic, CommonSubexpressionEliminationShrinksTheCode) {
   const auto problem = io::load_problem(example("paper"));
   SymbolicOptions with, without;

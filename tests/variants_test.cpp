@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -76,6 +77,31 @@ TEST(Variants, AVariantIsTheScenarioWithItsParametersRewritten) {
   const io::Results a = io::run_problem(*from_variant, o), b = io::run_problem(*written, o);
   ASSERT_TRUE(a.plan.summary.ok());
   EXPECT_EQ(io::trajectory_table(a.plan).to_string(), io::trajectory_table(b.plan).to_string());
+}
+
+// The override carries the number itself: a value with no short decimal text (0.1 + 0.2 − 0.15 = 0.15000000000000005) reaches
+// the Problem bit for bit, the written text of the parameter stays as written, and the
+// parameters after it (which use it) follow.
+TEST(Variants, TheOverrideCarriesTheNumber) {
+  const ScenarioSpec spec = io::parse_scenario(circle(kGrid), "family.yaml");
+  io::Variant v;
+  v.name = "odd";
+  const double R = 0.1 + 0.2 - 0.15;
+  v.values = {{"R", R}};
+  const ScenarioSpec s = io::variant_spec(spec, v);
+  ASSERT_EQ(s.parameter_values.count("R"), 1u);
+  EXPECT_EQ(s.parameter_values.at("R").value, R);
+  EXPECT_EQ(s.parameter_values.at("R").text, "0.15000000000000005");
+  EXPECT_GT(s.parameter_values.at("R").where.line, 0);
+  const auto written = std::find_if(s.parameters.begin(), s.parameters.end(), [](const auto& p) { return p.first == "R"; });
+  ASSERT_NE(written, s.parameters.end());
+  EXPECT_EQ(written->second.text, std::find_if(spec.parameters.begin(), spec.parameters.end(), [](const auto& p) {
+                                    return p.first == "R";
+                                  })->second.text);
+  const auto p = build_problem(s);
+  EXPECT_EQ(p->parameters.at("R"), R);
+  const auto direct = io::parse_problem(circle("", "0.15000000000000005"), "written.yaml");
+  EXPECT_EQ(p->parameters, direct->parameters);
 }
 
 TEST(Variants, ThreadsAndShardsGiveTheBitsOfOneThread) {

@@ -32,9 +32,10 @@ namespace {
 // ---------------- surfaces ----------------
 class EllipticCylinder final : public ImplicitSurface {
  public:
-  EllipticCylinder(double a, double b, double cx, double cy) : ia2_(1 / (a * a)), ib2_(1 / (b * b)), a_(a), b_(b), cx_(cx), cy_(cy) {}
+  EllipticCylinder(Number a, Number b, Number cx, Number cy)
+      : ia2_(1 / (a * a)), ib2_(1 / (b * b)), a_(std::move(a)), b_(std::move(b)), cx_(std::move(cx)), cy_(std::move(cy)) {}
   Value eval(const Vec3& r, double) const override {
-    const double x = r.x() - cx_, y = r.y() - cy_;
+    const double x = r.x() - cx_.value, y = r.y() - cy_.value;
     Value v;
     v.f = x * x * ia2_ + y * y * ib2_ - 1.0;
     v.grad = Vec3(2 * x * ia2_, 2 * y * ib2_, 0);
@@ -49,20 +50,23 @@ class EllipticCylinder final : public ImplicitSurface {
     return TaskGeometry{"ellipse", "", {{"cx", cx_}, {"cy", cy_}, {"a", a_}, {"b", b_}}};
   }
   std::optional<SymbolicForm> symbolic(const std::string& P) const override {
-    return symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" + P +
-                         ") - " + symbolic_number(cy_) + ")/" + symbolic_number(b_) + ")^2 - 1"});
+    SymbolicForm f = symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" +
+                                    P + ") - " + symbolic_number(cy_) + ")/" + symbolic_number(b_) + ")^2 - 1"});
+    f.scenario_texts = any_text(a_, b_, cx_, cy_);
+    return f;
   }
  private:
-  double ia2_, ib2_, a_, b_, cx_, cy_;
+  double ia2_, ib2_;
+  Number a_, b_, cx_, cy_;  // with the scenario's texts, for the symbolic form
 };
 
 class Sphere final : public ImplicitSurface {
  public:
-  Sphere(const Vec3& c, double R) : c_(c), R_(R) {}
+  Sphere(const Number3& c, Number R) : c_(c[0], c[1], c[2]), c_text_(c), R_(std::move(R)) {}
   Value eval(const Vec3& r, double) const override {
     Value v;
     const Vec3 e = r - c_;
-    v.f = e.squaredNorm() - R_ * R_;
+    v.f = e.squaredNorm() - R_.value * R_.value;
     v.grad = 2 * e;
     v.hess = 2 * Mat3::Identity();
     return v;
@@ -74,12 +78,15 @@ class Sphere final : public ImplicitSurface {
   std::optional<SymbolicForm> symbolic(const std::string& P) const override {
     std::string s;
     for (int k = 0; k < 3; ++k)
-      s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_[k]) + ")^2";
-    return symbolic_rows({s + " - " + symbolic_number(R_) + "^2"});
+      s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_text_[k]) + ")^2";
+    SymbolicForm f = symbolic_rows({s + " - " + symbolic_number(R_) + "^2"});
+    f.scenario_texts = any_text(c_text_[0], c_text_[1], c_text_[2], R_);
+    return f;
   }
  private:
   Vec3 c_;
-  double R_;
+  Number3 c_text_;  // the centre with the scenario's texts, for the symbolic form
+  Number R_;
 };
 
 class Plane final : public ImplicitSurface {
@@ -202,30 +209,33 @@ class JointTrajectory final : public Constraint {
 
 class JointCoupling final : public Constraint {
  public:
-  JointCoupling(int j, int l, std::string jn, std::string ln, double ratio, double offset)
-      : j_(j), l_(l), jn_(std::move(jn)), ln_(std::move(ln)), ratio_(ratio), offset_(offset) {}
+  JointCoupling(int j, int l, std::string jn, std::string ln, Number ratio, Number offset)
+      : j_(j), l_(l), jn_(std::move(jn)), ln_(std::move(ln)), ratio_(std::move(ratio)), offset_(std::move(offset)) {}
   int rows() const override { return 1; }
   bool first_order() const override { return false; }
   bool rheonomic() const override { return false; }
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
-    phi[0] = in.q[j_] - ratio_ * in.q[l_] - offset_;
-    phid[0] = in.qd[j_] - ratio_ * in.qd[l_];
+    phi[0] = in.q[j_] - ratio_.value * in.q[l_] - offset_.value;
+    phid[0] = in.qd[j_] - ratio_.value * in.qd[l_];
     A.row(0).setZero();
     A(0, j_) = 1.0;
-    A(0, l_) = -ratio_;
+    A(0, l_) = -ratio_.value;
     gamma[0] = 0.0;
   }
   std::string describe() const override {
     return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
   }
   std::optional<SymbolicForm> symbolic() const override {
-    return symbolic_rows({"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)});
+    SymbolicForm f =
+        symbolic_rows({"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)});
+    f.scenario_texts = any_text(ratio_, offset_);
+    return f;
   }
  private:
   int j_, l_;
   std::string jn_, ln_;
-  double ratio_, offset_;
+  Number ratio_, offset_;
 };
 
 class PointsCoincide final : public Constraint {
@@ -346,47 +356,48 @@ void need_vec(const Vec3& v, const std::string& what) {
 
 }  // namespace
 
-SurfacePtr elliptic_cylinder(double a, double b, double cx, double cy) {
-  if (!(std::isfinite(a) && a > 0) || !(std::isfinite(b) && b > 0))
+SurfacePtr elliptic_cylinder(Number a, Number b, Number cx, Number cy) {
+  if (!(std::isfinite(a.value) && a > 0) || !(std::isfinite(b.value) && b > 0))
     throw Error(expected_got("ellipse half-axes", "finite values > 0", fmt(a) + ", " + fmt(b)));
-  if (!std::isfinite(cx) || !std::isfinite(cy)) throw Error("ellipse centre must be finite");
-  return std::make_shared<EllipticCylinder>(a, b, cx, cy);
+  if (!std::isfinite(cx.value) || !std::isfinite(cy.value)) throw Error("ellipse centre must be finite");
+  return std::make_shared<EllipticCylinder>(std::move(a), std::move(b), std::move(cx), std::move(cy));
 }
-SurfacePtr sphere(const Vec3& c, double R) {
-  if (!c.allFinite() || !(std::isfinite(R) && R > 0))
+SurfacePtr sphere(const Number3& c, Number R) {
+  if (!Vec3(c[0], c[1], c[2]).allFinite() || !(std::isfinite(R.value) && R > 0))
     throw Error(expected_got("sphere", "a finite centre and radius > 0", fmt(R)));
-  return std::make_shared<Sphere>(c, R);
+  return std::make_shared<Sphere>(c, std::move(R));
 }
+SurfacePtr sphere(const Vec3& c, double R) { return sphere(Number3{c.x(), c.y(), c.z()}, R); }
 SurfacePtr plane(const Vec3& n, TimeFunctionPtr h) {
   need_vec(n, "plane normal");
   if (!h) throw Error("plane: expected an offset function, got none");
   return std::make_shared<Plane>(n, std::move(h));
 }
 
-ConstraintPtr point_on_surface(const Model& m, const std::string& point, SurfacePtr s, ConstraintOrigin o) {
+NewConstraint point_on_surface(const Model& m, const std::string& point, SurfacePtr s, ConstraintOrigin o) {
   if (!s) throw Error("point_on_surface: expected a surface, got none");
   return named(std::make_shared<PointOnSurface>(m.point_index(point), point, std::move(s)), point + "_on_surface", o);
 }
-ConstraintPtr point_coordinate(const Model& m, const std::string& point, int axis, TimeFunctionPtr f,
+NewConstraint point_coordinate(const Model& m, const std::string& point, int axis, TimeFunctionPtr f,
                                ConstraintOrigin o) {
   need_axis(axis, "point_coordinate axis");
   if (!f) throw Error("point_coordinate: expected a time function, got none");
   return named(std::make_shared<PointCoordinate>(m.point_index(point), point, axis, std::move(f)),
                std::string("xyz").substr(axis, 1) + "_" + point, o);
 }
-ConstraintPtr joint_trajectory(const Model& m, const std::string& joint, TimeFunctionPtr f, ConstraintOrigin o) {
+NewConstraint joint_trajectory(const Model& m, const std::string& joint, TimeFunctionPtr f, ConstraintOrigin o) {
   if (!f) throw Error("joint_trajectory: expected a time function, got none");
   return named(std::make_shared<JointTrajectory>(m.joint_index(joint), joint, std::move(f)), "q_" + joint, o);
 }
-ConstraintPtr joint_coupling(const Model& m, const std::string& joint, const std::string& leader, double ratio,
-                             double offset, ConstraintOrigin o) {
-  if (!std::isfinite(ratio) || !std::isfinite(offset))
+NewConstraint joint_coupling(const Model& m, const std::string& joint, const std::string& leader, Number ratio,
+                             Number offset, ConstraintOrigin o) {
+  if (!std::isfinite(ratio.value) || !std::isfinite(offset.value))
     throw Error(expected_got("joint_coupling ratio and offset", "finite numbers", fmt(ratio) + ", " + fmt(offset)));
   const int j = m.joint_index(joint), l = m.joint_index(leader);
   if (j == l) throw Error("joint_coupling: joint '" + joint + "' cannot be coupled to itself (hint: name another leader)");
   return named(std::make_shared<JointCoupling>(j, l, joint, leader, ratio, offset), joint + "_from_" + leader, o);
 }
-ConstraintPtr points_coincide(const Model& m, const std::string& p1, const std::string& p2, std::vector<int> axes,
+NewConstraint points_coincide(const Model& m, const std::string& p1, const std::string& p2, std::vector<int> axes,
                               ConstraintOrigin o) {
   if (axes.empty()) throw Error("points_coincide: expected at least one axis, got none");
   for (int a : axes) need_axis(a, "points_coincide axis");
@@ -394,11 +405,11 @@ ConstraintPtr points_coincide(const Model& m, const std::string& p1, const std::
   if (i1 == i2) throw Error("points_coincide: the two points are the same ('" + p1 + "')");
   return named(std::make_shared<PointsCoincide>(i1, i2, p1, p2, std::move(axes)), p1 + "_at_" + p2, o);
 }
-ConstraintPtr knife_edge(const Model& m, const std::string& point, const Vec3& a, ConstraintOrigin o) {
+NewConstraint knife_edge(const Model& m, const std::string& point, const Vec3& a, ConstraintOrigin o) {
   need_vec(a, "knife_edge lateral axis");
   return named(std::make_shared<KnifeEdge>(m.point_index(point), point, a), "no_slip_" + point, o);
 }
-ConstraintPtr point_speed(const Model& m, const std::string& point, const Vec3& u, TimeFunctionPtr s,
+NewConstraint point_speed(const Model& m, const std::string& point, const Vec3& u, TimeFunctionPtr s,
                           ConstraintOrigin o) {
   need_vec(u, "point_speed direction");
   if (!s) throw Error("point_speed: expected a speed function, got none");

@@ -292,7 +292,7 @@ class ExpressionTimeFunction final : public TimeFunction {
 
 }  // namespace
 
-ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                     ConstraintOrder order, const std::map<std::string, double>& parameters,
                                     ConstraintOrigin origin) {
   if (name.empty()) throw Error("expression_constraint: expected a name, got an empty one");
@@ -302,7 +302,7 @@ ConstraintPtr expression_constraint(const Model& model, const std::string& name,
   return c;
 }
 
-ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                     bool first_order, const std::map<std::string, double>& parameters,
                                     ConstraintOrigin origin) {
   return expression_constraint(model, name, text, first_order ? ConstraintOrder::Velocity : ConstraintOrder::Position,

@@ -72,7 +72,7 @@ class Sinusoid final : public TimeFunction {
 
 class RaisedCosine final : public TimeFunction {
  public:
-  RaisedCosine(double f0, double df, double T) : f0_(f0), df_(df), w_(kTwoPi / T), T_(T) {}
+  RaisedCosine(Number f0, Number df, Number T) : f0_(std::move(f0)), df_(std::move(df)), w_(kTwoPi / T), T_(std::move(T)) {}
   TimeValue eval(double t) const override {
     const double c = std::cos(w_ * t), s = std::sin(w_ * t);
     return {f0_ + df_ * (1 - c) / 2, df_ * w_ * s / 2, df_ * w_ * w_ * c / 2};
@@ -81,16 +81,21 @@ class RaisedCosine final : public TimeFunction {
     return fmt(f0_) + " + " + fmt(df_) + "*(1 - cos(2*pi*t/" + fmt(T_) + "))/2";
   }
   std::optional<SymbolicForm> symbolic() const override {
-    return symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(df_) + "*(1 - cos(2*pi*t/" + symbolic_number(T_) +
-                         "))/2"});
+    SymbolicForm f = symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(df_) + "*(1 - cos(2*pi*t/" +
+                                    symbolic_number(T_) + "))/2"});
+    f.scenario_texts = any_text(f0_, df_, T_);
+    return f;
   }
  private:
-  double f0_, df_, w_, T_;
+  Number f0_, df_;
+  double w_;
+  Number T_;
 };
 
 class Cycloidal final : public TimeFunction {
  public:
-  Cycloidal(double rise, double dur, double f0, double t0) : r_(rise), d_(dur), f0_(f0), t0_(t0) {}
+  Cycloidal(Number rise, Number dur, Number f0, Number t0)
+      : r_(std::move(rise)), d_(std::move(dur)), f0_(std::move(f0)), t0_(std::move(t0)) {}
   TimeValue eval(double t) const override {
     const double tau = (t - t0_) / d_;
     if (tau <= 0) return {f0_, 0, 0};
@@ -105,11 +110,13 @@ class Cycloidal final : public TimeFunction {
     // τ clamped to [0, 1]: constant before and after (clamp's derivatives are those of the
     // inside branch at the ends, where the rise has zero velocity and acceleration anyway)
     const std::string tau = "clamp((t - " + symbolic_number(t0_) + ")/" + symbolic_number(d_) + ", 0, 1)";
-    return symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(r_) + "*(" + tau + " - sin(2*pi*" + tau +
-                         ")/(2*pi))"});
+    SymbolicForm f = symbolic_rows({symbolic_number(f0_) + " + " + symbolic_number(r_) + "*(" + tau + " - sin(2*pi*" +
+                                    tau + ")/(2*pi))"});
+    f.scenario_texts = any_text(r_, d_, f0_, t0_);
+    return f;
   }
  private:
-  double r_, d_, f0_, t0_;
+  Number r_, d_, f0_, t0_;  // with the scenario's texts, for the symbolic form
 };
 }  // namespace
 
@@ -125,15 +132,15 @@ TimeFunctionPtr sinusoid(double a, double w, double p, double o) {
   for (double x : {a, w, p, o}) need_finite(x, "parameter", "sinusoid");
   return std::make_shared<Sinusoid>(a, w, p, o);
 }
-TimeFunctionPtr raised_cosine(double f0, double df, double T) {
+TimeFunctionPtr raised_cosine(Number f0, Number df, Number T) {
   for (double x : {f0, df, T}) need_finite(x, "parameter", "raised_cosine");
   if (!(T > 0)) throw Error(expected_got("raised_cosine period", "> 0", fmt(T)));
-  return std::make_shared<RaisedCosine>(f0, df, T);
+  return std::make_shared<RaisedCosine>(std::move(f0), std::move(df), std::move(T));
 }
-TimeFunctionPtr cycloidal(double rise, double dur, double f0, double t0) {
+TimeFunctionPtr cycloidal(Number rise, Number dur, Number f0, Number t0) {
   for (double x : {rise, dur, f0, t0}) need_finite(x, "parameter", "cycloidal");
   if (!(dur > 0)) throw Error(expected_got("cycloidal duration", "> 0", fmt(dur)));
-  return std::make_shared<Cycloidal>(rise, dur, f0, t0);
+  return std::make_shared<Cycloidal>(std::move(rise), std::move(dur), std::move(f0), std::move(t0));
 }
 
 }  // namespace refdyn

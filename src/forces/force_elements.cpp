@@ -15,7 +15,7 @@ void need(bool ok, const std::string& what, const std::string& expected, double 
 
 class JointDamping final : public ForceElement {
  public:
-  JointDamping(int j, std::string n, double b) : j_(j), n_(std::move(n)), b_(b) {}
+  JointDamping(int j, std::string n, Number b) : j_(j), n_(std::move(n)), b_(std::move(b)) {}
   std::string name() const override { return "damping(" + n_ + ")"; }
   void apply(double, const Eigen::VectorXd&, const Eigen::VectorXd& qd, const double*, Eigen::VectorXd& Q,
              double*, Eigen::MatrixXd* dQ) const override {
@@ -25,6 +25,7 @@ class JointDamping final : public ForceElement {
   std::optional<SymbolicForm> symbolic() const override {
     SymbolicForm f;
     f.rows = {"-" + symbolic_number(b_) + "*qd(" + n_ + ")"};
+    f.scenario_texts = any_text(b_);
     f.joints = {j_};
     return f;
   }
@@ -36,12 +37,12 @@ class JointDamping final : public ForceElement {
  private:
   int j_;
   std::string n_;
-  double b_;
+  Number b_;
 };
 
 class JointSpring final : public ForceElement {
  public:
-  JointSpring(int j, std::string n, double k, double r) : j_(j), n_(std::move(n)), k_(k), r_(r) {}
+  JointSpring(int j, std::string n, Number k, Number r) : j_(j), n_(std::move(n)), k_(std::move(k)), r_(std::move(r)) {}
   std::string name() const override { return "spring(" + n_ + ")"; }
   void apply(double, const Eigen::VectorXd& q, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
@@ -50,6 +51,7 @@ class JointSpring final : public ForceElement {
   std::optional<SymbolicForm> symbolic() const override {
     SymbolicForm f;
     f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
+    f.scenario_texts = any_text(k_, r_);
     f.joints = {j_};
     return f;
   }
@@ -61,7 +63,7 @@ class JointSpring final : public ForceElement {
  private:
   int j_;
   std::string n_;
-  double k_, r_;
+  Number k_, r_;
 };
 
 class JointEffort final : public ForceElement {
@@ -94,16 +96,16 @@ class JointEffort final : public ForceElement {
 
 }  // namespace
 
-ForceElementPtr joint_damping(const Model& model, const std::string& joint, double b) {
-  need(std::isfinite(b) && b >= 0, "damping coefficient of joint '" + joint + "'", "a finite value >= 0", b);
+NewForceElement joint_damping(const Model& model, const std::string& joint, Number b) {
+  need(std::isfinite(b.value) && b >= 0, "damping coefficient of joint '" + joint + "'", "a finite value >= 0", b);
   return std::make_shared<JointDamping>(model.joint_index(joint), joint, b);
 }
-ForceElementPtr joint_spring(const Model& model, const std::string& joint, double k, double q_rest) {
-  need(std::isfinite(k) && k >= 0, "spring stiffness of joint '" + joint + "'", "a finite value >= 0", k);
-  need(std::isfinite(q_rest), "spring rest position of joint '" + joint + "'", "a finite value", q_rest);
+NewForceElement joint_spring(const Model& model, const std::string& joint, Number k, Number q_rest) {
+  need(std::isfinite(k.value) && k >= 0, "spring stiffness of joint '" + joint + "'", "a finite value >= 0", k);
+  need(std::isfinite(q_rest.value), "spring rest position of joint '" + joint + "'", "a finite value", q_rest);
   return std::make_shared<JointSpring>(model.joint_index(joint), joint, k, q_rest);
 }
-ForceElementPtr joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f) {
+NewForceElement joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f) {
   if (!f) throw Error("joint_effort: expected a time function, got none");
   return std::make_shared<JointEffort>(model.joint_index(joint), joint, std::move(f));
 }
@@ -111,8 +113,8 @@ ForceElementPtr joint_effort(const Model& model, const std::string& joint, TimeF
 FlexibleDrive::FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p,
                              TimeFunctionPtr profile)
     : j_(model.joint_index(joint)), joint_name_(joint), p_(p), profile_(std::move(profile)) {
-  need(std::isfinite(p.stiffness) && p.stiffness >= 0, "flexible drive stiffness", "a finite value >= 0", p.stiffness);
-  need(std::isfinite(p.damping) && p.damping >= 0, "flexible drive damping", "a finite value >= 0", p.damping);
+  need(std::isfinite(p.stiffness.value) && p.stiffness >= 0, "flexible drive stiffness", "a finite value >= 0", p.stiffness);
+  need(std::isfinite(p.damping.value) && p.damping >= 0, "flexible drive damping", "a finite value >= 0", p.damping);
   if (!profile_) throw Error("flexible drive: expected a displacement profile, got none");
 }
 
@@ -148,12 +150,12 @@ void FlexibleDrive::apply(double t, const Eigen::VectorXd& q, const Eigen::Vecto
 LuGreFriction::LuGreFriction(const Model& model, const std::string& joint, LuGreParams p)
     : j_(model.joint_index(joint)), joint_name_(joint), p_(p) {
   const std::string w = "LuGre friction of joint '" + joint + "': ";
-  need(std::isfinite(p.mu_s) && p.mu_s > 0, w + "mu_s", "a finite value > 0", p.mu_s);
-  need(std::isfinite(p.mu_k) && p.mu_k > 0, w + "mu_k", "a finite value > 0", p.mu_k);
-  need(std::isfinite(p.sigma0) && p.sigma0 >= 0, w + "sigma0", "a finite value >= 0", p.sigma0);
-  need(std::isfinite(p.sigma1) && p.sigma1 >= 0, w + "sigma1", "a finite value >= 0", p.sigma1);
-  need(std::isfinite(p.sigma2) && p.sigma2 >= 0, w + "sigma2", "a finite value >= 0", p.sigma2);
-  need(std::isfinite(p.v_stribeck) && p.v_stribeck > 0, w + "Stribeck velocity", "a finite value > 0", p.v_stribeck);
+  need(std::isfinite(p.mu_s.value) && p.mu_s > 0, w + "mu_s", "a finite value > 0", p.mu_s);
+  need(std::isfinite(p.mu_k.value) && p.mu_k > 0, w + "mu_k", "a finite value > 0", p.mu_k);
+  need(std::isfinite(p.sigma0.value) && p.sigma0 >= 0, w + "sigma0", "a finite value >= 0", p.sigma0);
+  need(std::isfinite(p.sigma1.value) && p.sigma1 >= 0, w + "sigma1", "a finite value >= 0", p.sigma1);
+  need(std::isfinite(p.sigma2.value) && p.sigma2 >= 0, w + "sigma2", "a finite value >= 0", p.sigma2);
+  need(std::isfinite(p.v_stribeck.value) && p.v_stribeck > 0, w + "Stribeck velocity", "a finite value > 0", p.v_stribeck);
 }
 
 std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
@@ -162,6 +164,7 @@ std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
   f->functions = {{"psi_dr", f->rows[0]}};
   f->rows = {symbolic_number(p_.stiffness) + "*(psi_dr - q(" + joint_name_ + ")) + " + symbolic_number(p_.damping) +
              "*(d_psi_dr - qd(" + joint_name_ + "))"};
+  f->scenario_texts = f->scenario_texts || any_text(p_.stiffness, p_.damping);
   f->joints = {j_};
   return f;
 }
@@ -174,6 +177,7 @@ std::optional<SymbolicForm> LuGreFriction::symbolic() const {
   f.state_rates = {v + " - " + symbolic_number(p_.sigma0) + "*abs(" + v + ")*z(0)/" + g};
   f.rows = {"-(" + symbolic_number(p_.sigma0) + "*z(0) + " + symbolic_number(p_.sigma1) + "*zdot(0) + " +
             symbolic_number(p_.sigma2) + "*" + v + ")"};
+  f.scenario_texts = any_text(p_.mu_s, p_.mu_k, p_.sigma0, p_.sigma1, p_.sigma2, p_.v_stribeck);
   f.joints = {j_};
   return f;
 }

@@ -319,11 +319,10 @@ std::string read_text_file(const std::string& path, const std::string& what, std
   return text;
 }
 
-ScenarioSpec parse_scenario(const std::string& text, const std::string& source, std::size_t max_input_bytes) {
-  const SpecReader c(source, {});
-  if (text.size() > max_input_bytes)
-    throw Error(source + ": " + std::to_string(text.size()) + " bytes, more than the limit of " +
-                std::to_string(max_input_bytes) + " bytes");
+namespace {
+
+/// The text as one YAML document (syntax errors located, with a hint for tabs and open quotes).
+YAML::Node load_yaml(const SpecReader& c, const std::string& text, const std::string& source) {
   // Count the documents first (at most two: yaml-cpp's LoadAll loops for ever on some malformed
   // input, e.g. "\t,pap", producing empty documents), then load the first one.
   YAML::Node yroot;
@@ -357,17 +356,12 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     c.fail(SourceLocation{source, second_line}, "",
            "a second YAML document (after '---'): a scenario file holds exactly one; remove it or split the file");
   if (!yroot.IsMap()) throw Error(source + ": expected a YAML mapping at the top level (keys such as model:, constraints:)");
-  ScenarioSpec s;
-  s.file = source;
-  long budget = kMaxSpecValues;
-  s.root = to_spec(yroot, source, "", c, budget, text);
-  const SpecValue& root = s.root;
-  c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
-                    "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
-                    "experiments", "variants", "outputs", "limits"});
-  const Reader rd(c);
-  s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
+  return yroot;
+}
 
+/// parameters: and model: (a URDF model is read here, with its <mimic> couplings).
+void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::size_t max_input_bytes, ScenarioSpec& s) {
+  const std::string& source = s.file;
   if (const SpecValue& p = root["parameters"]) {
     if (!p.is_map()) c.fail(p, "parameters", "expected a mapping name: value");
     for (const auto& e : p.entries) s.parameters.emplace_back(e.key, e.value);
@@ -389,12 +383,10 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     }
     for (const auto& m : mimics) s.model.mimics.push_back({m.joint, m.leader, m.multiplier, m.offset});
   }
+}
 
-  s.constraints_value = root["constraints"];
-  s.constraints = rd.constraints(root["constraints"]);
-  s.forces = *rd.forces(root["forces"], "forces");
-  if (root["plant_forces"]) s.plant_forces = rd.forces(root["plant_forces"], "plant_forces");
-
+/// baumgarte:, solver:, paper_literal_forces:, partition:, initial: and integrator:.
+void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSpec& s) {
   if (const SpecValue& b = root["baumgarte"]) {
     c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order", "kappa"});
     s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b};
@@ -443,94 +435,130 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     o.residual_tolerance = in["residual_tolerance"];
     o.value = in;
   }
+}
+
+/// One entry of experiments:.
+ExperimentSpec read_experiment(const SpecReader& c, const Reader& rd, const SpecValue& ex, size_t i,
+                               const std::string& source) {
+  const SpecValue& e = ex[i];
+  ExperimentSpec x;
+  x.key = "experiments[" + std::to_string(i) + "]";
+  c.keys(e, x.key, {"name", "sweep", "grid", "monte_carlo", "initial", "plant_forces", "controller"});
+  x.value = e;
+  {  // at most one way of expanding an experiment into runs; the second one written is named
+    std::vector<const SpecValue::Entry*> given;
+    for (const auto& en : e.entries)
+      if (en.key == "sweep" || en.key == "grid" || en.key == "monte_carlo") given.push_back(&en);
+    if (given.size() > 1)
+      c.fail(SourceLocation{source, given[1]->key_line}, x.key + "." + given[1]->key,
+             "an experiment has at most one of sweep, grid and monte_carlo, got '" + given[0]->key + "' and '" +
+                 given[1]->key + "' (hint: put every parameter into one grid, or split it into two experiments)");
+  }
+  if (e["name"]) {
+    x.name = c.string(e["name"], x.key + ".name");
+    x.named = true;
+  }
+  if (const SpecValue& sw = e["sweep"]) {
+    if (!sw.is_map() || sw.size() != 1) c.fail(sw, x.key + ".sweep", "expected one entry  name: [values]");
+    x.sweep = sw;
+    x.sweep_parameter = sw.entries[0].key;
+    const SpecValue& vs = sw.entries[0].value;
+    if (!vs.is_list() || vs.size() == 0)
+      c.fail(vs, x.key + ".sweep." + x.sweep_parameter, "expected a non-empty list of values");
+    x.sweep_values = vs.items;
+  }
+  const auto given = [&](const std::string& k) {  // written, even with an empty value
+    return std::any_of(e.entries.begin(), e.entries.end(), [&](const auto& en) { return en.key == k; });
+  };
+  if (given("grid")) {
+    const SpecValue& g = e["grid"];
+    if (!g.is_map() || g.size() == 0)
+      c.fail(e.key_location("grid"), x.key + ".grid",
+             "expected a mapping  name: [values]  with at least one parameter, got " + g.describe());
+    for (const auto& en : g.entries) {
+      if (!en.value.is_list() || en.value.size() == 0)
+        c.fail(en.value.where.line ? en.value.where : SourceLocation{source, en.key_line}, x.key + ".grid." + en.key,
+               "expected a non-empty list of values, got " + en.value.describe());
+      x.grid.emplace_back(en.key, en.value.items);
+    }
+    x.grid_value = g;
+  }
+  if (given("monte_carlo")) {
+    if (!e["monte_carlo"].is_map())
+      c.fail(e.key_location("monte_carlo"), x.key + ".monte_carlo",
+             "expected a mapping with samples, seed and distributions, got " + e["monte_carlo"].describe());
+    x.monte_carlo = monte_carlo(c, e["monte_carlo"], x.key + ".monte_carlo");
+  }
+  if (const SpecValue& in = e["initial"]) {
+    c.keys(in, x.key + ".initial", {"q", "qd"});
+    x.initial_q = in["q"];
+    x.initial_qd = in["qd"];
+  }
+  if (e["plant_forces"]) x.plant_forces = rd.forces(e["plant_forces"], x.key + ".plant_forces");
+  if (const SpecValue& ct = e["controller"]) x.controller = rd.controller(ct, x.key + ".controller");
+  return x;
+}
+
+/// variants: (a sweep or a grid of parameters).
+VariantsSpec read_variants(const SpecReader& c, const SpecValue& va) {
+  VariantsSpec v;
+  v.value = va;
+  c.keys(va, "variants", {"name", "sweep", "grid"});
+  if (va["name"]) {
+    v.name = c.string(va["name"], "variants.name");
+    v.named = true;
+  }
+  const SpecValue& sw = va["sweep"];
+  const SpecValue& gr = va["grid"];
+  if (sw && gr) c.fail(gr, "variants.grid", "give one of sweep and grid (sweep: one parameter; grid: several)");
+  if (!sw && !gr) c.fail(va, "variants", "expected sweep: {parameter: [values]} or grid: {p1: [values], p2: [values]}");
+  const SpecValue& g = sw ? sw : gr;
+  const std::string gkey = sw ? "variants.sweep" : "variants.grid";
+  if (!g.is_map() || g.size() == 0 || (sw && g.size() != 1))
+    c.fail(g, gkey, sw ? "expected one entry  parameter: [values]" : "expected parameter: [values] entries");
+  for (const auto& e : g.entries) {
+    if (!e.value.is_list() || e.value.size() == 0) c.fail(e.value, gkey + "." + e.key, "expected a non-empty list of values");
+    v.grid.emplace_back(e.key, e.value.items);
+  }
+  return v;
+}
+
+}  // namespace
+
+ScenarioSpec parse_scenario(const std::string& text, const std::string& source, std::size_t max_input_bytes) {
+  const SpecReader c(source, {});
+  if (text.size() > max_input_bytes)
+    throw Error(source + ": " + std::to_string(text.size()) + " bytes, more than the limit of " +
+                std::to_string(max_input_bytes) + " bytes");
+  const YAML::Node yroot = load_yaml(c, text, source);
+  ScenarioSpec s;
+  s.file = source;
+  long budget = kMaxSpecValues;
+  s.root = to_spec(yroot, source, "", c, budget, text);
+  const SpecValue& root = s.root;
+  c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
+                    "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
+                    "experiments", "variants", "outputs", "limits"});
+  const Reader rd(c);
+  s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
+
+  read_parameters_and_model(c, root, max_input_bytes, s);
+
+  s.constraints_value = root["constraints"];
+  s.constraints = rd.constraints(root["constraints"]);
+  s.forces = *rd.forces(root["forces"], "forces");
+  if (root["plant_forces"]) s.plant_forces = rd.forces(root["plant_forces"], "plant_forces");
+
+  read_solver_sections(c, root, s);
 
   if (const SpecValue& ct = root["controller"]) s.controller = rd.controller(ct, "controller");
   s.effort_limit = root["effort_limit"];
   s.experiments_value = root["experiments"];
   if (const SpecValue& ex = root["experiments"]) {
     if (!ex.is_list()) c.fail(ex, "experiments", "expected a list of experiments");
-    for (size_t i = 0; i < ex.size(); ++i) {
-      const SpecValue& e = ex[i];
-      ExperimentSpec x;
-      x.key = "experiments[" + std::to_string(i) + "]";
-      c.keys(e, x.key, {"name", "sweep", "grid", "monte_carlo", "initial", "plant_forces", "controller"});
-      x.value = e;
-      {  // at most one way of expanding an experiment into runs; the second one written is named
-        std::vector<const SpecValue::Entry*> given;
-        for (const auto& en : e.entries)
-          if (en.key == "sweep" || en.key == "grid" || en.key == "monte_carlo") given.push_back(&en);
-        if (given.size() > 1)
-          c.fail(SourceLocation{source, given[1]->key_line}, x.key + "." + given[1]->key,
-                 "an experiment has at most one of sweep, grid and monte_carlo, got '" + given[0]->key + "' and '" +
-                     given[1]->key + "' (hint: put every parameter into one grid, or split it into two experiments)");
-      }
-      if (e["name"]) {
-        x.name = c.string(e["name"], x.key + ".name");
-        x.named = true;
-      }
-      if (const SpecValue& sw = e["sweep"]) {
-        if (!sw.is_map() || sw.size() != 1) c.fail(sw, x.key + ".sweep", "expected one entry  name: [values]");
-        x.sweep = sw;
-        x.sweep_parameter = sw.entries[0].key;
-        const SpecValue& vs = sw.entries[0].value;
-        if (!vs.is_list() || vs.size() == 0)
-          c.fail(vs, x.key + ".sweep." + x.sweep_parameter, "expected a non-empty list of values");
-        x.sweep_values = vs.items;
-      }
-      const auto given = [&](const std::string& k) {  // written, even with an empty value
-        return std::any_of(e.entries.begin(), e.entries.end(), [&](const auto& en) { return en.key == k; });
-      };
-      if (given("grid")) {
-        const SpecValue& g = e["grid"];
-        if (!g.is_map() || g.size() == 0)
-          c.fail(e.key_location("grid"), x.key + ".grid",
-                 "expected a mapping  name: [values]  with at least one parameter, got " + g.describe());
-        for (const auto& en : g.entries) {
-          if (!en.value.is_list() || en.value.size() == 0)
-            c.fail(en.value.where.line ? en.value.where : SourceLocation{source, en.key_line}, x.key + ".grid." + en.key,
-                   "expected a non-empty list of values, got " + en.value.describe());
-          x.grid.emplace_back(en.key, en.value.items);
-        }
-        x.grid_value = g;
-      }
-      if (given("monte_carlo")) {
-        if (!e["monte_carlo"].is_map())
-          c.fail(e.key_location("monte_carlo"), x.key + ".monte_carlo",
-                 "expected a mapping with samples, seed and distributions, got " + e["monte_carlo"].describe());
-        x.monte_carlo = monte_carlo(c, e["monte_carlo"], x.key + ".monte_carlo");
-      }
-      if (const SpecValue& in = e["initial"]) {
-        c.keys(in, x.key + ".initial", {"q", "qd"});
-        x.initial_q = in["q"];
-        x.initial_qd = in["qd"];
-      }
-      if (e["plant_forces"]) x.plant_forces = rd.forces(e["plant_forces"], x.key + ".plant_forces");
-      if (const SpecValue& ct = e["controller"]) x.controller = rd.controller(ct, x.key + ".controller");
-      s.experiments.push_back(std::move(x));
-    }
+    for (size_t i = 0; i < ex.size(); ++i) s.experiments.push_back(read_experiment(c, rd, ex, i, source));
   }
-  if (const SpecValue& va = root["variants"]) {
-    VariantsSpec v;
-    v.value = va;
-    c.keys(va, "variants", {"name", "sweep", "grid"});
-    if (va["name"]) {
-      v.name = c.string(va["name"], "variants.name");
-      v.named = true;
-    }
-    const SpecValue& sw = va["sweep"];
-    const SpecValue& gr = va["grid"];
-    if (sw && gr) c.fail(gr, "variants.grid", "give one of sweep and grid (sweep: one parameter; grid: several)");
-    if (!sw && !gr) c.fail(va, "variants", "expected sweep: {parameter: [values]} or grid: {p1: [values], p2: [values]}");
-    const SpecValue& g = sw ? sw : gr;
-    const std::string gkey = sw ? "variants.sweep" : "variants.grid";
-    if (!g.is_map() || g.size() == 0 || (sw && g.size() != 1))
-      c.fail(g, gkey, sw ? "expected one entry  parameter: [values]" : "expected parameter: [values] entries");
-    for (const auto& e : g.entries) {
-      if (!e.value.is_list() || e.value.size() == 0) c.fail(e.value, gkey + "." + e.key, "expected a non-empty list of values");
-      v.grid.emplace_back(e.key, e.value.items);
-    }
-    s.variants = std::move(v);
-  }
+  if (const SpecValue& va = root["variants"]) s.variants = read_variants(c, va);
   if (const SpecValue& lim = root["limits"]) {
     c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});
     s.limits = lim;

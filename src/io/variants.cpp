@@ -76,8 +76,8 @@ ScenarioSpec variant_spec(const ScenarioSpec& spec, const Variant& v) {
   for (const auto& nv : v.values) {
     auto it = std::find_if(s.parameters.begin(), s.parameters.end(), [&](const auto& p) { return p.first == nv.first; });
     if (it == s.parameters.end()) throw Error("variant '" + v.name + "': no parameter '" + nv.first + "' to set");
-    // The shortest text that reads back as the same double (fmt round-trips).
-    it->second = SpecValue::scalar(fmt(nv.second), it->second.where);
+    // The number itself; the text (fmt: the shortest that reads back as the same double) for messages.
+    s.parameter_values[nv.first] = Quantity{nv.second, fmt(nv.second), it->second.where, true};
   }
   return s;
 }

@@ -41,10 +41,10 @@ PaperExample::PaperExample(const PaperExampleParams& p) : params(p), model(build
     height = expression_constraint(model, "height", "z(E) - (z0 + dz*(1 - cos(2*pi*t/Tz))/2)", false,
                                    {{"z0", z0}, {"dz", p.z_amplitude}, {"Tz", p.z_period}});
   } else {
-    auto e = point_on_surface(model, "E", elliptic_cylinder(p.ellipse_a, p.ellipse_b));
-    std::const_pointer_cast<Constraint>(e)->name = "ellipse";
-    auto h = point_coordinate(model, "E", 2, z_a);
-    std::const_pointer_cast<Constraint>(h)->name = "height";
+    NewConstraint e = point_on_surface(model, "E", elliptic_cylinder(p.ellipse_a, p.ellipse_b));
+    e->name = "ellipse";
+    NewConstraint h = point_coordinate(model, "E", 2, z_a);
+    h->name = "height";
     ellipse = e;
     height = h;
   }

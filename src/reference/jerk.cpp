@@ -379,7 +379,7 @@ class JerkRow final : public Constraint {
 };
 }  // namespace
 
-ConstraintPtr jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                          const std::map<std::string, double>& parameters, ConstraintOrigin origin) {
   if (name.empty()) throw Error("jerk_expression_constraint: expected a name, got an empty one");
   auto c = std::make_shared<JerkRow>(std::make_shared<JerkConstraint>(model, name, text, parameters));

@@ -79,8 +79,68 @@ JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::st
   return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
 }
 
+/// The numbers of a model node (already checked by read_model) as Quantities.
+struct ModelNumberReader {
+  const SpecReader& c;
+  ModelNumbers::Vec vec(const SpecValue& n, const std::string& k) const {
+    return {c.quantity(n[0], k + "[0]"), c.quantity(n[1], k + "[1]"), c.quantity(n[2], k + "[2]")};
+  }
+  std::optional<Quantity> opt(const SpecValue& parent, const char* f, const std::string& k) const {
+    if (!parent[f]) return std::nullopt;
+    return c.quantity(parent[f], k + "." + f);
+  }
+  std::optional<ModelNumbers::Vec> opt_vec(const SpecValue& parent, const char* f, const std::string& k) const {
+    if (!parent[f]) return std::nullopt;
+    return vec(parent[f], k + "." + f);
+  }
+  ModelNumbers::Pose pose(const SpecValue& n, const std::string& k) const {
+    return {opt_vec(n, "xyz", k), opt_vec(n, "rpy", k)};
+  }
+  /// mass, com and inertia of a link.
+  void inertia(const SpecValue& l, const std::string& k, ModelNumbers::Link& out) const {
+    out.mass = opt(l, "mass", k);
+    out.com = opt_vec(l, "com", k);
+    if (const SpecValue& I = l["inertia"]) {
+      const std::string ik = k + ".inertia";
+      out.inertia_matrix = I.size() == 3 && I[0].is_list();
+      if (out.inertia_matrix) {
+        for (int r = 0; r < 3; ++r)
+          for (const Quantity& x : vec(I[r], ik + "[" + std::to_string(r) + "]")) out.inertia.push_back(x);
+      } else {
+        for (size_t i = 0; i < I.size(); ++i) out.inertia.push_back(c.quantity(I[i], ik + "[" + std::to_string(i) + "]"));
+      }
+    }
+  }
+};
+
+/// model.points: name: {link, position} (a point named like an existing one replaces it).
+void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecValue& ps, ModelDescription& d,
+                 std::optional<ModelNumbers>& numbers) {
+  if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
+  for (const auto& kv : ps.entries) {
+    const std::string& name = kv.key;
+    const std::string k = "model.points." + name;
+    c.keys(kv.value, k, {"link", "position"});
+    const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
+    Vec3 pos = Vec3::Zero();
+    if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
+    bool known = link == "world" || link == "base";
+    std::vector<std::string> names;
+    for (const auto& l : d.links) {
+      names.push_back(l.name);
+      known = known || l.name == link;
+    }
+    if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
+    // A point named like an existing one (e.g. URDF link points) replaces it.
+    std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
+    d.add_point(name, link, pos);
+    if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
+  }
+}
+
 ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
-                            std::map<std::string, int>& link_lines) {
+                            std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers) {
+  const ModelNumberReader nr{c};
   const std::string key = "model";
   c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
   const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
@@ -95,6 +155,9 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
     std::vector<DHRow> rows;
     std::vector<std::string> link_names;
+    numbers.emplace();
+    numbers->dh = true;
+    numbers->standard = conv == DHConvention::Standard;
     for (size_t i = 0; i < js.size(); ++i) {
       const SpecValue& j = js[i];
       const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
@@ -110,6 +173,16 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       r.limits = read_limits(c, j["limits"], k + ".limits");
       rows.push_back(r);
       link_names.push_back(j["link"] ? c.string(j["link"], k + ".link") : r.name);
+      ModelNumbers::Link L;
+      L.name = link_names.back();
+      L.parent = static_cast<int>(i) - 1;
+      L.type = r.type;
+      L.theta = nr.opt(j, "theta", k);
+      L.d = nr.opt(j, "d", k);
+      L.a = nr.opt(j, "a", k);
+      L.alpha = nr.opt(j, "alpha", k);
+      nr.inertia(j, k, L);
+      numbers->links.push_back(std::move(L));
       link_lines[link_names.back()] = j.where.line;
     }
     d = from_dh(rows, conv);
@@ -120,6 +193,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   } else if (const SpecValue& ls = m["links"]) {
     if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
     std::map<std::string, int> index;
+    numbers.emplace();
     for (size_t i = 0; i < ls.size(); ++i) {
       const SpecValue& l = ls[i];
       const std::string k = "model.links[" + std::to_string(i) + "]";
@@ -147,6 +221,15 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       s.offset = c.number_or(l, "offset", k, 0.0);
       s.inertia = read_inertia(c, l, k);
       s.limits = read_limits(c, l["limits"], k + ".limits");
+      ModelNumbers::Link L;
+      L.name = s.name;
+      L.parent = s.parent;
+      L.type = s.type;
+      L.origin = l["origin"] ? nr.pose(l["origin"], k + ".origin") : ModelNumbers::Pose{};
+      L.link_offset = l["link_offset"] ? nr.pose(l["link_offset"], k + ".link_offset") : ModelNumbers::Pose{};
+      L.offset = nr.opt(l, "offset", k);
+      nr.inertia(l, k, L);
+      numbers->links.push_back(std::move(L));
       index[s.name] = static_cast<int>(d.links.size());
       link_lines[s.name] = l.where.line;
       d.add_link(s);
@@ -158,27 +241,8 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   if (m["name"]) d.name = c.string(m["name"], "model.name");
   if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
   if (m["base"]) d.base = c.pose(m["base"], "model.base");
-  if (const SpecValue& ps = m["points"]) {
-    if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
-    for (const auto& kv : ps.entries) {
-      const std::string& name = kv.key;
-      const std::string k = "model.points." + name;
-      c.keys(kv.value, k, {"link", "position"});
-      const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
-      Vec3 pos = Vec3::Zero();
-      if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
-      bool known = link == "world" || link == "base";
-      std::vector<std::string> names;
-      for (const auto& l : d.links) {
-        names.push_back(l.name);
-        known = known || l.name == link;
-      }
-      if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
-      // A point named like an existing one (e.g. URDF link points) replaces it.
-      std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
-      d.add_point(name, link, pos);
-    }
-  }
+  if (numbers && m["base"]) numbers->base = nr.pose(m["base"], "model.base");
+  if (const SpecValue& ps = m["points"]) read_points(c, nr, ps, d, numbers);
   return d;
 }
 
@@ -265,20 +329,11 @@ auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec
 /// on different joints: psi_dr_j1, psi_dr_j2; a single unnamed drive keeps psi_dr). Names that
 /// still coincide are an error.
 void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out) {
-  std::vector<ForceElementPtr> built;
+  std::vector<NewForceElement> built;  // labelled here, then published to `out`
   for (const EntrySpec& e : entries) {
-    std::vector<std::pair<double, std::string>> recorded;
-    c.recorder = &recorded;
-    ForceElementPtr f;
-    try {
-      f = build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
-    } catch (...) {
-      c.recorder = nullptr;
-      throw;
-    }
-    c.recorder = nullptr;
-    std::const_pointer_cast<ForceElement>(f)->label = e.name;
-    std::const_pointer_cast<ForceElement>(f)->symbolic_inputs = {std::move(recorded), c.params};
+    NewForceElement f =
+        build_entry(c, force_kinds(), e, "type", [&](const ForceKind& k) { return k.build(EntryArgs{c, e, m}); });
+    f->label = e.name;
     built.push_back(std::move(f));
   }
   std::map<std::string, int> uses;
@@ -289,7 +344,7 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
     if (!entries[i].name.empty() || !joint.is_scalar() || joint.text.empty()) continue;
     for (const auto& s : built[i]->signal_names())
       if (uses[s] > 1) {
-        std::const_pointer_cast<ForceElement>(built[i])->label = joint.text;
+        built[i]->label = joint.text;
         break;
       }
   }
@@ -488,17 +543,20 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
   for (const auto& [name, value] : spec.parameters) {
     if (name == "pi" || name == "e" || name == "deg" || name == "t")
       c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
-    c.params[name] = c.number(value, "parameters." + name);
+    const auto set = spec.parameter_values.find(name);
+    c.params[name] = set != spec.parameter_values.end() ? set->second.value : c.number(value, "parameters." + name);
   }
   return c;
 }
 
-std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
-  const std::string& source = spec.file;
-  SpecReader c = parameter_reader(spec);
+namespace {
 
+/// model: the Problem with its model, names and parameters (every name checked).
+std::unique_ptr<Problem> build_model_section(const SpecReader& c, const ScenarioSpec& spec) {
+  const std::string& source = spec.file;
   std::map<std::string, int> link_lines;
-  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines);
+  std::optional<ModelNumbers> numbers;
+  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines, numbers);
   if (!spec.model.value["name"]) description.name = spec.name;
   std::unique_ptr<Problem> s;
   try {
@@ -529,19 +587,24 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       }
   }
   s->parameters = c.params;
-  s->model_spec = spec.model.value;
+  s->model_numbers = std::move(numbers);
   const Model& m = s->model;
   if (m.nv == 0)
     c.fail(spec.model.value, "model",
            "the model has no moving joint: nothing to plan (every joint is 'fixed'; give at least one the type "
            "revolute or prismatic)");
+  return s;
+}
 
+/// constraints: (URDF <mimic> couplings first) and forces, each named before it is published.
+void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   // URDF <mimic> joints: material couplings, before the file's own constraints.
   for (const MimicSpec& mm : spec.model.mimics) {
     try {
-      ConstraintPtr con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
-      std::const_pointer_cast<Constraint>(con)->name = "mimic_" + mm.joint;
-      s->constraints.add(con);
+      NewConstraint con = joint_coupling(m, mm.joint, mm.leader, mm.multiplier, mm.offset, ConstraintOrigin::Material);
+      con->name = "mimic_" + mm.joint;
+      s.constraints.add(con);
     } catch (const Error& e) {
       c.fail(spec.model.value["urdf"], "model.urdf", e.what());
     }
@@ -552,52 +615,45 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (e.fields["origin"])
       origin = c.choice(e.fields["origin"], e.key + ".origin", {"material", "programmed"}) == "material"
                    ? ConstraintOrigin::Material : ConstraintOrigin::Programmed;
-    std::vector<std::pair<double, std::string>> recorded;
-    c.recorder = &recorded;
-    ConstraintPtr con;
-    try {
-      con = build_entry(c, constraint_kinds(), e, "kind",
-                        [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
-    } catch (...) {
-      c.recorder = nullptr;
-      throw;
-    }
-    c.recorder = nullptr;
+    NewConstraint con = build_entry(c, constraint_kinds(), e, "kind",
+                                    [&](const ConstraintKind& k) { return k.build(EntryArgs{c, e, m}, origin); });
     check_name(c, e.fields["name"], e.key + ".name", e.name);
-    auto mut = std::const_pointer_cast<Constraint>(con);
-    mut->name = e.name;
-    mut->symbolic_inputs = {std::move(recorded), c.params};
+    con->name = e.name;
     if (e.fields["record"]) {
-      mut->record_as = c.string(e.fields["record"], e.key + ".record");
+      con->record_as = c.string(e.fields["record"], e.key + ".record");
       if (!con->target()) c.fail(e.fields["record"], e.key + ".record", "this constraint prescribes no function of time to record");
     }
     try {
-      s->constraints.add(con);
+      s.constraints.add(con);
     } catch (const Error& err) {
       c.fail(e.fields, e.key, err.what());
     }
   }
-  read_forces(c, spec.forces, m, s->forces);
+  read_forces(c, spec.forces, m, s.forces);
+}
 
+/// Jerk-level problems: only jerk rows, force elements with a rate, no experiments.
+void check_jerk_scope(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   // Jerk-level constraints (order: jerk, p = 3): planned by JerkDynamics, which supports only
   // jerk rows and no force elements (their time derivatives are not provided).
   {
-    const int nmimic = s->constraints.size() - static_cast<int>(spec.constraints.size());
-    for (int k = 0; k < s->constraints.size(); ++k)
-      if (JerkConstraintPtr j = jerk_constraint_of(*s->constraints.constraints()[k])) s->jerk_constraints.push_back(j);
-    if (s->is_jerk_problem()) {
-      for (int k = 0; k < s->constraints.size(); ++k) {
-        if (s->constraints.constraints()[k]->order() == 3) continue;
+    const int nmimic = s.constraints.size() - static_cast<int>(spec.constraints.size());
+    for (int k = 0; k < s.constraints.size(); ++k)
+      if (JerkConstraintPtr j = jerk_constraint_of(*s.constraints.constraints()[k])) s.jerk_constraints.push_back(j);
+    if (s.is_jerk_problem()) {
+      for (int k = 0; k < s.constraints.size(); ++k) {
+        if (s.constraints.constraints()[k]->order() == 3) continue;
         const SpecValue& at = k < nmimic ? spec.model.value : spec.constraints[k - nmimic].fields;
         c.fail(at, k < nmimic ? "model.urdf" : spec.constraints[k - nmimic].key,
-               "constraint '" + s->constraints.constraints()[k]->name +
+               "constraint '" + s.constraints.constraints()[k]->name +
                    "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
                    "contain only jerk rows (docs/higher_order.md)");
       }
       const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
       Eigen::VectorXd rate = zero;
       for (size_t k = 0; k < spec.forces.size(); ++k) {
-        const ForceElement& f = *s->forces.elements()[k];
+        const ForceElement& f = *s.forces.elements()[k];
         if (f.num_states() > 0 || !f.add_rate(0.0, zero, zero, zero, rate))
           c.fail(spec.forces[k].fields, spec.forces[k].key,
                  "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
@@ -610,32 +666,36 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
         c.fail(spec.experiments_value, "experiments",
                "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
       // The jerk plan reports the dynamics residual and is not cut at a tolerance (JerkPlanner).
-      s->residual_tolerance = std::numeric_limits<double>::infinity();
+      s.residual_tolerance = std::numeric_limits<double>::infinity();
     }
   }
+}
 
+/// baumgarte, solver and partition: the reference-dynamics options.
+void build_reference_options(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   {
     const BaumgarteSpec& b = spec.baumgarte;
-    if (b.alpha) s->options.alpha = c.number(b.alpha, "baumgarte.alpha");
-    if (b.beta) s->options.beta = c.number(b.beta, "baumgarte.beta");
-    if (b.beta_first_order) s->options.beta_first_order = c.number(b.beta_first_order, "baumgarte.beta_first_order");
+    if (b.alpha) s.options.alpha = c.number(b.alpha, "baumgarte.alpha");
+    if (b.beta) s.options.beta = c.number(b.beta, "baumgarte.beta");
+    if (b.beta_first_order) s.options.beta_first_order = c.number(b.beta_first_order, "baumgarte.beta_first_order");
     try {
-      s->options.validate();
+      s.options.validate();
     } catch (const Error& e) {
       c.fail(b.value, "baumgarte", e.what());
     }
   }
-  s->options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange
-                      : spec.solver == "auto"   ? automatic_reference_solver(m.nq, s->constraints.rows())
+  s.options.solver = spec.solver == "lagrange" ? ReferenceSolver::Lagrange
+                      : spec.solver == "auto"   ? automatic_reference_solver(m.nq, s.constraints.rows())
                                                 : ReferenceSolver::Projection;
-  s->options.paper_literal_forces = spec.paper_literal_forces;
+  s.options.paper_literal_forces = spec.paper_literal_forces;
 
-  const int nrows = s->constraints.rows();
+  const int nrows = s.constraints.rows();
   if (nrows > m.nq)
     c.fail(spec.constraints_value, "constraints",
            "expected at most " + std::to_string(m.nq) + " constraint rows (one per coordinate), got " + std::to_string(nrows));
   const PartitionSpec& part = spec.partition;
-  s->automatic_independent = part.automatic;
+  s.automatic_independent = part.automatic;
   if (!part.automatic) {
     const SpecValue& ind = part.independent_value;
     if (static_cast<int>(part.independent.size()) != m.nq - nrows)
@@ -646,47 +706,54 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     for (size_t i = 0; i < part.independent.size(); ++i) {
       const std::string& j = part.independent[i];
       c.joint(ind[i], "partition.independent", m);
-      if (std::find(s->options.independent.begin(), s->options.independent.end(), j) != s->options.independent.end())
+      if (std::find(s.options.independent.begin(), s.options.independent.end(), j) != s.options.independent.end())
         c.fail(ind[i], "partition.independent", "joint '" + j + "' is listed twice");
-      s->options.independent.push_back(j);
+      s.options.independent.push_back(j);
     }
   }
-  if (part.automatic_switch) s->options.automatic_partition = c.boolean(part.automatic_switch, "partition.automatic_switch");
+  if (part.automatic_switch) s.options.automatic_partition = c.boolean(part.automatic_switch, "partition.automatic_switch");
   if (part.max_condition) {
-    s->options.max_condition = c.number(part.max_condition, "partition.max_condition");
-    if (!(s->options.max_condition > 1)) c.fail(part.max_condition, "partition.max_condition", "expected a value > 1");
+    s.options.max_condition = c.number(part.max_condition, "partition.max_condition");
+    if (!(s.options.max_condition > 1)) c.fail(part.max_condition, "partition.max_condition", "expected a value > 1");
   }
+}
 
+/// initial: q0, q̇0 (and q̈0, κ for jerk problems).
+void build_initial(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   const InitialSpec& ini = spec.initial;
-  s->q0 = c.joint_vector(c.need(ini.value, "q", "initial"), "initial.q", m, true, 0.0);
-  s->qd0 = ini.qd ? c.joint_vector(ini.qd, "initial.qd", m, false, 0.0) : Eigen::VectorXd::Zero(m.nq);
-  s->project_initial = ini.project;
+  s.q0 = c.joint_vector(c.need(ini.value, "q", "initial"), "initial.q", m, true, 0.0);
+  s.qd0 = ini.qd ? c.joint_vector(ini.qd, "initial.qd", m, false, 0.0) : Eigen::VectorXd::Zero(m.nq);
+  s.project_initial = ini.project;
   if (ini.tolerance) {
-    s->initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
-    if (!(s->initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
+    s.initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
+    if (!(s.initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
   }
   if (ini.qdd) {
-    if (!s->is_jerk_problem())
+    if (!s.is_jerk_problem())
       c.fail(ini.qdd, "initial.qdd",
              "an initial acceleration is part of the state only in problems with jerk constraints (order: jerk); "
              "elsewhere q̈0 follows from the dynamics (remove it)");
-    s->qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+    s.qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
   }
   if (const SpecValue& k = spec.baumgarte.kappa) {
-    if (!s->is_jerk_problem())
+    if (!s.is_jerk_problem())
       c.fail(k, "baumgarte.kappa", "kappa is the gain of problems with jerk constraints (order: jerk); remove it");
-    s->kappa = c.number(k, "baumgarte.kappa");
-    if (!(std::isfinite(s->kappa) && s->kappa >= 0))
-      c.fail(k, "baumgarte.kappa", "expected a finite value >= 0 [1/s], got " + fmt(s->kappa));
+    s.kappa = c.number(k, "baumgarte.kappa");
+    if (!(std::isfinite(s.kappa) && s.kappa >= 0))
+      c.fail(k, "baumgarte.kappa", "expected a finite value >= 0 [1/s], got " + fmt(s.kappa));
   }
-  if (s->is_jerk_problem()) {  // no partition: JerkDynamics solves a KKT system
-    s->options.independent.clear();
-    s->automatic_independent = false;
+  if (s.is_jerk_problem()) {  // no partition: JerkDynamics solves a KKT system
+    s.options.independent.clear();
+    s.automatic_independent = false;
   }
+}
 
+/// integrator: method, span, step, tolerances, the residual window.
+void build_integrator(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   {
     const IntegratorSpec& in = spec.integrator;
-    IntegratorOptions& o = s->integrator;
+    IntegratorOptions& o = s.integrator;
     o.method = in.method == "dopri5" ? IntegratorMethod::DormandPrince45 : IntegratorMethod::RK4;
     if (in.step) o.step = c.number(in.step, "integrator.step");
     if (in.t0) o.t0 = c.number(in.t0, "integrator.t0");
@@ -695,20 +762,20 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     if (in.atol) o.atol = c.number(in.atol, "integrator.atol");
     if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
     o.min_step = in.min_step ? c.number(in.min_step, "integrator.min_step") : std::min(o.min_step, 0.5 * o.step);
-    if (in.residual_from) s->residual_from = c.number(in.residual_from, "integrator.residual_from");
+    if (in.residual_from) s.residual_from = c.number(in.residual_from, "integrator.residual_from");
     if (in.residual_tolerance) {
       const SpecValue& rt = in.residual_tolerance;
-      if (s->is_jerk_problem())
+      if (s.is_jerk_problem())
         c.fail(rt, "integrator.residual_tolerance",
                "not for problems with jerk constraints (order: jerk): their plan's residual is that of the dynamics "
                "and is not checked against a tolerance (docs/higher_order.md); remove it");
       if (rt.is_scalar() && (rt.text == "none" || rt.text == "off")) {
-        s->residual_tolerance = std::numeric_limits<double>::infinity();
+        s.residual_tolerance = std::numeric_limits<double>::infinity();
       } else {
-        s->residual_tolerance = c.number(rt, "integrator.residual_tolerance");
-        if (!(s->residual_tolerance > 0))
+        s.residual_tolerance = c.number(rt, "integrator.residual_tolerance");
+        if (!(s.residual_tolerance > 0))
           c.fail(rt, "integrator.residual_tolerance",
-                 "expected a tolerance > 0 (or 'none' for no check), got " + fmt(s->residual_tolerance));
+                 "expected a tolerance > 0 (or 'none' for no check), got " + fmt(s.residual_tolerance));
       }
     }
     try {
@@ -723,10 +790,13 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
              "the step " + fmt(o.step) + " s is longer than the time span t1 - t0 = " + fmt(o.t1 - o.t0) +
                  " s (hint: a step of a few milliseconds; the default is 1e-3)");
   }
+}
 
+/// limits: steps and samples of a run, number of runs, checked before any work.
+void build_limits(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   // Limits, before any work: steps and samples of a run, number of runs.
   {
-    Limits& lim = s->limits;
+    Limits& lim = s.limits;
     auto count = [&](const char* k, long& v) {
       if (const SpecValue& n = spec.limits[k]) {
         const double x = c.number(n, std::string("limits.") + k);
@@ -743,7 +813,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       c.fail(spec.limits["max_runs"], "limits.max_runs",
              "at most " + std::to_string(kMaxRunsCeiling) + " runs per scenario, got " + std::to_string(lim.max_runs) +
                  " (hint: split the study into several scenarios, e.g. Monte Carlo with other seeds)");
-    IntegratorOptions& o = s->integrator;
+    IntegratorOptions& o = s.integrator;
     const double span = o.t1 - o.t0;
     const SpecValue& at = spec.integrator.value ? spec.integrator.value : spec.root;
     double samples;
@@ -781,17 +851,25 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
                  ", more than limits.max_runs = " + std::to_string(lim.max_runs) +
                  " (hint: fewer sweep or grid values or samples, or raise limits.max_runs)");
   }
+}
 
+/// The initial state at t0: consistent with the constraints (projected when asked), the
+/// partition chosen, every row finite and independent.
+void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
+  const int nrows = s.constraints.rows();
+  const PartitionSpec& part = spec.partition;
+  const InitialSpec& ini = spec.initial;
   // Initial consistency and partition at t0.
-  s->initial_dq = Eigen::VectorXd::Zero(m.nq);
-  s->initial_dqd = Eigen::VectorXd::Zero(m.nq);
-  if (s->is_jerk_problem()) {
+  s.initial_dq = Eigen::VectorXd::Zero(m.nq);
+  s.initial_dqd = Eigen::VectorXd::Zero(m.nq);
+  if (s.is_jerk_problem()) {
     // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
     // the jerk-level system once at t0: every row regular and finite.
-    const double t0 = s->integrator.t0;
-    JerkDynamics jd(m, s->jerk_constraints, JerkDynamicsOptions{s->kappa}, &s->forces);
+    const double t0 = s.integrator.t0;
+    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa}, &s.forces);
     try {
-      const Eigen::VectorXd x0 = jd.initial_state(t0, s->q0, s->qd0, s->qdd0.size() ? &s->qdd0 : nullptr);
+      const Eigen::VectorXd x0 = jd.initial_state(t0, s.q0, s.qd0, s.qdd0.size() ? &s.qdd0 : nullptr);
       Eigen::VectorXd dx(x0.size());
       jd.derivative(t0, x0, dx);
       if (!dx.allFinite()) throw NumericalFailure(t0, "the jerk-level equations are not finite at t0 = " + fmt(t0) + " s");
@@ -799,7 +877,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
         if (jd.B().row(r).norm() == 0) {
           const EntrySpec& e = spec.constraints[r];
           c.fail(e.fields, e.key,
-                 "jerk constraint row '" + s->constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
+                 "jerk constraint row '" + s.constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
                      " s (B = d/dqddd of the expression is zero there)");
         }
     } catch (const NumericalFailure& e) {
@@ -810,30 +888,30 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       c.fail(spec.constraints_value, "constraints", std::string("at t0: ") + w);
     }
   } else {
-    ReferenceDynamics rd(m, s->forces, s->constraints, s->options);
-    const double t0 = s->integrator.t0;
+    ReferenceDynamics rd(m, s.forces, s.constraints, s.options);
+    const double t0 = s.integrator.t0;
     const SpecValue& where_part = part.value ? part.value : spec.root;
-    check_at_t0(c, spec, *s);
+    check_at_t0(c, spec, s);
     try {
-      if (s->automatic_independent) {
-        rd.choose_partition(t0, s->q0, s->qd0);
-        s->options.independent.clear();
-        for (int i : rd.independent()) s->options.independent.push_back(m.joint_name[i]);
+      if (s.automatic_independent) {
+        rd.choose_partition(t0, s.q0, s.qd0);
+        s.options.independent.clear();
+        for (int i : rd.independent()) s.options.independent.push_back(m.joint_name[i]);
       }
     } catch (const NumericalFailure& e) {
       c.fail(where_part, "partition", e.what());
     }
-    if (s->project_initial) {
-      const auto cons = rd.make_consistent(t0, s->q0, s->qd0, 1e-12);
+    if (s.project_initial) {
+      const auto cons = rd.make_consistent(t0, s.q0, s.qd0, 1e-12);
       if (!cons.converged)
         c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
                                          fmt(cons.residual_after) + "); start closer to a consistent configuration");
-      s->q0 = cons.q;
-      s->qd0 = cons.qd;
-      s->initial_dq = cons.dq;
-      s->initial_dqd = cons.dqd;
+      s.q0 = cons.q;
+      s.qd0 = cons.qd;
+      s.initial_dq = cons.dq;
+      s.initial_dqd = cons.dqd;
     }
-    Eigen::VectorXd x = rd.make_state(s->q0, s->qd0), dx(x.size());
+    Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
     try {
       rd.residual(t0, x);  // with acceleration rows this solves the dynamics once
     } catch (const NumericalFailure& e) {
@@ -842,13 +920,13 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     const ConstraintEval& ev = rd.constraints();
     for (int row = 0; row < nrows; ++row) {
       const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
-      if (!(v <= s->initial_tolerance))
+      if (!(v <= s.initial_tolerance))
         c.fail(ini.value, "initial",
-               "the initial state violates constraint '" + s->constraints.row_name(row) + "' by " + fmt(v) +
-                   " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s->initial_tolerance) +
+               "the initial state violates constraint '" + s.constraints.row_name(row) + "' by " + fmt(v) +
+                   " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s.initial_tolerance) +
                    " (hint: set initial.consistency: project, or correct q/qd)");
     }
-    if (s->options.solver == ReferenceSolver::Projection && nrows > 0) {
+    if (s.options.solver == ReferenceSolver::Projection && nrows > 0) {
       try {
         rd.derivative(t0, x, dx);
       } catch (const NumericalFailure& e) {
@@ -856,7 +934,159 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
       }
     }
   }
+}
 
+/// Tracking: controller, effort limit and the experiments, expanded into runs.
+/// One parameter of an experiment: a sweep's, one of a grid's, or a Monte Carlo distribution.
+struct ExperimentAxis {
+  std::string name, key;
+  const SpecValue* at;
+  std::vector<double> values;  // sweep, grid
+  bool normal = false;         // Monte Carlo: normal(a = mean, b = std) or uniform(a = low, b = high)
+  double a = 0, b = 0;
+};
+
+/// The experiment's own parameters, checked and read (values, distributions; `seed` for Monte Carlo).
+std::vector<ExperimentAxis> experiment_axes(const SpecReader& c, const ExperimentSpec& e, std::uint64_t& seed) {
+  const std::string& k = e.key;
+  std::vector<ExperimentAxis> axes;
+  std::string what = "sweep";
+  if (!e.sweep_parameter.empty()) axes.push_back({e.sweep_parameter, k + ".sweep." + e.sweep_parameter, &e.sweep, {}});
+  for (const auto& [name, values] : e.grid) {
+    what = "grid";
+    axes.push_back({name, k + ".grid." + name, &e.grid_value[name], {}});
+  }
+  if (e.monte_carlo)
+    for (const DistributionSpec& d : e.monte_carlo->distributions) {
+      what = "Monte Carlo";
+      axes.push_back({d.parameter, k + ".monte_carlo.distributions." + d.parameter, &d.value, {}});
+    }
+  for (const ExperimentAxis& a : axes) {
+    if (c.params.count(a.name) || a.name == "pi" || a.name == "e" || a.name == "t")
+      c.fail(*a.at, a.key,
+             "the " + what + " parameter '" + a.name + "' has the name of a parameter (or a constant); choose another name");
+    if (e.monte_carlo && a.name == "sample")
+      c.fail(*a.at, a.key, "'sample' is reserved in a Monte Carlo experiment ({sample} in the name is the sample index); "
+                           "choose another name");
+  }
+  if (!e.sweep_parameter.empty())
+    for (const SpecValue& v : e.sweep_values) axes[0].values.push_back(c.number(v, axes[0].key));
+  for (size_t i = 0; i < e.grid.size(); ++i)
+    for (const SpecValue& v : e.grid[i].second) axes[i].values.push_back(c.number(v, axes[i].key));
+  if (e.monte_carlo) {
+    seed = read_seed(c, e.monte_carlo->seed, k + ".monte_carlo.seed");
+    for (size_t i = 0; i < axes.size(); ++i) {
+      const DistributionSpec& d = e.monte_carlo->distributions[i];
+      const std::string dk = axes[i].key + "." + d.kind;
+      ExperimentAxis& a = axes[i];
+      a.normal = d.kind == "normal";
+      a.a = c.number(d.a, dk + (a.normal ? ".mean" : ".low"));
+      a.b = c.number(d.b, dk + (a.normal ? ".std" : ".high"));
+      if (a.normal && !(a.b >= 0))
+        c.fail(d.b, dk + ".std", "expected a standard deviation >= 0, got " + fmt(a.b));
+      if (!a.normal && !(a.a <= a.b))
+        c.fail(d.value[d.kind], dk, "expected low <= high, got low = " + fmt(a.a) + " > high = " + fmt(a.b));
+      if (!a.normal && !std::isfinite(a.b - a.a))
+        c.fail(d.value[d.kind], dk, "high - low = " + fmt(a.b - a.a) + " is not a finite number");
+    }
+  }
+  return axes;
+}
+
+/// One entry of `experiments:` expanded into its runs (Problem::experiments).
+void build_experiment(const SpecReader& c, const ScenarioSpec& spec, const ExperimentSpec& e,
+                      const ControllerFactory& top_controller, const std::string& top_type,
+                      std::set<std::string>& experiment_names, Problem& s) {
+  const Model& m = s.model;
+  const std::string& k = e.key;
+  if (!spec.controller && !e.controller)
+    c.fail(e.value, "controller",
+           "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
+  // The experiment's own parameters, in the order written: the sweep's, the grid's (first
+  // slowest) or the Monte Carlo distributions (drawn per sample in this order).
+  std::uint64_t seed = 0;
+  std::vector<ExperimentAxis> axes = experiment_axes(c, e, seed);
+  std::mt19937_64 generator;
+  if (e.monte_carlo) generator.seed(seed);
+  // Counted and checked against limits.max_runs above.
+  const long runs = static_cast<long>(experiment_runs(c, e));
+  const size_t width = std::to_string(runs - 1).size();
+  const auto padded = [width](long i) {
+    const std::string d = std::to_string(i);
+    return std::string(width - std::min(width, d.size()), '0') + d;
+  };
+  const std::string index = k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
+  std::string available;  // the placeholders this experiment's names may use
+  for (const ExperimentAxis& a : axes) available += (available.empty() ? "{" : ", {") + a.name + "}";
+  if (e.monte_carlo) available += ", {sample}";
+  const std::string placeholders = e.monte_carlo ? "{sample}" : available.empty() ? "{param}" : available;
+  std::vector<double> values(axes.size());
+  for (long run = 0; run < runs; ++run) {
+    if (e.monte_carlo) {
+      for (size_t i = 0; i < axes.size(); ++i) {
+        const ExperimentAxis& a = axes[i];
+        values[i] = a.normal ? add_product(a.a, a.b, standard_normal(generator))
+                             : add_product(a.a, a.b - a.a, uniform01(generator));
+        if (!std::isfinite(values[i]))
+          c.fail(*a.at, a.key, "sample " + std::to_string(run) + " drew " + fmt(values[i]) + ", not a finite number");
+      }
+    } else {
+      long rest = run;  // row-major: the last parameter varies fastest
+      for (size_t i = axes.size(); i-- > 0;) {
+        const long n = static_cast<long>(axes[i].values.size());
+        values[i] = axes[i].values[rest % n];
+        rest /= n;
+      }
+    }
+    SpecReader ce = c;  // the run's parameters are visible in its values
+    auto exp = std::make_unique<Experiment>();
+    std::string name = e.named ? e.name : runs == 1 ? "run" + index : "run" + index + "_" + padded(run);
+    for (size_t i = 0; i < axes.size(); ++i) {
+      ce.params[axes[i].name] = values[i];
+      exp->sweep.emplace_back(axes[i].name, values[i]);
+      if (e.named) name = substitute(name, axes[i].name, values[i]);
+    }
+    if (e.monte_carlo) {
+      exp->sample = run;
+      exp->seed = seed;
+      if (e.named)
+        for (size_t pos; (pos = name.find("{sample}")) != std::string::npos;) name.replace(pos, 8, padded(run));
+    }
+    if (const size_t open = name.find('{'); open != std::string::npos && name.find('}', open) != std::string::npos)
+      c.fail(e.value["name"], k + ".name",
+             "the name has the placeholder '" + name.substr(open, name.find('}', open) - open + 1) +
+                 "', which is not a parameter of this experiment (" +
+                 (available.empty() ? std::string("it has none") : "it has " + available) + ")");
+    exp->name = std::move(name);
+    check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
+    if (!experiment_names.insert(exp->name).second)
+      c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
+             "duplicate experiment name '" + exp->name + "' (use " + placeholders + " in the name)");
+    exp->q0 = s.q0;
+    exp->qd0 = Eigen::VectorXd::Zero(m.nq);
+    if (e.initial_q) {
+      const Eigen::VectorXd given = ce.joint_vector(e.initial_q, k + ".initial.q", m, false, std::nan(""));
+      for (int j = 0; j < m.nq; ++j)
+        if (!std::isnan(given[j])) exp->q0[j] = given[j];
+    }
+    if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
+    if (e.plant_forces)
+      read_forces(ce, *e.plant_forces, m, exp->plant_forces);
+    else if (spec.plant_forces)
+      read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
+    if (e.controller) {
+      exp->make_controller = read_controller(ce, *e.controller, m);
+      exp->controller_type = e.controller->kind;
+    } else {
+      exp->make_controller = top_controller;
+      exp->controller_type = top_type;
+    }
+    s.experiments.push_back(std::move(exp));
+  }
+}
+
+void build_experiments(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
   // its sweep parameter).
   ControllerFactory top_controller;
@@ -866,152 +1096,41 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     top_type = spec.controller->kind;
   }
   if (spec.effort_limit) {
-    s->effort_limit = c.joint_vector(spec.effort_limit, "effort_limit", m, false, std::numeric_limits<double>::infinity());
+    s.effort_limit = c.joint_vector(spec.effort_limit, "effort_limit", m, false, std::numeric_limits<double>::infinity());
     for (int i = 0; i < m.nq; ++i)
-      if (!(s->effort_limit[i] >= 0))
+      if (!(s.effort_limit[i] >= 0))
         c.fail(spec.effort_limit, "effort_limit." + m.joint_name[i],
-               "expected a limit >= 0 [N m or N], got " + fmt(s->effort_limit[i]));
+               "expected a limit >= 0 [N m or N], got " + fmt(s.effort_limit[i]));
   }
   std::set<std::string> experiment_names;
-  for (const ExperimentSpec& e : spec.experiments) {
-    const std::string& k = e.key;
-    if (!spec.controller && !e.controller)
-      c.fail(e.value, "controller",
-             "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
-    // The experiment's own parameters, in the order written: the sweep's, the grid's (first
-    // slowest) or the Monte Carlo distributions (drawn per sample in this order).
-    struct Axis {
-      std::string name, key;
-      const SpecValue* at;
-      std::vector<double> values;  // sweep, grid
-      bool normal = false;         // Monte Carlo: normal(a = mean, b = std) or uniform(a = low, b = high)
-      double a = 0, b = 0;
-    };
-    std::vector<Axis> axes;
-    std::string what = "sweep";
-    if (!e.sweep_parameter.empty()) axes.push_back({e.sweep_parameter, k + ".sweep." + e.sweep_parameter, &e.sweep, {}});
-    for (const auto& [name, values] : e.grid) {
-      what = "grid";
-      axes.push_back({name, k + ".grid." + name, &e.grid_value[name], {}});
-    }
-    if (e.monte_carlo)
-      for (const DistributionSpec& d : e.monte_carlo->distributions) {
-        what = "Monte Carlo";
-        axes.push_back({d.parameter, k + ".monte_carlo.distributions." + d.parameter, &d.value, {}});
-      }
-    for (const Axis& a : axes) {
-      if (c.params.count(a.name) || a.name == "pi" || a.name == "e" || a.name == "t")
-        c.fail(*a.at, a.key,
-               "the " + what + " parameter '" + a.name + "' has the name of a parameter (or a constant); choose another name");
-      if (e.monte_carlo && a.name == "sample")
-        c.fail(*a.at, a.key, "'sample' is reserved in a Monte Carlo experiment ({sample} in the name is the sample index); "
-                             "choose another name");
-    }
-    if (!e.sweep_parameter.empty())
-      for (const SpecValue& v : e.sweep_values) axes[0].values.push_back(c.number(v, axes[0].key));
-    for (size_t i = 0; i < e.grid.size(); ++i)
-      for (const SpecValue& v : e.grid[i].second) axes[i].values.push_back(c.number(v, axes[i].key));
-    std::mt19937_64 generator;
-    std::uint64_t seed = 0;
-    if (e.monte_carlo) {
-      seed = read_seed(c, e.monte_carlo->seed, k + ".monte_carlo.seed");
-      generator.seed(seed);
-      for (size_t i = 0; i < axes.size(); ++i) {
-        const DistributionSpec& d = e.monte_carlo->distributions[i];
-        const std::string dk = axes[i].key + "." + d.kind;
-        Axis& a = axes[i];
-        a.normal = d.kind == "normal";
-        a.a = c.number(d.a, dk + (a.normal ? ".mean" : ".low"));
-        a.b = c.number(d.b, dk + (a.normal ? ".std" : ".high"));
-        if (a.normal && !(a.b >= 0))
-          c.fail(d.b, dk + ".std", "expected a standard deviation >= 0, got " + fmt(a.b));
-        if (!a.normal && !(a.a <= a.b))
-          c.fail(d.value[d.kind], dk, "expected low <= high, got low = " + fmt(a.a) + " > high = " + fmt(a.b));
-        if (!a.normal && !std::isfinite(a.b - a.a))
-          c.fail(d.value[d.kind], dk, "high - low = " + fmt(a.b - a.a) + " is not a finite number");
-      }
-    }
-    // Counted and checked against limits.max_runs above.
-    const long runs = static_cast<long>(experiment_runs(c, e));
-    const size_t width = std::to_string(runs - 1).size();
-    const auto padded = [width](long i) {
-      const std::string d = std::to_string(i);
-      return std::string(width - std::min(width, d.size()), '0') + d;
-    };
-    const std::string index = k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
-    std::string available;  // the placeholders this experiment's names may use
-    for (const Axis& a : axes) available += (available.empty() ? "{" : ", {") + a.name + "}";
-    if (e.monte_carlo) available += ", {sample}";
-    const std::string placeholders = e.monte_carlo ? "{sample}" : available.empty() ? "{param}" : available;
-    std::vector<double> values(axes.size());
-    for (long run = 0; run < runs; ++run) {
-      if (e.monte_carlo) {
-        for (size_t i = 0; i < axes.size(); ++i) {
-          const Axis& a = axes[i];
-          values[i] = a.normal ? add_product(a.a, a.b, standard_normal(generator))
-                               : add_product(a.a, a.b - a.a, uniform01(generator));
-          if (!std::isfinite(values[i]))
-            c.fail(*a.at, a.key, "sample " + std::to_string(run) + " drew " + fmt(values[i]) + ", not a finite number");
-        }
-      } else {
-        long rest = run;  // row-major: the last parameter varies fastest
-        for (size_t i = axes.size(); i-- > 0;) {
-          const long n = static_cast<long>(axes[i].values.size());
-          values[i] = axes[i].values[rest % n];
-          rest /= n;
-        }
-      }
-      SpecReader ce = c;  // the run's parameters are visible in its values
-      auto exp = std::make_unique<Experiment>();
-      std::string name = e.named ? e.name : runs == 1 ? "run" + index : "run" + index + "_" + padded(run);
-      for (size_t i = 0; i < axes.size(); ++i) {
-        ce.params[axes[i].name] = values[i];
-        exp->sweep.emplace_back(axes[i].name, values[i]);
-        if (e.named) name = substitute(name, axes[i].name, values[i]);
-      }
-      if (e.monte_carlo) {
-        exp->sample = run;
-        exp->seed = seed;
-        if (e.named)
-          for (size_t pos; (pos = name.find("{sample}")) != std::string::npos;) name.replace(pos, 8, padded(run));
-      }
-      if (const size_t open = name.find('{'); open != std::string::npos && name.find('}', open) != std::string::npos)
-        c.fail(e.value["name"], k + ".name",
-               "the name has the placeholder '" + name.substr(open, name.find('}', open) - open + 1) +
-                   "', which is not a parameter of this experiment (" +
-                   (available.empty() ? std::string("it has none") : "it has " + available) + ")");
-      exp->name = std::move(name);
-      check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
-      if (!experiment_names.insert(exp->name).second)
-          c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
-                 "duplicate experiment name '" + exp->name + "' (use " + placeholders + " in the name)");
-      exp->q0 = s->q0;
-      exp->qd0 = Eigen::VectorXd::Zero(m.nq);
-      if (e.initial_q) {
-        const Eigen::VectorXd given = ce.joint_vector(e.initial_q, k + ".initial.q", m, false, std::nan(""));
-        for (int j = 0; j < m.nq; ++j)
-          if (!std::isnan(given[j])) exp->q0[j] = given[j];
-      }
-      if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
-      if (e.plant_forces)
-        read_forces(ce, *e.plant_forces, m, exp->plant_forces);
-      else if (spec.plant_forces)
-        read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
-      if (e.controller) {
-        exp->make_controller = read_controller(ce, *e.controller, m);
-        exp->controller_type = e.controller->kind;
-      } else {
-        exp->make_controller = top_controller;
-        exp->controller_type = top_type;
-      }
-      s->experiments.push_back(std::move(exp));
-    }
-  }
+  for (const ExperimentSpec& e : spec.experiments)
+    build_experiment(c, spec, e, top_controller, top_type, experiment_names, s);
+}
+
+/// outputs: the points recorded in trajectories.
+void build_outputs(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
   if (spec.output_points) {
-    for (const SpecValue& p : *spec.output_points) s->report_points.push_back(c.point(p, "outputs.points", m));
+    for (const SpecValue& p : *spec.output_points) s.report_points.push_back(c.point(p, "outputs.points", m));
   } else {
-    s->report_points = m.point_name;
+    s.report_points = m.point_name;
   }
+}
+
+}  // namespace
+
+std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
+  const SpecReader c = parameter_reader(spec);
+  std::unique_ptr<Problem> s = build_model_section(c, spec);
+  build_constraints_and_forces(c, spec, *s);
+  check_jerk_scope(c, spec, *s);
+  build_reference_options(c, spec, *s);
+  build_initial(c, spec, *s);
+  build_integrator(c, spec, *s);
+  build_limits(c, spec, *s);
+  check_initial_state(c, spec, *s);
+  build_experiments(c, spec, *s);
+  build_outputs(c, spec, *s);
   return s;
 }
 

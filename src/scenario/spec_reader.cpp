@@ -51,7 +51,7 @@ const SpecValue& SpecReader::need(const SpecValue& parent, const std::string& k,
   return n;
 }
 
-double SpecReader::number(const SpecValue& n, const std::string& key, const std::map<std::string, double>* extra) const {
+Quantity SpecReader::quantity(const SpecValue& n, const std::string& key, const std::map<std::string, double>* extra) const {
   if (!n.is_scalar()) fail(n, key, "expected a number or an expression, got " + n.describe());
   const std::string& s = n.text;
   double v = 0;
@@ -60,7 +60,7 @@ double SpecReader::number(const SpecValue& n, const std::string& key, const std:
   const auto r = std::from_chars(b, e, v);
   if (r.ec == std::errc() && r.ptr == e) {
     if (!std::isfinite(v)) fail(n, key, "expected a finite number, got " + s);
-    return v;
+    return Quantity{v, s, n.where, true};
   }
   {  // YAML's special floats: .nan, .inf, -.inf (any case)
     std::string low;
@@ -83,8 +83,14 @@ double SpecReader::number(const SpecValue& n, const std::string& key, const std:
     fail(n, key, std::string("expected a number or an expression of the parameters: ") + err.what());
   }
   if (!std::isfinite(v)) fail(n, key, "the expression '" + s + "' is not a finite number");
-  if (recorder && !extra) recorder->emplace_back(v, s);
-  return v;
+  return Quantity{v, s, n.where, false};
+}
+
+Number3 SpecReader::numbers3(const SpecValue& n, const std::string& key) const {
+  vec3(n, key);  // the checks and messages of vec3
+  Number3 out;
+  for (int k = 0; k < 3; ++k) out[k] = quantity(n[k], key + "[" + std::to_string(k) + "]").number();
+  return out;
 }
 
 double SpecReader::number_or(const SpecValue& parent, const std::string& k, const std::string& key, double dflt) const {
@@ -200,18 +206,19 @@ TimeFunctionPtr SpecReader::function(const SpecValue& n, const std::string& key)
     if (const SpecValue& cy = n["cycloidal"]) {
       const std::string k = key + ".cycloidal";
       keys(cy, k, {"rise", "duration", "from", "start"});
-      const double rise = number(need(cy, "rise", k), k + ".rise");
-      const double dur = number(need(cy, "duration", k), k + ".duration");
+      const Number rise = quantity(need(cy, "rise", k), k + ".rise").number();
+      const Number dur = quantity(need(cy, "duration", k), k + ".duration").number();
       if (!(dur > 0)) fail(cy["duration"], k + ".duration", "expected a duration > 0 [s], got " + fmt(dur));
-      return cycloidal(rise, dur, number_or(cy, "from", k, 0.0), number_or(cy, "start", k, 0.0));
+      const auto optional = [&](const char* f) { return cy[f] ? quantity(cy[f], k + "." + f).number() : Number(0.0); };
+      return cycloidal(rise, dur, optional("from"), optional("start"));
     }
     const SpecValue& rc = n["raised_cosine"];
     const std::string k = key + ".raised_cosine";
     keys(rc, k, {"base", "amplitude", "period"});
-    const double period = number(need(rc, "period", k), k + ".period");
+    const Number period = quantity(need(rc, "period", k), k + ".period").number();
     if (!(period > 0)) fail(rc["period"], k + ".period", "expected a period > 0 [s], got " + fmt(period));
-    return raised_cosine(number(need(rc, "base", k), k + ".base"), number(need(rc, "amplitude", k), k + ".amplitude"),
-                         period);
+    const Number amplitude = quantity(need(rc, "amplitude", k), k + ".amplitude").number();
+    return raised_cosine(quantity(need(rc, "base", k), k + ".base").number(), amplitude, period);
   }
   fail(n, key,
        "expected a number, an expression in t, {cycloidal: {rise, duration}} or {raised_cosine: {base, amplitude, "
@@ -220,9 +227,14 @@ TimeFunctionPtr SpecReader::function(const SpecValue& n, const std::string& key)
 
 // ---- EntryArgs ----
 
-double EntryArgs::number(const std::string& k) const { return reader.number(reader.need(entry.fields, k, entry.key), key(k)); }
-double EntryArgs::number_or(const std::string& k, double dflt) const {
-  return has(k) ? reader.number(value(k), key(k)) : dflt;
+Number EntryArgs::number(const std::string& k) const {
+  return reader.quantity(reader.need(entry.fields, k, entry.key), key(k)).number();
+}
+Number EntryArgs::number_or(const std::string& k, double dflt) const {
+  return has(k) ? reader.quantity(value(k), key(k)).number() : Number(dflt);
+}
+Number3 EntryArgs::numbers3(const std::string& k) const {
+  return reader.numbers3(reader.need(entry.fields, k, entry.key), key(k));
 }
 std::string EntryArgs::text(const std::string& k) const { return reader.string(reader.need(entry.fields, k, entry.key), key(k)); }
 std::string EntryArgs::joint(const std::string& k) const {

@@ -115,11 +115,121 @@ class Binder {
   std::vector<ex> values_;
 };
 
+/// A form's parameters with the scenario's added (the form's own win) when its texts contain
+/// scenario texts of numbers (Number, from the reader's Quantity), which name them.
+std::optional<SymbolicForm> with_scenario_parameters(std::optional<SymbolicForm> form, const Problem& problem) {
+  if (form && form->scenario_texts)
+    for (const auto& [name, v] : problem.parameters) form->parameters.emplace(name, v);
+  return form;
+}
+
 std::string identifier(const std::string& s) {
   std::string r;
   for (char ch : s) r += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
   if (r.empty() || std::isdigit(static_cast<unsigned char>(r[0]))) r = "m" + r;
   return r;
+}
+
+/// The constraints: Φ (or c), Φ̇, A, γ by differentiation of each constraint's symbolic form.
+void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Impl& S, Binder& B) {
+  const Model& model = problem.model;
+  const int n = model.nq;
+  const ConstraintSet& cs = problem.constraints;
+  S.phi.assign(S.m, 0);
+  S.phid.assign(S.m, 0);
+  S.gamma.assign(S.m, 0);
+  S.A.assign(static_cast<size_t>(S.m) * n, 0);
+  for (int k = 0; k < cs.size(); ++k) {
+    const Constraint& c = *cs.constraints()[k];
+    const std::string where = "generate: constraint '" + c.name + "'";
+    if (c.order() >= 3)
+      throw Error(where + " is of order jerk: the generated equations cover position, velocity and acceleration "
+                  "constraints (docs/generate.md)");
+    std::optional<SymbolicForm> form = with_scenario_parameters(c.symbolic(), problem);
+    if (!form)
+      throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
+    if (static_cast<int>(form->rows.size()) != c.rows())
+      throw Error(where + ": its symbolic form has " + std::to_string(form->rows.size()) + " rows, expected " +
+                  std::to_string(c.rows()));
+    for (int r = 0; r < c.rows(); ++r) {
+      const int row = cs.row_offset(k) + r;
+      const ex f = B.parse(form->rows[r], form->parameters, where);
+      S.row_names.push_back(cs.row_name(row));
+      S.row_origin.push_back(to_string(c.origin));
+      S.row_order.push_back(static_cast<char>(c.order()));
+      S.phi[row] = f;
+      for (int i = 0; i < n; ++i)
+        if (c.order() < 2 && f.has(S.qdd[i]))
+          throw Error(where + ": a position or velocity constraint depends on the acceleration of " + model.joint_name[i]);
+      if (c.order() == 2) {
+        // B q̈ + s = 0, linear in q̈ (checked by the kind): A = B = ∂f/∂q̈, γ = s = f at q̈ = 0,
+        // imposed exactly (A q̈ = −γ, no stabilisation); Φ and Φ̇ are reported as 0, as the engine does.
+        GiNaC::exmap zero;
+        for (int i = 0; i < n; ++i) zero[S.qdd[i]] = 0;
+        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qdd[i]);
+        S.gamma[row] = f.subs(zero, GiNaC::subs_options::no_pattern);
+        S.phi[row] = 0;
+        S.phid[row] = 0;
+      } else if (!c.first_order()) {
+        for (int i = 0; i < n; ++i)
+          if (f.has(S.qd[i]))
+            throw Error(where + ": a position constraint depends on the velocity " + model.joint_name[i]);
+        ex fd = f.diff(S.t);
+        for (int i = 0; i < n; ++i) {
+          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.q[i]);
+          fd += S.A[static_cast<size_t>(row) * n + i] * S.qd[i];
+        }
+        ex g = fd.diff(S.t);
+        for (int i = 0; i < n; ++i) g += fd.diff(S.q[i]) * S.qd[i];
+        S.phid[row] = fd;
+        S.gamma[row] = g;
+      } else {
+        ex g = f.diff(S.t);
+        for (int i = 0; i < n; ++i) {
+          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qd[i]);
+          g += f.diff(S.q[i]) * S.qd[i];
+        }
+        S.phid[row] = f;
+        S.gamma[row] = g;
+      }
+    }
+  }
+}
+
+/// The force elements: Q and ż from each element's symbolic form.
+void generate_forces(const Problem& problem, SymbolicReferenceDynamics::Impl& S, Binder& B) {
+  const int n = problem.model.nq;
+  S.Q.assign(n, 0);
+  S.zdot.assign(S.nz, 0);
+  for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
+    const ForceElement& e = *problem.forces.elements()[k];
+    const std::string where = "generate: force element " + e.name();
+    std::optional<SymbolicForm> form = with_scenario_parameters(e.symbolic(), problem);
+    if (!form) throw Error(where + " has no symbolic form");
+    const int off = problem.forces.state_offset(static_cast<int>(k));
+    if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())
+      throw Error(where + ": inconsistent symbolic form");
+    std::size_t bound = 0;
+    for (int s = 0; s < e.num_states(); ++s, ++bound) B.bind("z(" + std::to_string(s) + ")", S.z[off + s]);
+    for (const auto& [fname, text] : form->functions) {
+      const ex f = B.parse(text, form->parameters, where + ": function " + fname);
+      B.bind(fname, f);
+      B.bind("d_" + fname, f.diff(S.t));
+      bound += 2;
+    }
+    std::vector<ex> rates;
+    for (int s = 0; s < e.num_states(); ++s) rates.push_back(B.parse(form->state_rates[s], form->parameters, where));
+    for (int s = 0; s < e.num_states(); ++s, ++bound) {
+      S.zdot[off + s] = rates[s];
+      B.bind("zdot(" + std::to_string(s) + ")", rates[s]);
+    }
+    for (size_t r = 0; r < form->rows.size(); ++r) {
+      const int j = form->joints[r];
+      if (j < 0 || j >= n) throw Error(where + ": joint index out of range");
+      S.Q[j] += B.parse(form->rows[r], form->parameters, where);
+    }
+    B.pop(bound);
+  }
 }
 
 }  // namespace
@@ -170,8 +280,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
 
   // --- the model: as the scenario wrote it (parameters stay symbols), else the compiled numbers ---
   symbolic_detail::SymbolicBodies bodies;
-  if (problem.model_spec && !problem.model_spec["urdf"]) {
-    bodies = symbolic_detail::bodies_from_spec(model, problem.model_spec, [&](const SpecValue& v) {
+  if (problem.model_numbers) {
+    bodies = symbolic_detail::bodies_from_numbers(model, *problem.model_numbers, [&](const Quantity& v) {
       return B.parse(v.text, problem.parameters, "generate: " + v.where.file + ":" + std::to_string(v.where.line));
     });
   } else {
@@ -206,102 +316,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
       for (int c = 0; c < 3; ++c) B.bind("R" + std::to_string(a + 1) + std::to_string(c + 1) + "(" + P + ")", R[3 * a + c]);
   }
 
-  // --- constraints: Φ (or c), Φ̇, A, γ by differentiation ---
-  const ConstraintSet& cs = problem.constraints;
-  S.phi.assign(S.m, 0);
-  S.phid.assign(S.m, 0);
-  S.gamma.assign(S.m, 0);
-  S.A.assign(static_cast<size_t>(S.m) * n, 0);
-  for (int k = 0; k < cs.size(); ++k) {
-    const Constraint& c = *cs.constraints()[k];
-    const std::string where = "generate: constraint '" + c.name + "'";
-    if (c.order() >= 3)
-      throw Error(where + " is of order jerk: the generated equations cover position, velocity and acceleration "
-                  "constraints (docs/generate.md)");
-    std::optional<SymbolicForm> form = c.symbolic();
-    if (form) c.symbolic_inputs.apply(*form);
-    if (!form)
-      throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
-    if (static_cast<int>(form->rows.size()) != c.rows())
-      throw Error(where + ": its symbolic form has " + std::to_string(form->rows.size()) + " rows, expected " +
-                  std::to_string(c.rows()));
-    for (int r = 0; r < c.rows(); ++r) {
-      const int row = cs.row_offset(k) + r;
-      const ex f = B.parse(form->rows[r], form->parameters, where);
-      S.row_names.push_back(cs.row_name(row));
-      S.row_origin.push_back(to_string(c.origin));
-      S.row_order.push_back(static_cast<char>(c.order()));
-      S.phi[row] = f;
-      for (int i = 0; i < n; ++i)
-        if (c.order() < 2 && f.has(S.qdd[i]))
-          throw Error(where + ": a position or velocity constraint depends on the acceleration of " + model.joint_name[i]);
-      if (c.order() == 2) {
-        // B q̈ + s = 0, linear in q̈ (checked by the kind): A = B = ∂f/∂q̈, γ = s = f at q̈ = 0,
-        // imposed exactly (A q̈ = −γ, no stabilisation); Φ and Φ̇ are reported as 0, as the engine does.
-        GiNaC::exmap zero;
-        for (int i = 0; i < n; ++i) zero[S.qdd[i]] = 0;
-        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qdd[i]);
-        S.gamma[row] = f.subs(zero, GiNaC::subs_options::no_pattern);
-        S.phi[row] = 0;
-        S.phid[row] = 0;
-      } else if (!c.first_order()) {
-        for (int i = 0; i < n; ++i)
-          if (f.has(S.qd[i]))
-            throw Error(where + ": a position constraint depends on the velocity " + model.joint_name[i]);
-        ex fd = f.diff(S.t);
-        for (int i = 0; i < n; ++i) {
-          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.q[i]);
-          fd += S.A[static_cast<size_t>(row) * n + i] * S.qd[i];
-        }
-        ex g = fd.diff(S.t);
-        for (int i = 0; i < n; ++i) g += fd.diff(S.q[i]) * S.qd[i];
-        S.phid[row] = fd;
-        S.gamma[row] = g;
-      } else {
-        ex g = f.diff(S.t);
-        for (int i = 0; i < n; ++i) {
-          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qd[i]);
-          g += f.diff(S.q[i]) * S.qd[i];
-        }
-        S.phid[row] = f;
-        S.gamma[row] = g;
-      }
-    }
-  }
-
-  // --- force elements: Q and ż ---
-  S.Q.assign(n, 0);
-  S.zdot.assign(S.nz, 0);
-  for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
-    const ForceElement& e = *problem.forces.elements()[k];
-    const std::string where = "generate: force element " + e.name();
-    std::optional<SymbolicForm> form = e.symbolic();
-    if (!form) throw Error(where + " has no symbolic form");
-    e.symbolic_inputs.apply(*form);
-    const int off = problem.forces.state_offset(static_cast<int>(k));
-    if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())
-      throw Error(where + ": inconsistent symbolic form");
-    std::size_t bound = 0;
-    for (int s = 0; s < e.num_states(); ++s, ++bound) B.bind("z(" + std::to_string(s) + ")", S.z[off + s]);
-    for (const auto& [fname, text] : form->functions) {
-      const ex f = B.parse(text, form->parameters, where + ": function " + fname);
-      B.bind(fname, f);
-      B.bind("d_" + fname, f.diff(S.t));
-      bound += 2;
-    }
-    std::vector<ex> rates;
-    for (int s = 0; s < e.num_states(); ++s) rates.push_back(B.parse(form->state_rates[s], form->parameters, where));
-    for (int s = 0; s < e.num_states(); ++s, ++bound) {
-      S.zdot[off + s] = rates[s];
-      B.bind("zdot(" + std::to_string(s) + ")", rates[s]);
-    }
-    for (size_t r = 0; r < form->rows.size(); ++r) {
-      const int j = form->joints[r];
-      if (j < 0 || j >= n) throw Error(where + ": joint index out of range");
-      S.Q[j] += B.parse(form->rows[r], form->parameters, where);
-    }
-    B.pop(bound);
-  }
+  generate_constraints(problem, S, B);
+  generate_forces(problem, S, B);
 
   // --- dynamics: Newton–Euler ---
   S.c = sm.inverse_dynamics(qd, {}, false);

@@ -39,11 +39,11 @@ using SymbolicBodies = multibody::Bodies<ex>;
 /// The compiled model's numbers (rotation entries within 4 ulp of 0 or ±1, and vector entries
 /// within 4 ulp of the vector's largest, are written exactly: a DH twist of 90° leaves 6e-17).
 SymbolicBodies bodies_from_model(const Model& model);
-/// The same bodies built again from the scenario's `model:` section (dh: or links:) with every
-/// number as written: `value` turns a scalar of the spec into an expression of the parameters.
-/// Folding (fixed joints, DH link offsets, the base) as build_model does it.
-using SpecNumber = std::function<ex(const SpecValue&)>;
-SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const SpecNumber& value);
+/// The same bodies from the numbers of the scenario's `model:` section as the reader read them
+/// (Problem::model_numbers): `value` turns a Quantity into an expression of the parameters (its
+/// text). Folding (fixed joints, DH link offsets, the base) as build_model does it.
+using QuantityValue = std::function<ex(const Quantity&)>;
+SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& numbers, const QuantityValue& value);
 
 /// World kinematics and dynamics as GiNaC expressions of the coordinate symbols: the generic
 /// core (refdyn/multibody/) instantiated for GiNaC::ex.

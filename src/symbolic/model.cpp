@@ -76,18 +76,18 @@ SymbolicBodies bodies_from_model(const Model& model) {
   return out;
 }
 
-SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const SpecNumber& value) {
-  auto v3 = [&](const SpecValue& n) -> Vec3s { return {value(n[0]), value(n[1]), value(n[2])}; };
-  auto pose = [&](const SpecValue& n) {  // {xyz, rpy}, URDF convention R = Rz(yaw) Ry(pitch) Rx(roll)
+SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec, const QuantityValue& value) {
+  auto v3 = [&](const ModelNumbers::Vec& n) -> Vec3s { return {value(n[0]), value(n[1]), value(n[2])}; };
+  auto pose = [&](const ModelNumbers::Pose& n) {  // {xyz, rpy}, URDF convention R = Rz(yaw) Ry(pitch) Rx(roll)
     Pose X;
-    if (!n) return X;
-    if (n["xyz"]) X.p = v3(n["xyz"]);
-    if (n["rpy"]) {
-      const Vec3s r = v3(n["rpy"]);
+    if (n.xyz) X.p = v3(*n.xyz);
+    if (n.rpy) {
+      const Vec3s r = v3(*n.rpy);
       X.R = (rot_z(r[2]) * rot_y(r[1]) * rot_x(r[0])).R;
     }
     return X;
   };
+  auto number_or_zero = [&](const std::optional<Quantity>& q) { return q ? value(*q) : ex(0); };
   struct Link {
     std::string name;
     int parent = -1;
@@ -97,69 +97,49 @@ SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const
     Vec3s com = zero3();
     Mat3s Ic = zero33();
   };
-  auto inertia = [&](const SpecValue& n, Link& l) {
-    if (n["mass"]) l.m = value(n["mass"]);
-    if (n["com"]) l.com = v3(n["com"]);
-    if (const SpecValue& I = n["inertia"]) {
-      if (I.size() == 3 && I[0].is_list()) {
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) l.Ic[3 * r + c] = value(I[r][c]);
-      } else if (I.size() == 3) {
-        for (int r = 0; r < 3; ++r) l.Ic[4 * r] = value(I[r]);
-      } else {
-        ex x[6];
-        for (int k = 0; k < 6; ++k) x[k] = value(I[k]);
-        l.Ic = {x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]};
-      }
+  auto inertia = [&](const ModelNumbers::Link& n, Link& l) {
+    if (n.mass) l.m = value(*n.mass);
+    if (n.com) l.com = v3(*n.com);
+    const auto& I = n.inertia;
+    if (I.size() == 9) {
+      for (int k = 0; k < 9; ++k) l.Ic[k] = value(I[k]);
+    } else if (I.size() == 3) {
+      for (int r = 0; r < 3; ++r) l.Ic[4 * r] = value(I[r]);
+    } else if (I.size() == 6) {
+      ex x[6];
+      for (int k = 0; k < 6; ++k) x[k] = value(I[k]);
+      l.Ic = {x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]};
     }
   };
-  auto joint_type = [](const SpecValue& n) {
-    return n.text == "revolute" ? JointType::Revolute : n.text == "prismatic" ? JointType::Prismatic : JointType::Fixed;
-  };
   std::vector<Link> links;
-  if (const SpecValue& dh = spec["dh"]) {
-    const bool standard = !dh["convention"] || dh["convention"].text == "standard";
-    const SpecValue& js = dh["joints"];
-    for (size_t i = 0; i < js.size(); ++i) {
-      const SpecValue& j = js[i];
-      Link l;
-      l.name = j["link"] ? j["link"].text : j["name"].text;
-      l.parent = static_cast<int>(i) - 1;
-      l.type = joint_type(j["type"]);
-      const ex theta = j["theta"] ? value(j["theta"]) : ex(0), d = j["d"] ? value(j["d"]) : ex(0);
-      const ex a = j["a"] ? value(j["a"]) : ex(0), alpha = j["alpha"] ? value(j["alpha"]) : ex(0);
+  for (const ModelNumbers::Link& n : spec.links) {
+    Link l;
+    l.name = n.name;
+    l.parent = n.parent;
+    l.type = n.type;
+    if (spec.dh) {
+      const ex theta = number_or_zero(n.theta), d = number_or_zero(n.d);
+      const ex a = number_or_zero(n.a), alpha = number_or_zero(n.alpha);
       // as from_dh: the joint variable enters through θ (revolute) or d (prismatic)
       Pose along_z = l.type == JointType::Prismatic ? rot_z(theta) : trans({ex(0), ex(0), d});
       if (l.type == JointType::Fixed) along_z = rot_z(theta) * trans({ex(0), ex(0), d});
       l.offset = l.type == JointType::Prismatic ? d : (l.type == JointType::Revolute ? theta : ex(0));
       const Pose x_part = trans({a, ex(0), ex(0)}) * rot_x(alpha);
-      if (standard) {
+      if (spec.standard) {
         l.placement = along_z;
         l.link_offset = x_part;
       } else {
         l.placement = rot_x(alpha) * trans({a, ex(0), ex(0)}) * along_z;
       }
-      inertia(j, l);
-      links.push_back(l);
+    } else {
+      l.placement = pose(n.origin);
+      l.link_offset = pose(n.link_offset);
+      if (n.offset) l.offset = value(*n.offset);
     }
-  } else {
-    const SpecValue& ls = spec["links"];
-    std::map<std::string, int> index;
-    for (size_t i = 0; i < ls.size(); ++i) {
-      const SpecValue& n = ls[i];
-      Link l;
-      l.name = n["name"].text;
-      if (n["parent"] && n["parent"].text != "base" && n["parent"].text != "world") l.parent = index.at(n["parent"].text);
-      l.type = joint_type(n["type"]);
-      l.placement = pose(n["origin"]);
-      l.link_offset = pose(n["link_offset"]);
-      if (n["offset"]) l.offset = value(n["offset"]);
-      inertia(n, l);
-      index[l.name] = static_cast<int>(links.size());
-      links.push_back(l);
-    }
+    inertia(n, l);
+    links.push_back(l);
   }
-  const Pose base = pose(spec["base"]);
+  const Pose base = pose(spec.base);
 
   // Fold as build_model: fixed joints into their parent body, link offsets into the body.
   SymbolicBodies out;
@@ -207,18 +187,15 @@ SymbolicBodies bodies_from_spec(const Model& model, const SpecValue& spec, const
                 std::to_string(model.nq) + " (internal error)");
   // Points: in the link frame as written, expressed in the body frame.
   out.points.resize(model.point_name.size());
-  if (const SpecValue& ps = spec["points"]) {
-    for (const auto& kv : ps.entries) {
-      const int k = model.point_index(kv.key);
-      const std::string link = kv.value["link"].text;
-      const Vec3s pos = kv.value["position"] ? v3(kv.value["position"]) : zero3();
-      if (link == "world" || link == "base") {
-        out.points[k] = {-1, pos};
-      } else {
-        const int li = link_index.at(link);
-        const Pose& X = link_in_body[li];
-        out.points[k] = {body_of[li], add(mul(X.R, pos), X.p)};
-      }
+  for (const ModelNumbers::Point& p : spec.points) {
+    const int k = model.point_index(p.name);
+    const Vec3s pos = p.position ? v3(*p.position) : zero3();
+    if (p.link == "world" || p.link == "base") {
+      out.points[k] = {-1, pos};
+    } else {
+      const int li = link_index.at(p.link);
+      const Pose& X = link_in_body[li];
+      out.points[k] = {body_of[li], add(mul(X.R, pos), X.p)};
     }
   }
   return out;

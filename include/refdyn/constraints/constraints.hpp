@@ -94,9 +94,11 @@ class Constraint {
   std::string name;
   ConstraintOrigin origin = ConstraintOrigin::Programmed;
   std::string record_as;  ///< column name for target() in recorded trajectories; empty: none
-  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
 };
 using ConstraintPtr = std::shared_ptr<const Constraint>;
+/// A constraint while it is being built: the factories return it so that the caller may still
+/// name it (name, record_as) before publishing it as a ConstraintPtr (ConstraintSet::add).
+using NewConstraint = std::shared_ptr<Constraint>;
 
 /// Implicit surface f(r, t) = 0 in the world frame, with exact derivatives.
 class ImplicitSurface {
@@ -120,8 +122,9 @@ class ImplicitSurface {
 using SurfacePtr = std::shared_ptr<const ImplicitSurface>;
 
 /// ((x − cx)/a)² + ((y − cy)/b)² − 1: the elliptic cylinder about the z axis (a curve in x–y).
-SurfacePtr elliptic_cylinder(double a, double b, double cx = 0.0, double cy = 0.0);
+SurfacePtr elliptic_cylinder(Number a, Number b, Number cx = 0.0, Number cy = 0.0);
 /// |r − c|² − R²
+SurfacePtr sphere(const Number3& center, Number radius);
 SurfacePtr sphere(const Vec3& center, double radius);
 /// n·r − h(t): a (moving) plane, n normalised.
 SurfacePtr plane(const Vec3& normal, TimeFunctionPtr offset);
@@ -129,28 +132,28 @@ SurfacePtr plane(const Vec3& normal, TimeFunctionPtr offset);
 // ---- ready-made kinds (each binds names to indices now and throws on unknown names) ----
 
 /// A point on an implicit curve or surface: f(r_P, t) = 0.
-ConstraintPtr point_on_surface(const Model& model, const std::string& point, SurfacePtr surface,
+NewConstraint point_on_surface(const Model& model, const std::string& point, SurfacePtr surface,
                                ConstraintOrigin origin = ConstraintOrigin::Programmed);
 /// A point coordinate (axis 0: x, 1: y, 2: z) following a function of time: r_P,k − f(t) = 0.
-ConstraintPtr point_coordinate(const Model& model, const std::string& point, int axis, TimeFunctionPtr f,
+NewConstraint point_coordinate(const Model& model, const std::string& point, int axis, TimeFunctionPtr f,
                                ConstraintOrigin origin = ConstraintOrigin::Programmed);
 /// Prescribed joint motion: q_j − f(t) = 0.
-ConstraintPtr joint_trajectory(const Model& model, const std::string& joint, TimeFunctionPtr f,
+NewConstraint joint_trajectory(const Model& model, const std::string& joint, TimeFunctionPtr f,
                                ConstraintOrigin origin = ConstraintOrigin::Programmed);
 /// Two joints coupled linearly (a gear pair, a URDF <mimic>): q_joint − ratio·q_leader − offset = 0.
-ConstraintPtr joint_coupling(const Model& model, const std::string& joint, const std::string& leader, double ratio,
-                             double offset = 0.0, ConstraintOrigin origin = ConstraintOrigin::Material);
+NewConstraint joint_coupling(const Model& model, const std::string& joint, const std::string& leader, Number ratio,
+                             Number offset = 0.0, ConstraintOrigin origin = ConstraintOrigin::Material);
 /// Two points coinciding (loop closure): r_P1 − r_P2 = 0 on the selected world axes
 /// (default all three; a planar loop uses {0, 1}).
-ConstraintPtr points_coincide(const Model& model, const std::string& p1, const std::string& p2,
+NewConstraint points_coincide(const Model& model, const std::string& p1, const std::string& p2,
                               std::vector<int> axes = {0, 1, 2},
                               ConstraintOrigin origin = ConstraintOrigin::Material);
 /// No lateral slip of a wheel or knife edge at point P: (R_b a)·v_P = 0, a fixed in the body
 /// carrying P (nonholonomic, first order).
-ConstraintPtr knife_edge(const Model& model, const std::string& point, const Vec3& lateral_axis_in_body,
+NewConstraint knife_edge(const Model& model, const std::string& point, const Vec3& lateral_axis_in_body,
                          ConstraintOrigin origin = ConstraintOrigin::Material);
 /// Prescribed speed of a point along a fixed world direction u: u·v_P − s(t) = 0 (first order).
-ConstraintPtr point_speed(const Model& model, const std::string& point, const Vec3& direction,
+NewConstraint point_speed(const Model& model, const std::string& point, const Vec3& direction,
                           TimeFunctionPtr speed, ConstraintOrigin origin = ConstraintOrigin::Programmed);
 
 /// A constraint written as an expression over task quantities, differentiated exactly
@@ -163,7 +166,7 @@ ConstraintPtr point_speed(const Model& model, const std::string& point, const Ve
 /// For a holonomic Φ = f(w): A = Σ f_w ∂w/∂q, Φ̇ = f_w ẇ, γ = f_w ẅ|_{q̈=0} + ẇᵀ f_ww ẇ.
 /// For a first-order c = f(w): A = Σ f_w ∂w/∂q̇, γ = Σ f_w ẇ|_{q̈=0}. Throws Error naming the
 /// constraint for an expression that does not parse or uses unknown names.
-ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                     bool first_order = false,
                                     const std::map<std::string, double>& parameters = {},
                                     ConstraintOrigin origin = ConstraintOrigin::Programmed);
@@ -172,7 +175,7 @@ ConstraintPtr expression_constraint(const Model& model, const std::string& name,
 /// must involve at least one of them and be linear in them (the form B(t, q, q̇) q̈ + s = 0
 /// of the paper's eq. 2.1; checked symbolically). Then B = Σ f_w ∂w/∂q̈ over the acceleration
 /// variables w and s = f evaluated with q̈ = 0 (point accelerations = their drifts d).
-ConstraintPtr expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                     ConstraintOrder order, const std::map<std::string, double>& parameters = {},
                                     ConstraintOrigin origin = ConstraintOrigin::Programmed);
 

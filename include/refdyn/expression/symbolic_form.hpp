@@ -15,6 +15,7 @@
 ///                              `functions` (e.g. a drive profile) and its exact derivative
 /// plus named parameters (`parameters`), which the generated code keeps as symbols.
 /// Numbers are written with 17 significant digits, so a text reproduces the doubles exactly.
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -27,6 +28,9 @@ struct SymbolicForm {
   std::map<std::string, std::string> functions;   ///< named functions of t (force elements)
   std::vector<std::string> state_rates;           ///< ż of the element's states (force elements)
   std::vector<int> joints;                        ///< force elements: the joint of each row
+  /// The texts contain scenario texts of numbers (Number::text): the generator binds the
+  /// scenario's parameters, which those texts name, besides `parameters`.
+  bool scenario_texts = false;
 };
 
 /// A form of rows (and the parameters they name).
@@ -37,19 +41,32 @@ inline SymbolicForm symbolic_rows(std::vector<std::string> rows, std::map<std::s
   return f;
 }
 
-/// The scenario texts of an object's numbers, recorded while the scenario builds it (a parameter
-/// name, `2*pi`, `0.5*cos(45*deg)`: any number not written as a plain literal), so that the
-/// generated formulas keep the names: each number token of a symbolic form that
-/// symbolic_number(v) printed for a recorded v is replaced by "(text)". A value recorded with
-/// two different texts stays a number (which name would be a guess).
-struct SymbolicInputs {
-  std::vector<std::pair<double, std::string>> recorded;  ///< (value, text) in reading order
-  std::map<std::string, double> parameters;              ///< the scenario's parameters
-  void apply(SymbolicForm& form) const;
+/// A number of a constraint, force element or function of time together with the scenario text
+/// it was written as when that text is an expression (a parameter name, `2*pi`,
+/// `0.5*cos(45*deg)`); empty for a plain literal or a number computed in C++. The symbolic form
+/// writes "(text)" for it (symbolic_number), so the generated equations keep the scenario's
+/// names; the numeric code reads only the value. Converts to and from double.
+struct Number {
+  double value = 0.0;
+  std::string text;  ///< the expression as written in the scenario; empty: a number
+  Number(double v = 0.0) : value(v) {}  // NOLINT: implicit, a double is a Number without a text
+  Number(double v, std::string t) : value(v), text(std::move(t)) {}
+  operator double() const { return value; }  // NOLINT: implicit, the numeric code reads the value
 };
+
+/// Three Numbers (a centre, a direction, an axis as written).
+using Number3 = std::array<Number, 3>;
+
+/// Whether any of the numbers carries a scenario text (for SymbolicForm::scenario_texts).
+template <class... N>
+bool any_text(const N&... n) {
+  return (!n.text.empty() || ...);
+}
 
 /// A double as a text of the expression language that parses back to the same double
 /// (17 significant digits, parenthesised when negative).
 std::string symbolic_number(double v);
+/// "(text)" when the number was written as an expression, else symbolic_number(n.value).
+std::string symbolic_number(const Number& n);
 
 }  // namespace refdyn

@@ -35,11 +35,11 @@ TimeFunctionPtr polynomial(std::vector<double> coefficients);
 TimeFunctionPtr sinusoid(double amplitude, double omega, double phase = 0.0, double offset = 0.0);
 /// Smooth raised-cosine excursion from f0 of height df and period T: f0 + df·(1 − cos(2πt/T))/2.
 /// Starts with zero velocity (the spec's z_a(t)).
-TimeFunctionPtr raised_cosine(double f0, double df, double period);
+TimeFunctionPtr raised_cosine(Number f0, Number df, Number period);
 /// Cycloidal rise of height `rise` over [t0, t0 + duration] from f0 (zero velocity and
 /// acceleration at both ends); constant before and after:
 /// f = f0 + rise·(τ − sin(2πτ)/(2π)), τ = (t − t0)/duration ∈ [0, 1].
-TimeFunctionPtr cycloidal(double rise, double duration, double f0 = 0.0, double t0 = 0.0);
+TimeFunctionPtr cycloidal(Number rise, Number duration, Number f0 = 0.0, Number t0 = 0.0);
 
 /// f(t) given as an expression in `t` and named parameters, e.g. "z0 + dz*(1 - cos(2*pi*t/T))/2";
 /// f' and f'' are exact (GiNaC). Syntax: expression.hpp, including abs, min, max, step, clamp and

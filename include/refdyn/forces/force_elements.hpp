@@ -46,22 +46,24 @@ class ForceElement {
   virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
   /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
   std::string label;
-  SymbolicInputs symbolic_inputs;  ///< scenario texts of its numbers (set by build_problem)
 };
 using ForceElementPtr = std::shared_ptr<const ForceElement>;
+/// A force element while it is being built: labelled by the caller before it is published as a
+/// ForceElementPtr (ForceSet::add).
+using NewForceElement = std::shared_ptr<ForceElement>;
 
 /// τ = −b q̇_j.
-ForceElementPtr joint_damping(const Model& model, const std::string& joint, double b);
+NewForceElement joint_damping(const Model& model, const std::string& joint, Number b);
 /// τ = −k (q_j − q_rest).
-ForceElementPtr joint_spring(const Model& model, const std::string& joint, double k, double q_rest = 0.0);
+NewForceElement joint_spring(const Model& model, const std::string& joint, Number k, Number q_rest = 0.0);
 /// τ = f(t): a prescribed joint torque or force.
-ForceElementPtr joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f);
+NewForceElement joint_effort(const Model& model, const std::string& joint, TimeFunctionPtr f);
 
 /// Flexible drive (paper (4.6)): τ = s (ψ_dr(t) − q_j) + d (ψ̇_dr(t) − q̇_j), with the sign that
 /// makes q_j follow the drive displacement ψ_dr.
 struct FlexibleDriveParams {
-  double stiffness = 1e4;   ///< s [Nm/rad or N/m]
-  double damping = 70.0;    ///< d [Nms/rad or Ns/m]
+  Number stiffness = 1e4;   ///< s [Nm/rad or N/m]
+  Number damping = 70.0;    ///< d [Nms/rad or Ns/m]
 };
 class FlexibleDrive final : public ForceElement {
  public:
@@ -92,9 +94,9 @@ class FlexibleDrive final : public ForceElement {
 ///   ż = q̇ − σ0 |q̇| z / g(q̇),  g(q̇) = μk + (μs − μk) exp(−(q̇/q̇_S)²)
 ///   τ = −(σ0 z + σ1 ż + σ2 q̇)
 struct LuGreParams {
-  double mu_s = 0.1, mu_k = 0.2;      ///< static and kinetic friction levels [Nm or N]
-  double sigma0 = 5.0, sigma1 = 0.025, sigma2 = 0.0;
-  double v_stribeck = 0.175;          ///< Stribeck velocity q̇_S
+  Number mu_s = 0.1, mu_k = 0.2;      ///< static and kinetic friction levels [Nm or N]
+  Number sigma0 = 5.0, sigma1 = 0.025, sigma2 = 0.0;
+  Number v_stribeck = 0.175;          ///< Stribeck velocity q̇_S
 };
 class LuGreFriction final : public ForceElement {
  public:

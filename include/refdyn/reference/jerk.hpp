@@ -76,7 +76,7 @@ using JerkConstraintPtr = std::shared_ptr<const JerkConstraint>;
 /// A jerk constraint as an entry of a ConstraintSet (what a scenario's `order: jerk` builds):
 /// order() == 3, one row. Its evaluate() throws: jerk rows are evaluated by JerkDynamics, and a
 /// problem with jerk rows has only jerk rows (build_problem checks it).
-ConstraintPtr jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
+NewConstraint jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
                                          const std::map<std::string, double>& parameters = {},
                                          ConstraintOrigin origin = ConstraintOrigin::Programmed);
 /// The JerkConstraint behind a constraint made by jerk_expression_constraint, else null.

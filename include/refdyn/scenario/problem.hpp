@@ -24,6 +24,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -88,9 +89,10 @@ struct Problem {
   Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
   std::vector<std::unique_ptr<Experiment>> experiments;
   std::vector<std::string> report_points;   ///< points recorded in trajectories
-  /// The scenario's `model:` section as written (numbers as expressions of the parameters), for
-  /// generate_symbolic, which keeps the parameters symbolic; null for a Problem built in C++.
-  SpecValue model_spec;
+  /// The numbers of the scenario's `model:` section (dh: or links:) as read, with their texts,
+  /// for generate_symbolic, which keeps the parameters symbolic; empty for a URDF model or a
+  /// Problem built in C++ (then the compiled model's numbers are used).
+  std::optional<ModelNumbers> model_numbers;
   Limits limits;
   /// Jerk-level problems (constraints of `order: jerk`, docs/higher_order.md): their rows (then
   /// every row of `constraints` is one), the gain κ and the initial-acceleration hint. They are

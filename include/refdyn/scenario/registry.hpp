@@ -30,9 +30,6 @@ class SpecReader {
       : params(std::move(parameters)), file_(std::move(file)) {}
   const std::string& file() const { return file_; }
   std::map<std::string, double> params;  ///< visible parameters (deg, the scenario's, a sweep's)
-  /// When set, number() appends (value, text) for every number written as an expression
-  /// (SymbolicInputs: the generated equations keep the scenario's names).
-  mutable std::vector<std::pair<double, std::string>>* recorder = nullptr;
 
   /// Throws Error "FILE:LINE: KEY: message" (message made one line; LINE omitted if unknown).
   [[noreturn]] void fail(const SourceLocation& at, const std::string& key, const std::string& msg) const;
@@ -43,7 +40,14 @@ class SpecReader {
   void keys(const SpecValue& n, const std::string& key, const std::vector<std::string>& allowed) const;
   /// parent[k], required.
   const SpecValue& need(const SpecValue& parent, const std::string& k, const std::string& key) const;
-  double number(const SpecValue& n, const std::string& key, const std::map<std::string, double>* extra = nullptr) const;
+  /// A written number or expression of the parameters (and `extra`), evaluated once: its value,
+  /// its text and where it was written. Errors for anything else or a value that is not finite.
+  Quantity quantity(const SpecValue& n, const std::string& key, const std::map<std::string, double>* extra = nullptr) const;
+  double number(const SpecValue& n, const std::string& key, const std::map<std::string, double>* extra = nullptr) const {
+    return quantity(n, key, extra).value;
+  }
+  /// Three numbers [x, y, z] with their texts.
+  Number3 numbers3(const SpecValue& n, const std::string& key) const;
   double number_or(const SpecValue& parent, const std::string& k, const std::string& key, double dflt) const;
   std::string string(const SpecValue& n, const std::string& key) const;
   bool boolean(const SpecValue& n, const std::string& key) const;
@@ -77,8 +81,10 @@ struct EntryArgs {
   bool has(const std::string& k) const { return static_cast<bool>(entry.fields[k]); }
   const SpecValue& value(const std::string& k) const { return entry.fields[k]; }
   std::string key(const std::string& k) const { return entry.key + "." + k; }
-  double number(const std::string& k) const;
-  double number_or(const std::string& k, double dflt) const;
+  /// A number of the entry with its text (Quantity::number()), for the built object.
+  Number number(const std::string& k) const;
+  Number number_or(const std::string& k, double dflt) const;
+  Number3 numbers3(const std::string& k) const;
   std::string text(const std::string& k) const;
   std::string joint(const std::string& k) const;
   std::string point(const std::string& k) const;
@@ -102,14 +108,14 @@ struct ConstraintKind {
   std::string doc;
   std::vector<KeyDoc> keys;  ///< besides name, origin and kind
   ConstraintOrigin default_origin = ConstraintOrigin::Programmed;
-  std::function<ConstraintPtr(const EntryArgs&, ConstraintOrigin)> build;
+  std::function<NewConstraint(const EntryArgs&, ConstraintOrigin)> build;
 };
 
 struct ForceKind {
   std::string name;
   std::string doc;
   std::vector<KeyDoc> keys;  ///< besides type and name
-  std::function<ForceElementPtr(const EntryArgs&)> build;
+  std::function<NewForceElement(const EntryArgs&)> build;
 };
 
 /// Makes a controller for a model (the controller keeps a reference to it).

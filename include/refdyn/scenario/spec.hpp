@@ -7,8 +7,11 @@
 /// checks the initial state. Every value keeps where it was written (file, line, key) so that
 /// any error found later still points at the text.
 
+#include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/multibody/model.hpp"
 
+#include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -20,6 +23,49 @@ namespace refdyn {
 struct SourceLocation {
   std::string file;
   int line = 0;
+};
+
+/// A number of the scenario as the reader made it (SpecReader::quantity): its value, the text
+/// as written (`0.3`, `m2 * 0.5`, a parameter name) and where it was written. The built objects
+/// get number(): the value, with the text when it is an expression (the code generator writes
+/// the text, so the equations keep the scenario's names); messages get text and where.
+struct Quantity {
+  double value = 0.0;
+  std::string text;
+  SourceLocation where;
+  bool literal = true;  ///< the text is a plain number (no parameter, no operator)
+  Number number() const { return literal ? Number(value) : Number(value, text); }
+};
+
+/// The numbers of a `model:` section written as dh: or links:, as the reader read them (every
+/// one a Quantity: value, text, where), in the section's structure: what the code generator
+/// (symbolic/model.cpp) builds its symbolic bodies from, so the parameters stay symbols.
+struct ModelNumbers {
+  using Vec = std::array<Quantity, 3>;
+  struct Pose {
+    std::optional<Vec> xyz, rpy;
+  };
+  struct Link {
+    std::string name;       ///< the link's name
+    int parent = -1;        ///< index into links; −1: the base
+    JointType type = JointType::Revolute;
+    std::optional<Quantity> theta, d, a, alpha;  ///< dh:
+    Pose origin, link_offset;                    ///< links:
+    std::optional<Quantity> offset;              ///< links:
+    std::optional<Quantity> mass;
+    std::optional<Vec> com;
+    std::vector<Quantity> inertia;  ///< as written: 3 (diagonal), 6 (Ixx Iyy Izz Ixy Ixz Iyz) or 9 (3x3, rows)
+    bool inertia_matrix = false;    ///< the 9 values were written as a 3x3 list
+  };
+  struct Point {
+    std::string name, link;
+    std::optional<Vec> position;
+  };
+  bool dh = false;        ///< dh: (else links:)
+  bool standard = true;   ///< dh: convention
+  std::vector<Link> links;
+  Pose base;
+  std::vector<Point> points;  ///< in the order written (a later one replaces one of the same name)
 };
 
 /// A value as written: nothing, a scalar text, a list or a mapping (entries in file order).
@@ -164,6 +210,9 @@ struct ScenarioSpec {
   std::string file;                        ///< source name used in messages
   std::string name;
   std::vector<std::pair<std::string, SpecValue>> parameters;  ///< in order; each may use the previous
+  /// Parameters set to a number by a variant (io/variants.hpp): the value is used as it is (not
+  /// written back as text and evaluated again); text and where (the parameter's) for messages.
+  std::map<std::string, Quantity> parameter_values;
   ModelSpec model;
   std::vector<EntrySpec> constraints;
   SpecValue constraints_value;

@@ -71,7 +71,7 @@ ConstraintKind constraint_distance() {
   k.keys = {{"points", "[A, B]", true, "", "the two points"},
             {"length", "function of t", true, "", "d(t) [m], > 0"},
             {"record", "name", false, "", "record d(t) in plan.csv under this column name"}};
-  k.build = [](const EntryArgs& a, ConstraintOrigin origin) -> ConstraintPtr {
+  k.build = [](const EntryArgs& a, ConstraintOrigin origin) -> NewConstraint {
     const SpecValue& ps = a.reader.need(a.entry.fields, "points", a.entry.key);
     if (!ps.is_list() || ps.size() != 2) a.fail("points", "expected two point names [A, B]");
     const std::string p0 = a.reader.point(ps[0], a.key("points"), a.model);

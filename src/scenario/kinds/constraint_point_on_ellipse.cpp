@@ -11,12 +11,12 @@ ConstraintKind constraint_point_on_ellipse() {
             {"b", "number", true, "", "half-axis along y [m]"},
             {"center", "[cx, cy]", false, "[0, 0]", "centre [m]"}};
   k.build = [](const EntryArgs& a, ConstraintOrigin origin) {
-    double cx = 0, cy = 0;
+    Number cx = 0.0, cy = 0.0;
     if (a.has("center")) {
       const SpecValue& c = a.value("center");
       if (!c.is_list() || c.size() != 2) a.fail("center", "expected [cx, cy]");
-      cx = a.reader.number(c[0], a.key("center") + "[0]");
-      cy = a.reader.number(c[1], a.key("center") + "[1]");
+      cx = a.reader.quantity(c[0], a.key("center") + "[0]").number();
+      cy = a.reader.quantity(c[1], a.key("center") + "[1]").number();
     }
     const std::string p = a.point("point");
     return point_on_surface(a.model, p, elliptic_cylinder(a.number("a"), a.number("b"), cx, cy), origin);

@@ -11,7 +11,7 @@ ConstraintKind constraint_point_on_sphere() {
             {"radius", "number", true, "", "radius R [m]"}};
   k.build = [](const EntryArgs& a, ConstraintOrigin origin) {
     const std::string p = a.point("point");
-    return point_on_surface(a.model, p, sphere(a.vec3("center"), a.number("radius")), origin);
+    return point_on_surface(a.model, p, sphere(a.numbers3("center"), a.number("radius")), origin);
   };
   return k;
 }

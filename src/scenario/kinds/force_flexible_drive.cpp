@@ -12,7 +12,7 @@ ForceKind force_flexible_drive() {
             {"stiffness", "number", true, "", "s [N m/rad or N/m]"},
             {"damping", "number", true, "", "d [N m s/rad or N s/m]"},
             {"profile", "function of t", true, "", "the drive displacement ψ_dr(t)"}};
-  k.build = [](const EntryArgs& a) -> ForceElementPtr {
+  k.build = [](const EntryArgs& a) -> NewForceElement {
     const std::string j = a.joint("joint");
     const FlexibleDriveParams p{a.number("stiffness"), a.number("damping")};
     return std::make_shared<FlexibleDrive>(a.model, j, p, a.function("profile"));

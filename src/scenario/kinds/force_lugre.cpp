@@ -14,7 +14,7 @@ ForceKind force_lugre() {
             {"sigma1", "number", false, "0", "bristle damping σ1"},
             {"sigma2", "number", false, "0", "viscous coefficient σ2"},
             {"stribeck_velocity", "number", true, "", "Stribeck velocity q̇_S"}};
-  k.build = [](const EntryArgs& a) -> ForceElementPtr {
+  k.build = [](const EntryArgs& a) -> NewForceElement {
     const std::string j = a.joint("joint");
     LuGreParams p;
     p.mu_s = a.number("mu_s");
