@@ -1,5 +1,10 @@
-// build_problem: a ScenarioSpec (as written) becomes a checked Problem.
+// build_problem: a ScenarioSpec (as written) becomes a checked Problem. The section builders
+// are here (constraints and forces, jerk scope, reference options, initial state, integrator,
+// limits, t0 checks, outputs), in model_section.cpp (model) and experiments.cpp (experiments);
+// build.hpp declares what they share.
 #include "refdyn/scenario/problem.hpp"
+
+#include "build.hpp"
 
 #include "refdyn/common/error.hpp"
 #include "refdyn/multibody/kinematics.hpp"
@@ -23,229 +28,9 @@
 
 namespace refdyn {
 
-namespace {
+namespace build {
 
 namespace fs = std::filesystem;
-
-LinkInertia read_inertia(const SpecReader& c, const SpecValue& n, const std::string& key) {
-  LinkInertia in;
-  if (n["mass"]) in.mass = c.number(n["mass"], key + ".mass");
-  if (in.mass < 0) c.fail(n["mass"], key + ".mass", "expected a number >= 0 [kg], got " + fmt(in.mass));
-  if (n["com"]) in.com = c.vec3(n["com"], key + ".com");
-  if (const SpecValue& I = n["inertia"]) {
-    const std::string k = key + ".inertia";
-    if (!I.is_list()) c.fail(I, k, "expected [Ixx, Iyy, Izz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] or a 3x3 list, got " + I.describe());
-    if (I.size() == 3 && I[0].is_list()) {
-      for (int r = 0; r < 3; ++r) {
-        const Vec3 row = c.vec3(I[r], k + "[" + std::to_string(r) + "]");
-        in.I_com.row(r) = row.transpose();
-      }
-    } else if (I.size() == 3) {
-      in.I_com = c.vec3(I, k).asDiagonal();
-    } else if (I.size() == 6) {
-      double v[6];
-      for (int i = 0; i < 6; ++i) v[i] = c.number(I[i], k + "[" + std::to_string(i) + "]");
-      in.I_com << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
-    } else {
-      c.fail(I, k, "expected 3 (diagonal), 6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or 3x3 values, got " + std::to_string(I.size()));
-    }
-  }
-  // Each number may be finite while the spatial inertia they make is not (mass 1e300 at a COM
-  // of 1e200: m |c|^2 overflows); name the key whose value overflows, not a singular M later.
-  const double r = in.com.stableNorm(), mr = in.mass * r, mrr = mr * r;
-  if (!std::isfinite(mr) || !std::isfinite(mrr)) {
-    const bool at_com = n["com"] && r > 1;
-    c.fail(at_com ? n["com"] : n["mass"], key + (at_com ? ".com" : ".mass"),
-           "mass " + fmt(in.mass) + " kg with its centre of mass at distance " + fmt(r) +
-               " m overflows: the inertia about the joint, m |com|^2 = " + fmt(mrr) +
-               ", is not a finite number (check the units of mass and com)");
-  }
-  return in;
-}
-
-JointLimits read_limits(const SpecReader& c, const SpecValue& n, const std::string& key) {
-  JointLimits l;
-  if (!n) return l;
-  c.keys(n, key, {"lower", "upper", "velocity", "effort"});
-  l.lower = c.number_or(n, "lower", key, l.lower);
-  l.upper = c.number_or(n, "upper", key, l.upper);
-  l.velocity = c.number_or(n, "velocity", key, l.velocity);
-  l.effort = c.number_or(n, "effort", key, l.effort);
-  return l;
-}
-
-JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::string& key) {
-  const std::string t = c.choice(n, key, {"revolute", "prismatic", "fixed"});
-  return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
-}
-
-/// The numbers of a model node (already checked by read_model) as Quantities.
-struct ModelNumberReader {
-  const SpecReader& c;
-  ModelNumbers::Vec vec(const SpecValue& n, const std::string& k) const {
-    return {c.quantity(n[0], k + "[0]"), c.quantity(n[1], k + "[1]"), c.quantity(n[2], k + "[2]")};
-  }
-  std::optional<Quantity> opt(const SpecValue& parent, const char* f, const std::string& k) const {
-    if (!parent[f]) return std::nullopt;
-    return c.quantity(parent[f], k + "." + f);
-  }
-  std::optional<ModelNumbers::Vec> opt_vec(const SpecValue& parent, const char* f, const std::string& k) const {
-    if (!parent[f]) return std::nullopt;
-    return vec(parent[f], k + "." + f);
-  }
-  ModelNumbers::Pose pose(const SpecValue& n, const std::string& k) const {
-    return {opt_vec(n, "xyz", k), opt_vec(n, "rpy", k)};
-  }
-  /// mass, com and inertia of a link.
-  void inertia(const SpecValue& l, const std::string& k, ModelNumbers::Link& out) const {
-    out.mass = opt(l, "mass", k);
-    out.com = opt_vec(l, "com", k);
-    if (const SpecValue& I = l["inertia"]) {
-      const std::string ik = k + ".inertia";
-      out.inertia_matrix = I.size() == 3 && I[0].is_list();
-      if (out.inertia_matrix) {
-        for (int r = 0; r < 3; ++r)
-          for (const Quantity& x : vec(I[r], ik + "[" + std::to_string(r) + "]")) out.inertia.push_back(x);
-      } else {
-        for (size_t i = 0; i < I.size(); ++i) out.inertia.push_back(c.quantity(I[i], ik + "[" + std::to_string(i) + "]"));
-      }
-    }
-  }
-};
-
-/// model.points: name: {link, position} (a point named like an existing one replaces it).
-void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecValue& ps, ModelDescription& d,
-                 std::optional<ModelNumbers>& numbers) {
-  if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
-  for (const auto& kv : ps.entries) {
-    const std::string& name = kv.key;
-    const std::string k = "model.points." + name;
-    c.keys(kv.value, k, {"link", "position"});
-    const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
-    Vec3 pos = Vec3::Zero();
-    if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
-    bool known = link == "world" || link == "base";
-    std::vector<std::string> names;
-    for (const auto& l : d.links) {
-      names.push_back(l.name);
-      known = known || l.name == link;
-    }
-    if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
-    // A point named like an existing one (e.g. URDF link points) replaces it.
-    std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
-    d.add_point(name, link, pos);
-    if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
-  }
-}
-
-ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
-                            std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers) {
-  const ModelNumberReader nr{c};
-  const std::string key = "model";
-  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
-  const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
-  if (sources != 1) c.fail(m, key, "expected exactly one of 'dh', 'links' or 'urdf', got " + std::to_string(sources));
-  ModelDescription d;
-  if (const SpecValue& dh = m["dh"]) {
-    c.keys(dh, "model.dh", {"convention", "joints"});
-    DHConvention conv = DHConvention::Standard;
-    if (dh["convention"]) conv = c.choice(dh["convention"], "model.dh.convention", {"standard", "modified"}) == "standard"
-                                     ? DHConvention::Standard : DHConvention::Modified;
-    const SpecValue& js = c.need(dh, "joints", "model.dh");
-    if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
-    std::vector<DHRow> rows;
-    std::vector<std::string> link_names;
-    numbers.emplace();
-    numbers->dh = true;
-    numbers->standard = conv == DHConvention::Standard;
-    for (size_t i = 0; i < js.size(); ++i) {
-      const SpecValue& j = js[i];
-      const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
-      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits"});
-      DHRow r;
-      r.name = c.string(c.need(j, "name", k), k + ".name");
-      r.type = read_joint_type(c, c.need(j, "type", k), k + ".type");
-      r.theta = c.number_or(j, "theta", k, 0.0);
-      r.d = c.number_or(j, "d", k, 0.0);
-      r.a = c.number_or(j, "a", k, 0.0);
-      r.alpha = c.number_or(j, "alpha", k, 0.0);
-      r.inertia = read_inertia(c, j, k);
-      r.limits = read_limits(c, j["limits"], k + ".limits");
-      rows.push_back(r);
-      link_names.push_back(j["link"] ? c.string(j["link"], k + ".link") : r.name);
-      ModelNumbers::Link L;
-      L.name = link_names.back();
-      L.parent = static_cast<int>(i) - 1;
-      L.type = r.type;
-      L.theta = nr.opt(j, "theta", k);
-      L.d = nr.opt(j, "d", k);
-      L.a = nr.opt(j, "a", k);
-      L.alpha = nr.opt(j, "alpha", k);
-      nr.inertia(j, k, L);
-      numbers->links.push_back(std::move(L));
-      link_lines[link_names.back()] = j.where.line;
-    }
-    d = from_dh(rows, conv);
-    for (size_t i = 0; i < rows.size(); ++i) {
-      d.links[i].name = link_names[i];
-      d.links[i].joint_name = rows[i].name;
-    }
-  } else if (const SpecValue& ls = m["links"]) {
-    if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
-    std::map<std::string, int> index;
-    numbers.emplace();
-    for (size_t i = 0; i < ls.size(); ++i) {
-      const SpecValue& l = ls[i];
-      const std::string k = "model.links[" + std::to_string(i) + "]";
-      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits"});
-      LinkSpec s;
-      s.name = c.string(c.need(l, "name", k), k + ".name");
-      s.joint_name = l["joint"] ? c.string(l["joint"], k + ".joint") : s.name;
-      if (l["parent"]) {
-        const std::string p = c.string(l["parent"], k + ".parent");
-        if (p != "base" && p != "world") {
-          auto it = index.find(p);
-          if (it == index.end()) {
-            std::vector<std::string> names;
-            for (auto& [nm, ix] : index) names.push_back(nm);
-            c.fail(l["parent"], k + ".parent", "unknown parent link '" + p + "' (links must be listed after their parent)" + did_you_mean(p, names));
-          }
-          s.parent = it->second;
-        }
-      }
-      s.type = read_joint_type(c, c.need(l, "type", k), k + ".type");
-      if (l["axis"]) s.axis = c.vec3(l["axis"], k + ".axis");
-      if (s.axis.norm() < 1e-12) c.fail(l["axis"], k + ".axis", "expected a non-zero vector");
-      if (l["origin"]) s.placement = c.pose(l["origin"], k + ".origin");
-      if (l["link_offset"]) s.link_offset = c.pose(l["link_offset"], k + ".link_offset");
-      s.offset = c.number_or(l, "offset", k, 0.0);
-      s.inertia = read_inertia(c, l, k);
-      s.limits = read_limits(c, l["limits"], k + ".limits");
-      ModelNumbers::Link L;
-      L.name = s.name;
-      L.parent = s.parent;
-      L.type = s.type;
-      L.origin = l["origin"] ? nr.pose(l["origin"], k + ".origin") : ModelNumbers::Pose{};
-      L.link_offset = l["link_offset"] ? nr.pose(l["link_offset"], k + ".link_offset") : ModelNumbers::Pose{};
-      L.offset = nr.opt(l, "offset", k);
-      nr.inertia(l, k, L);
-      numbers->links.push_back(std::move(L));
-      index[s.name] = static_cast<int>(d.links.size());
-      link_lines[s.name] = l.where.line;
-      d.add_link(s);
-    }
-  } else {
-    if (!urdf) c.fail(m["urdf"], "model.urdf", "the URDF file was not loaded (hint: load the scenario with io::load_scenario)");
-    d = *urdf;
-  }
-  if (m["name"]) d.name = c.string(m["name"], "model.name");
-  if (m["gravity"]) d.gravity = c.vec3(m["gravity"], "model.gravity");
-  if (m["base"]) d.base = c.pose(m["base"], "model.base");
-  if (numbers && m["base"]) numbers->base = nr.pose(m["base"], "model.base");
-  if (const SpecValue& ps = m["points"]) read_points(c, nr, ps, d, numbers);
-  return d;
-}
-
 
 std::string substitute(std::string s, const std::string& var, double v) {
   const std::string pat = "{" + var + "}";
@@ -253,27 +38,6 @@ std::string substitute(std::string s, const std::string& var, double v) {
   std::snprintf(b, sizeof b, "%g", v);
   for (size_t pos; (pos = s.find(pat)) != std::string::npos;) s.replace(pos, pat.size(), b);
   return s;
-}
-
-/// Portable random numbers for monte_carlo experiments (docs/scenario.md, "experiments"): the
-/// engine std::mt19937_64 is specified exactly by the standard, its distributions are not, so
-/// the distributions are ours. u = (top 53 bits of the next output) · 2^−53, in [0, 1).
-double uniform01(std::mt19937_64& g) { return static_cast<double>(g() >> 11) * 0x1.0p-53; }
-
-/// Box–Muller with two uniforms u1, u2 (drawn in that order); 1 − u1 is in (0, 1], so the
-/// logarithm is finite. The second value of the pair is not used: each normal takes two draws.
-double standard_normal(std::mt19937_64& g) {
-  const double u1 = uniform01(g);
-  const double u2 = uniform01(g);
-  return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(2.0 * std::numbers::pi * u2);
-}
-
-/// x + y·z with the product rounded on its own: compilers may contract x + y*z into a fused
-/// multiply-add (GCC does with -march=native, even in ISO mode), which rounds once and would
-/// make the drawn values depend on the machine. The volatile keeps them the same everywhere.
-double add_product(double x, double y, double z) {
-  volatile double p = y * z;
-  return x + p;
 }
 
 /// Runs an experiment expands into, as a double (a grid's product may exceed every integer).
@@ -293,34 +57,6 @@ double experiment_runs(const SpecReader& c, const ExperimentSpec& e) {
     return x;
   }
   return 1;
-}
-
-/// A Monte Carlo seed: an unsigned 64-bit integer written in digits (no expression: a double
-/// would round seeds above 2^53).
-std::uint64_t read_seed(const SpecReader& c, const SpecValue& v, const std::string& key) {
-  std::uint64_t seed = 0;
-  const std::string& t = v.text;
-  const auto r = std::from_chars(t.data(), t.data() + t.size(), seed);
-  if (!v.is_scalar() || t.empty() || r.ec != std::errc() || r.ptr != t.data() + t.size())
-    c.fail(v, key, "expected a whole number 0 to 18446744073709551615 written in digits, got " + v.describe());
-  return seed;
-}
-
-/// Builds one registry entry; errors from the factory that carry no location get the entry's.
-template <class Kind, class Build>
-auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec& e, const std::string& kind_key,
-                 const Build& build) {
-  const Kind* k = reg.find(e.kind);
-  if (!k)
-    c.fail(e.fields[kind_key].is_null() ? e.fields : e.fields[kind_key], e.key + "." + kind_key,
-           "got '" + e.kind + "', expected one of the " + reg.what() + "s" + did_you_mean(e.kind, reg.names()));
-  try {
-    return build(*k);
-  } catch (const Error& err) {
-    const std::string w = err.what();
-    if (w.rfind(c.file(), 0) == 0) throw;  // already located
-    c.fail(e.fields, e.key, w);
-  }
 }
 
 /// Reads a force list. Signal columns (a flexible drive's psi_dr, tau_drive) are suffixed
@@ -368,12 +104,6 @@ void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, con
                "two force elements have the state '" + states[k] + "' (give each a different 'name:')");
 }
 
-ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {
-  return build_entry(c, controller_kinds(), e, "type", [&](const ControllerKind& k) {
-    return k.build(EntryArgs{c, e, m});
-  });
-}
-
 /// A count for messages: a whole number when it fits, else in exponent form.
 std::string count_text(double x) {
   return x < 9e15 ? std::to_string(static_cast<long long>(x)) : fmt(x);
@@ -386,12 +116,6 @@ void check_name(const SpecReader& c, const SpecValue& at, const std::string& key
   if (!valid_utf8(name)) c.fail(at, key, "the name is not valid UTF-8 text (hint: save the file as UTF-8)");
   for (unsigned char ch : name)
     if (ch < 0x20 || ch == 0x7f) c.fail(at, key, "the name contains a control character");
-}
-
-/// An experiment's name is part of a file name (track_<name>.csv): letters, digits and . _ - + =
-/// only, not starting with a dot.
-void check_file_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name) {
-  check_output_name(c, at, key, name, "experiment");
 }
 
 /// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
@@ -488,7 +212,9 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
   }
 }
 
-}  // namespace
+}  // namespace build
+
+using namespace build;
 
 std::vector<int> Problem::report_point_indices() const {
   std::vector<int> idx;
@@ -550,51 +276,6 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
 }
 
 namespace {
-
-/// model: the Problem with its model, names and parameters (every name checked).
-std::unique_ptr<Problem> build_model_section(const SpecReader& c, const ScenarioSpec& spec) {
-  const std::string& source = spec.file;
-  std::map<std::string, int> link_lines;
-  std::optional<ModelNumbers> numbers;
-  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines, numbers);
-  if (!spec.model.value["name"]) description.name = spec.name;
-  std::unique_ptr<Problem> s;
-  try {
-    s = std::make_unique<Problem>(build_model(description));
-  } catch (const Error& e) {
-    // Locate the link the message names, if any.
-    const std::string w = e.what();
-    for (const auto& [name, line] : link_lines)
-      if (w.find("'" + name + "'") != std::string::npos) c.fail(SourceLocation{source, line}, "model", w);
-    c.fail(spec.model.value, "model", w);
-  }
-  s->file = source;
-  s->name = spec.name;
-  check_name(c, spec.root["name"] ? spec.root["name"] : spec.root, "name", spec.name);
-  {
-    const Model& mm = s->model;
-    for (const auto* names : {&mm.joint_name, &mm.body_name, &mm.point_name})
-      for (const auto& nm : *names) {
-        const auto it = link_lines.find(nm);
-        check_name(c, it != link_lines.end() ? SpecValue::scalar(nm, {source, it->second}) : spec.model.value, "model", nm);
-      }
-    std::set<std::string> joints;
-    for (const auto& j : mm.joint_name)
-      if (!joints.insert(j).second) {
-        const auto it = link_lines.find(j);
-        c.fail(it != link_lines.end() ? SpecValue::scalar(j, {source, it->second}) : spec.model.value, "model",
-               "two joints are named '" + j + "' (joint names must be unique: they name columns, gains and constraints)");
-      }
-  }
-  s->parameters = c.params;
-  s->model_numbers = std::move(numbers);
-  const Model& m = s->model;
-  if (m.nv == 0)
-    c.fail(spec.model.value, "model",
-           "the model has no moving joint: nothing to plan (every joint is 'fixed'; give at least one the type "
-           "revolute or prismatic)");
-  return s;
-}
 
 /// constraints: (URDF <mimic> couplings first) and forces, each named before it is published.
 void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
@@ -937,176 +618,6 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
 }
 
 /// Tracking: controller, effort limit and the experiments, expanded into runs.
-/// One parameter of an experiment: a sweep's, one of a grid's, or a Monte Carlo distribution.
-struct ExperimentAxis {
-  std::string name, key;
-  const SpecValue* at;
-  std::vector<double> values;  // sweep, grid
-  bool normal = false;         // Monte Carlo: normal(a = mean, b = std) or uniform(a = low, b = high)
-  double a = 0, b = 0;
-};
-
-/// The experiment's own parameters, checked and read (values, distributions; `seed` for Monte Carlo).
-std::vector<ExperimentAxis> experiment_axes(const SpecReader& c, const ExperimentSpec& e, std::uint64_t& seed) {
-  const std::string& k = e.key;
-  std::vector<ExperimentAxis> axes;
-  std::string what = "sweep";
-  if (!e.sweep_parameter.empty()) axes.push_back({e.sweep_parameter, k + ".sweep." + e.sweep_parameter, &e.sweep, {}});
-  for (const auto& [name, values] : e.grid) {
-    what = "grid";
-    axes.push_back({name, k + ".grid." + name, &e.grid_value[name], {}});
-  }
-  if (e.monte_carlo)
-    for (const DistributionSpec& d : e.monte_carlo->distributions) {
-      what = "Monte Carlo";
-      axes.push_back({d.parameter, k + ".monte_carlo.distributions." + d.parameter, &d.value, {}});
-    }
-  for (const ExperimentAxis& a : axes) {
-    if (c.params.count(a.name) || a.name == "pi" || a.name == "e" || a.name == "t")
-      c.fail(*a.at, a.key,
-             "the " + what + " parameter '" + a.name + "' has the name of a parameter (or a constant); choose another name");
-    if (e.monte_carlo && a.name == "sample")
-      c.fail(*a.at, a.key, "'sample' is reserved in a Monte Carlo experiment ({sample} in the name is the sample index); "
-                           "choose another name");
-  }
-  if (!e.sweep_parameter.empty())
-    for (const SpecValue& v : e.sweep_values) axes[0].values.push_back(c.number(v, axes[0].key));
-  for (size_t i = 0; i < e.grid.size(); ++i)
-    for (const SpecValue& v : e.grid[i].second) axes[i].values.push_back(c.number(v, axes[i].key));
-  if (e.monte_carlo) {
-    seed = read_seed(c, e.monte_carlo->seed, k + ".monte_carlo.seed");
-    for (size_t i = 0; i < axes.size(); ++i) {
-      const DistributionSpec& d = e.monte_carlo->distributions[i];
-      const std::string dk = axes[i].key + "." + d.kind;
-      ExperimentAxis& a = axes[i];
-      a.normal = d.kind == "normal";
-      a.a = c.number(d.a, dk + (a.normal ? ".mean" : ".low"));
-      a.b = c.number(d.b, dk + (a.normal ? ".std" : ".high"));
-      if (a.normal && !(a.b >= 0))
-        c.fail(d.b, dk + ".std", "expected a standard deviation >= 0, got " + fmt(a.b));
-      if (!a.normal && !(a.a <= a.b))
-        c.fail(d.value[d.kind], dk, "expected low <= high, got low = " + fmt(a.a) + " > high = " + fmt(a.b));
-      if (!a.normal && !std::isfinite(a.b - a.a))
-        c.fail(d.value[d.kind], dk, "high - low = " + fmt(a.b - a.a) + " is not a finite number");
-    }
-  }
-  return axes;
-}
-
-/// One entry of `experiments:` expanded into its runs (Problem::experiments).
-void build_experiment(const SpecReader& c, const ScenarioSpec& spec, const ExperimentSpec& e,
-                      const ControllerFactory& top_controller, const std::string& top_type,
-                      std::set<std::string>& experiment_names, Problem& s) {
-  const Model& m = s.model;
-  const std::string& k = e.key;
-  if (!spec.controller && !e.controller)
-    c.fail(e.value, "controller",
-           "experiments need a controller (add a 'controller:' section, at the top level or in the experiment)");
-  // The experiment's own parameters, in the order written: the sweep's, the grid's (first
-  // slowest) or the Monte Carlo distributions (drawn per sample in this order).
-  std::uint64_t seed = 0;
-  std::vector<ExperimentAxis> axes = experiment_axes(c, e, seed);
-  std::mt19937_64 generator;
-  if (e.monte_carlo) generator.seed(seed);
-  // Counted and checked against limits.max_runs above.
-  const long runs = static_cast<long>(experiment_runs(c, e));
-  const size_t width = std::to_string(runs - 1).size();
-  const auto padded = [width](long i) {
-    const std::string d = std::to_string(i);
-    return std::string(width - std::min(width, d.size()), '0') + d;
-  };
-  const std::string index = k.substr(k.find('[') + 1, k.find(']') - k.find('[') - 1);
-  std::string available;  // the placeholders this experiment's names may use
-  for (const ExperimentAxis& a : axes) available += (available.empty() ? "{" : ", {") + a.name + "}";
-  if (e.monte_carlo) available += ", {sample}";
-  const std::string placeholders = e.monte_carlo ? "{sample}" : available.empty() ? "{param}" : available;
-  std::vector<double> values(axes.size());
-  for (long run = 0; run < runs; ++run) {
-    if (e.monte_carlo) {
-      for (size_t i = 0; i < axes.size(); ++i) {
-        const ExperimentAxis& a = axes[i];
-        values[i] = a.normal ? add_product(a.a, a.b, standard_normal(generator))
-                             : add_product(a.a, a.b - a.a, uniform01(generator));
-        if (!std::isfinite(values[i]))
-          c.fail(*a.at, a.key, "sample " + std::to_string(run) + " drew " + fmt(values[i]) + ", not a finite number");
-      }
-    } else {
-      long rest = run;  // row-major: the last parameter varies fastest
-      for (size_t i = axes.size(); i-- > 0;) {
-        const long n = static_cast<long>(axes[i].values.size());
-        values[i] = axes[i].values[rest % n];
-        rest /= n;
-      }
-    }
-    SpecReader ce = c;  // the run's parameters are visible in its values
-    auto exp = std::make_unique<Experiment>();
-    std::string name = e.named ? e.name : runs == 1 ? "run" + index : "run" + index + "_" + padded(run);
-    for (size_t i = 0; i < axes.size(); ++i) {
-      ce.params[axes[i].name] = values[i];
-      exp->sweep.emplace_back(axes[i].name, values[i]);
-      if (e.named) name = substitute(name, axes[i].name, values[i]);
-    }
-    if (e.monte_carlo) {
-      exp->sample = run;
-      exp->seed = seed;
-      if (e.named)
-        for (size_t pos; (pos = name.find("{sample}")) != std::string::npos;) name.replace(pos, 8, padded(run));
-    }
-    if (const size_t open = name.find('{'); open != std::string::npos && name.find('}', open) != std::string::npos)
-      c.fail(e.value["name"], k + ".name",
-             "the name has the placeholder '" + name.substr(open, name.find('}', open) - open + 1) +
-                 "', which is not a parameter of this experiment (" +
-                 (available.empty() ? std::string("it has none") : "it has " + available) + ")");
-    exp->name = std::move(name);
-    check_file_name(c, e.value["name"] ? e.value["name"] : e.value, k + ".name", exp->name);
-    if (!experiment_names.insert(exp->name).second)
-      c.fail(e.value["name"] ? e.value["name"] : e.value, k + ".name",
-             "duplicate experiment name '" + exp->name + "' (use " + placeholders + " in the name)");
-    exp->q0 = s.q0;
-    exp->qd0 = Eigen::VectorXd::Zero(m.nq);
-    if (e.initial_q) {
-      const Eigen::VectorXd given = ce.joint_vector(e.initial_q, k + ".initial.q", m, false, std::nan(""));
-      for (int j = 0; j < m.nq; ++j)
-        if (!std::isnan(given[j])) exp->q0[j] = given[j];
-    }
-    if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
-    if (e.plant_forces)
-      read_forces(ce, *e.plant_forces, m, exp->plant_forces);
-    else if (spec.plant_forces)
-      read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
-    if (e.controller) {
-      exp->make_controller = read_controller(ce, *e.controller, m);
-      exp->controller_type = e.controller->kind;
-    } else {
-      exp->make_controller = top_controller;
-      exp->controller_type = top_type;
-    }
-    s.experiments.push_back(std::move(exp));
-  }
-}
-
-void build_experiments(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
-  const Model& m = s.model;
-  // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
-  // its sweep parameter).
-  ControllerFactory top_controller;
-  std::string top_type;
-  if (spec.controller) {
-    top_controller = read_controller(c, *spec.controller, m);
-    top_type = spec.controller->kind;
-  }
-  if (spec.effort_limit) {
-    s.effort_limit = c.joint_vector(spec.effort_limit, "effort_limit", m, false, std::numeric_limits<double>::infinity());
-    for (int i = 0; i < m.nq; ++i)
-      if (!(s.effort_limit[i] >= 0))
-        c.fail(spec.effort_limit, "effort_limit." + m.joint_name[i],
-               "expected a limit >= 0 [N m or N], got " + fmt(s.effort_limit[i]));
-  }
-  std::set<std::string> experiment_names;
-  for (const ExperimentSpec& e : spec.experiments)
-    build_experiment(c, spec, e, top_controller, top_type, experiment_names, s);
-}
-
 /// outputs: the points recorded in trajectories.
 void build_outputs(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   const Model& m = s.model;

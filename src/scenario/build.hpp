@@ -1,0 +1,51 @@
+#pragma once
+// Private to src/scenario/ (not installed): the section builders of build_problem that live in
+// their own files, and the helpers the files share. problem.cpp holds build_problem and the
+// other sections; model_section.cpp the model; experiments.cpp the experiments.
+
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
+#include "refdyn/scenario/registry.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn::build {
+
+/// model: the Problem with its model, names and parameters (every name checked).
+std::unique_ptr<Problem> build_model_section(const SpecReader& c, const ScenarioSpec& spec);
+/// experiments: each expanded (sweep, grid, Monte Carlo) into named Experiments.
+void build_experiments(const SpecReader& c, const ScenarioSpec& spec, Problem& s);
+
+// Shared helpers (defined in problem.cpp).
+/// `s` with every "{var}" replaced by v (%g).
+std::string substitute(std::string s, const std::string& var, double v);
+/// Runs an experiment expands into, as a double; checks a Monte Carlo `samples`.
+double experiment_runs(const SpecReader& c, const ExperimentSpec& e);
+/// Reads a force list (signal columns suffixed, names checked) into `out`.
+void read_forces(const SpecReader& c, const std::vector<EntrySpec>& entries, const Model& m, ForceSet& out);
+/// A count for messages: a whole number when it fits, else in exponent form.
+std::string count_text(double x);
+/// Names become CSV headers, JSON strings and file names: printable UTF-8.
+void check_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name);
+
+/// Builds one registry entry; errors from the factory that carry no location get the entry's.
+template <class Kind, class Build>
+auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec& e, const std::string& kind_key,
+                 const Build& build) {
+  const Kind* k = reg.find(e.kind);
+  if (!k)
+    c.fail(e.fields[kind_key].is_null() ? e.fields : e.fields[kind_key], e.key + "." + kind_key,
+           "got '" + e.kind + "', expected one of the " + reg.what() + "s" + did_you_mean(e.kind, reg.names()));
+  try {
+    return build(*k);
+  } catch (const Error& err) {
+    const std::string w = err.what();
+    if (w.rfind(c.file(), 0) == 0) throw;  // already located
+    c.fail(e.fields, e.key, w);
+  }
+}
+
+}  // namespace refdyn::build
