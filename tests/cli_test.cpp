@@ -545,11 +545,6 @@ TEST(CommandLine, VersionIsTheProjectsAndSummaryJsonRecordsIt) {
 // ---------------------------------------------------------------------------------------------
 // Hostile input and outcomes (the hostile-input issue).
 
-std::string without_header(std::string text, size_t drop_lines) {
-  for (size_t k = 0; k < drop_lines; ++k) text = text.substr(text.find('\n') + 1);
-  return text;
-}
-
 /// A copy of the minimal scenario with `from` replaced by `to` (and `extra` appended).
 fs::path variant(const Scratch& s, const std::string& name, const std::string& from, const std::string& to,
                  const std::string& extra = "") {

@@ -389,8 +389,7 @@ void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::
 void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSpec& s) {
   if (const SpecValue& b = root["baumgarte"]) {
     c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order", "kappa"});
-    s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b};
-    s.baumgarte.kappa = b["kappa"];
+    s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b, b["kappa"]};
   }
   if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange", "auto"});
   if (root["paper_literal_forces"]) s.paper_literal_forces = c.boolean(root["paper_literal_forces"], "paper_literal_forces");
@@ -414,8 +413,7 @@ void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSp
   const SpecValue& ini = c.need(root, "initial", "");
   c.keys(ini, "initial", {"q", "qd", "qdd", "consistency", "tolerance"});
   c.need(ini, "q", "initial");
-  s.initial = {ini["q"], ini["qd"], false, ini["tolerance"], ini};
-  s.initial.qdd = ini["qdd"];
+  s.initial = {ini["q"], ini["qd"], false, ini["tolerance"], ini, ini["qdd"]};
   if (ini["consistency"]) s.initial.project = c.choice(ini["consistency"], "initial.consistency", {"check", "project"}) == "project";
 
   if (const SpecValue& in = root["integrator"]) {
