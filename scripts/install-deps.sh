@@ -5,6 +5,7 @@
 # libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
 # chromium + python3-pil: the report's browser test, tests/report_browser_test.py;
 # nlohmann-json3-dev: JSON values, reading and writing (common/json.hpp);
+# libsundials-dev: CVODES, the implicit BDF integrator for stiff problems (simulate/bdf.hpp);
 # libopenmpi-dev + openmpi-bin: `refdyn track --mpi` and its test, tests/mpi_test.sh).
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
@@ -12,7 +13,7 @@ PACKAGES=(
   cmake g++ make pkg-config
   libeigen3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libyaml-cpp-dev libcli11-dev libginac-dev nlohmann-json3-dev
+  libyaml-cpp-dev libcli11-dev libginac-dev nlohmann-json3-dev libsundials-dev
   liburdfdom-dev liborocos-kdl-dev libmujoco-dev
   python3 python3-matplotlib
   clang-14 libclang-rt-14-dev llvm-14
