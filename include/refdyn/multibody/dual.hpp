@@ -98,6 +98,50 @@ template <int N> Dual<N> sqrt(const Dual<N>& x) {
   return chain(s, 0.5 / s, x);
 }
 
+template <int N> Dual<N> exp(const Dual<N>& x) {
+  const double e = std::exp(x.v);
+  return chain(e, e, x);
+}
+template <int N> Dual<N> log(const Dual<N>& x) { return chain(std::log(x.v), 1.0 / x.v, x); }
+template <int N> Dual<N> tan(const Dual<N>& x) {
+  const double t = std::tan(x.v);
+  return chain(t, 1.0 + t * t, x);
+}
+template <int N> Dual<N> asin(const Dual<N>& x) { return chain(std::asin(x.v), 1.0 / std::sqrt(1.0 - x.v * x.v), x); }
+template <int N> Dual<N> acos(const Dual<N>& x) { return chain(std::acos(x.v), -1.0 / std::sqrt(1.0 - x.v * x.v), x); }
+template <int N> Dual<N> atan(const Dual<N>& x) { return chain(std::atan(x.v), 1.0 / (1.0 + x.v * x.v), x); }
+template <int N> Dual<N> sinh(const Dual<N>& x) { return chain(std::sinh(x.v), std::cosh(x.v), x); }
+template <int N> Dual<N> cosh(const Dual<N>& x) { return chain(std::cosh(x.v), std::sinh(x.v), x); }
+template <int N> Dual<N> tanh(const Dual<N>& x) {
+  const double t = std::tanh(x.v);
+  return chain(t, 1.0 - t * t, x);
+}
+template <int N> Dual<N> asinh(const Dual<N>& x) { return chain(std::asinh(x.v), 1.0 / std::sqrt(x.v * x.v + 1.0), x); }
+template <int N> Dual<N> acosh(const Dual<N>& x) { return chain(std::acosh(x.v), 1.0 / std::sqrt(x.v * x.v - 1.0), x); }
+template <int N> Dual<N> atanh(const Dual<N>& x) { return chain(std::atanh(x.v), 1.0 / (1.0 - x.v * x.v), x); }
+/// |x|: derivative sign(x) (at 0 the right derivative, +1, as the interpreter's Sign).
+template <int N> Dual<N> abs(const Dual<N>& x) { return chain(std::fabs(x.v), x.v >= 0.0 ? 1.0 : -1.0, x); }
+/// atan2(y, x): d = (x dy − y dx)/(x² + y²).
+template <int N> Dual<N> atan2(const Dual<N>& y, const Dual<N>& x) {
+  Dual<N> r(std::atan2(y.v, x.v));
+  const double inv = 1.0 / (x.v * x.v + y.v * y.v);
+  for (int k = 0; k < N; ++k) r.d[k] = (x.v * y.d[k] - y.v * x.d[k]) * inv;
+  return r;
+}
+/// x^c for a constant exponent c: c x^(c−1) dx.
+template <int N> Dual<N> pow(const Dual<N>& x, double c) {
+  return chain(std::pow(x.v, c), c == 0.0 ? 0.0 : c * std::pow(x.v, c - 1.0), x);
+}
+/// x^y: y x^(y−1) dx + x^y log(x) dy (the log term only where dy ≠ 0, so x ≤ 0 with a constant
+/// exponent stays finite).
+template <int N> Dual<N> pow(const Dual<N>& x, const Dual<N>& y) {
+  const double p = std::pow(x.v, y.v);
+  Dual<N> r(p);
+  const double dx = y.v == 0.0 ? 0.0 : y.v * std::pow(x.v, y.v - 1.0);
+  for (int k = 0; k < N; ++k) r.d[k] = dx * x.d[k] + (y.d[k] != 0.0 ? p * std::log(x.v) * y.d[k] : 0.0);
+  return r;
+}
+
 template <int N>
 struct ScalarTraits<Dual<N>> {
   static Dual<N> from_double(double v) { return Dual<N>(v); }
@@ -113,3 +157,10 @@ struct ScalarTraits<Dual<N>> {
 };
 
 }  // namespace refdyn::multibody
+
+namespace refdyn {
+/// Directions per sweep of the engine's exact Jacobians ∂f/∂x (reference dynamics, force
+/// elements, constraints): a Jacobian of n_x columns takes ⌈n_x / kJacobianDirections⌉ sweeps.
+inline constexpr int kJacobianDirections = 4;
+using JacobianScalar = multibody::Dual<kJacobianDirections>;
+}  // namespace refdyn
