@@ -526,6 +526,40 @@ TEST(Examples, PaperScenarioFileMatchesTheBuiltInExample) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// 5b. Stiff friction (examples/stiff_friction): stick–slip of one joint under a torque ramp,
+// integrated by BDF. Sticking: while τ = rate·t stays below the break-away level μ_s the table
+// does not move (only the bristles deflect, z = τ/σ0); slipping: past μ_s it breaks away and the
+// net torque τ − (≈ μ_k) accelerates it.
+TEST(Examples, StickSlipTableSticksBelowTheBreakAwayTorqueThenSlips) {
+  const Planned p = plan_file("examples/stiff_friction/stick_slip.yaml");
+  ASSERT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
+  const double mu_s = p.param("mu_s"), mu_k = p.param("mu_k"), rate = p.param("rate"), sigma0 = p.param("sigma0");
+  const double J = p.param("J"), t_break = mu_s / rate;
+  double stuck_speed = 0, stuck_angle = 0, worst_bristle = 0;
+  for (size_t k = 0; k < p.plan.t.size(); ++k) {
+    const double t = p.plan.t[k];
+    if (t > 0.8 * t_break) break;
+    stuck_speed = std::max(stuck_speed, std::abs(p.qd(k)[0]));
+    stuck_angle = std::max(stuck_angle, std::abs(p.q(k)[0]));
+    if (t > 0.1) worst_bristle = std::max(worst_bristle, std::abs(p.plan.x[k][2] * sigma0 / (rate * t) - 1));
+  }
+  report("stick_slip", "max |qd| while tau < 0.8 mu_s [rad/s]", stuck_speed);
+  report("stick_slip", "max |q| while tau < 0.8 mu_s [rad]", stuck_angle);
+  EXPECT_LT(stuck_speed, 1e-4);
+  EXPECT_LT(stuck_angle, 1e-5);  // presliding: micro-radians
+  EXPECT_LT(worst_bristle, 0.05);  // the bristles carry the torque: sigma0 z = tau
+  // Slipping: well past the break-away the table turns and accelerates at about (τ − μ_k)/J.
+  const size_t last = p.plan.t.size() - 1;
+  const double t_end = p.plan.t[last];
+  ASSERT_GT(t_end, 1.5 * t_break);
+  EXPECT_GT(p.qd(last)[0], 0.5);
+  const double accel = p.plan.qdd[last][0], expected = (rate * t_end - mu_k) / J;
+  report("stick_slip", "qdd(t1) / ((tau - mu_k)/J)", accel / expected);
+  EXPECT_NEAR(accel / expected, 1.0, 0.05);
+  EXPECT_GT(p.plan.summary.jacobian_evaluations, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
 // 6. Every example through the command line: check and plan exit 0 and plan writes plan.csv.
 TEST(Examples, RunThroughTheCommandLine) {
   char tmpl[] = "/tmp/refdyn_examples_XXXXXX";
@@ -533,7 +567,9 @@ TEST(Examples, RunThroughTheCommandLine) {
   const fs::path tmp(tmpl);
   const std::vector<std::string> files{"examples/planar_2r_circle/planar_2r_circle.yaml", "examples/unicycle/unicycle.yaml",
                                        "examples/four_bar/four_bar.yaml", "examples/urdf_arm_line/urdf_arm_line.yaml",
-                                       "examples/waiter_tray/waiter_tray.yaml", "examples/paper/paper.yaml"};
+                                       "examples/waiter_tray/waiter_tray.yaml", "examples/paper/paper.yaml",
+                                       "examples/stiff_friction/stiff_friction.yaml",
+                                       "examples/stiff_friction/stick_slip.yaml"};
   for (const auto& rel : files) {
     const std::string file = source_path(rel), name = fs::path(rel).stem().string();
     const fs::path out = tmp / name;

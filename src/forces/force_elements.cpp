@@ -22,6 +22,10 @@ class JointDamping final : public ForceElement {
     Q[j_] -= b_ * qd[j_];
     if (dQ) (*dQ)(j_, j_) -= b_;
   }
+  void apply_dual(double, const JacobianScalar*, const JacobianScalar* qd, const JacobianScalar*, JacobianScalar* Q,
+                  JacobianScalar*) const override {
+    Q[j_] -= b_.value * qd[j_];
+  }
   std::optional<SymbolicForm> symbolic() const override {
     SymbolicForm f;
     f.rows = {"-" + symbolic_number(b_) + "*qd(" + n_ + ")"};
@@ -48,6 +52,10 @@ class JointSpring final : public ForceElement {
              Eigen::MatrixXd*) const override {
     Q[j_] -= k_ * (q[j_] - r_);
   }
+  void apply_dual(double, const JacobianScalar* q, const JacobianScalar*, const JacobianScalar*, JacobianScalar* Q,
+                  JacobianScalar*) const override {
+    Q[j_] -= k_.value * (q[j_] - r_.value);
+  }
   std::optional<SymbolicForm> symbolic() const override {
     SymbolicForm f;
     f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
@@ -73,6 +81,10 @@ class JointEffort final : public ForceElement {
   bool actuator() const override { return true; }
   void apply(double t, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
              Eigen::MatrixXd*) const override {
+    Q[j_] += f_->eval(t).f;
+  }
+  void apply_dual(double t, const JacobianScalar*, const JacobianScalar*, const JacobianScalar*, JacobianScalar* Q,
+                  JacobianScalar*) const override {
     Q[j_] += f_->eval(t).f;
   }
   std::optional<SymbolicForm> symbolic() const override {
@@ -147,6 +159,18 @@ void FlexibleDrive::apply(double t, const Eigen::VectorXd& q, const Eigen::Vecto
   if (dQ) (*dQ)(j_, j_) -= p_.damping;
 }
 
+void ForceElement::apply_dual(double, const JacobianScalar*, const JacobianScalar*, const JacobianScalar*,
+                              JacobianScalar*, JacobianScalar*) const {
+  throw Error("force element '" + name() + "' has no exact derivatives (ForceElement::apply_dual), which implicit "
+              "integration needs (hint: use method: rk4 or dopri5, or implement apply_dual for this element)");
+}
+
+void FlexibleDrive::apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar*,
+                               JacobianScalar* Q, JacobianScalar*) const {
+  const TimeValue psi = profile_->eval(t);
+  Q[j_] += p_.stiffness.value * (psi.f - q[j_]) + p_.damping.value * (psi.df - qd[j_]);
+}
+
 LuGreFriction::LuGreFriction(const Model& model, const std::string& joint, LuGreParams p)
     : j_(model.joint_index(joint)), joint_name_(joint), p_(p) {
   const std::string w = "LuGre friction of joint '" + joint + "': ";
@@ -198,6 +222,25 @@ void LuGreFriction::apply(double, const Eigen::VectorXd&, const Eigen::VectorXd&
     const double dzd = 1.0 - p_.sigma0 * z[0] * (sgn * g - av * dg) / (g * g);
     (*dQ)(j_, j_) -= p_.sigma1 * dzd + p_.sigma2;
   }
+}
+
+void LuGreFriction::apply_dual(double, const JacobianScalar*, const JacobianScalar* qd, const JacobianScalar* z,
+                               JacobianScalar* Q, JacobianScalar* zdot) const {
+  using multibody::abs;
+  using multibody::exp;
+  const JacobianScalar& v = qd[j_];
+  const JacobianScalar r = v / p_.v_stribeck.value;
+  const JacobianScalar g = p_.mu_k.value + (p_.mu_s.value - p_.mu_k.value) * exp(-(r * r));
+  const JacobianScalar zd = v - p_.sigma0.value * abs(v) * z[0] / g;
+  zdot[0] = zd;
+  Q[j_] -= p_.sigma0.value * z[0] + p_.sigma1.value * zd + p_.sigma2.value * v;
+}
+
+void ForceSet::evaluate_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                             int nq, JacobianScalar* Q, JacobianScalar* zdot) const {
+  for (int i = 0; i < nq; ++i) Q[i] = JacobianScalar(0.0);
+  for (size_t k = 0; k < elements_.size(); ++k)
+    elements_[k]->apply_dual(t, q, qd, z + offsets_[k], Q, zdot + offsets_[k]);
 }
 
 void ForceSet::add(ForceElementPtr e) {

@@ -391,6 +391,17 @@ void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSp
     c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order", "kappa"});
     s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b, b["kappa"]};
   }
+  if (const SpecValue& st = root["stabilization"]) {  // baumgarte | projection | both, or {method, tolerance, max_iterations}
+    const SpecValue* method = &st;
+    if (!st.is_scalar()) {
+      c.keys(st, "stabilization", {"method", "tolerance", "max_iterations"});
+      method = &c.need(st, "method", "stabilization");
+      s.stabilization.tolerance = st["tolerance"];
+      s.stabilization.max_iterations = st["max_iterations"];
+    }
+    s.stabilization.method = c.choice(*method, "stabilization", {"baumgarte", "projection", "both"});
+    s.stabilization.value = st;
+  }
   if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange", "auto"});
   if (root["paper_literal_forces"]) s.paper_literal_forces = c.boolean(root["paper_literal_forces"], "paper_literal_forces");
 
@@ -418,10 +429,11 @@ void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSp
 
   if (const SpecValue& in = root["integrator"]) {
     c.keys(in, "integrator",
-           {"method", "step", "t0", "t1", "rtol", "atol", "output_interval", "min_step", "residual_from",
-            "residual_tolerance"});
+           {"method", "step", "t0", "t1", "rtol", "atol", "output_interval", "min_step", "max_order",
+            "residual_from", "residual_tolerance"});
     IntegratorSpec& o = s.integrator;
-    if (in["method"]) o.method = c.choice(in["method"], "integrator.method", {"rk4", "dopri5"});
+    if (in["method"]) o.method = c.choice(in["method"], "integrator.method", {"rk4", "dopri5", "bdf"});
+    o.max_order = in["max_order"];
     o.step = in["step"];
     o.t0 = in["t0"];
     o.t1 = in["t1"];
@@ -534,7 +546,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   long budget = kMaxSpecValues;
   s.root = to_spec(yroot, source, "", c, budget, text);
   const SpecValue& root = s.root;
-  c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "solver",
+  c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "stabilization", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
                     "experiments", "variants", "outputs", "limits"});
   const Reader rd(c);

@@ -36,6 +36,9 @@ void ReferenceDynamicsOptions::validate() const {
   need(std::isfinite(beta_first_order) && beta_first_order >= 0, "beta_first_order", "a finite value >= 0 [1/s]",
        beta_first_order);
   need(max_condition > 1, "max_condition", "a value > 1", max_condition);
+  need(std::isfinite(projection_tolerance) && projection_tolerance > 0, "projection_tolerance", "a finite value > 0",
+       projection_tolerance);
+  need(projection_max_iterations >= 1, "projection_max_iterations", "a count >= 1", projection_max_iterations);
 }
 
 ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces, const ConstraintSet& constraints,
@@ -43,6 +46,7 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
     : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
       m_(constraints.rows()), data_(model), ev_(model, constraints) {
   opt_.validate();
+  if (opt_.stabilization == Stabilization::Projection) opt_.alpha = opt_.beta = opt_.beta_first_order = 0.0;
   if (opt_.solver == ReferenceSolver::Automatic) opt_.solver = automatic_reference_solver(n_, m_);
   aba_ = m_ == 0 && constraints.points().empty() && forward_dynamics_uses_aba(n_);
   aba_lagrange_ = m_ > 0 && opt_.solver == ReferenceSolver::Lagrange && n_ >= kAbaLagrangeFrom;

@@ -370,6 +370,38 @@ void build_reference_options(const SpecReader& c, const ScenarioSpec& spec, Prob
                       : spec.solver == "auto"   ? automatic_reference_solver(m.nq, s.constraints.rows())
                                                 : ReferenceSolver::Projection;
   s.options.paper_literal_forces = spec.paper_literal_forces;
+  if (const StabilizationSpec& st = spec.stabilization; st.value) {
+    const SpecValue& at = st.value;
+    s.options.stabilization = st.method == "projection" ? Stabilization::Projection
+                              : st.method == "both"     ? Stabilization::Both
+                                                        : Stabilization::Baumgarte;
+    if (s.options.stabilization != Stabilization::Baumgarte) {
+      if (s.is_jerk_problem())
+        c.fail(at, "stabilization", "projection is not available for problems with jerk constraints (order: jerk) "
+                                    "(hint: remove stabilization)");
+      bool state_rows = false;
+      for (int r = 0; r < s.constraints.rows(); ++r) state_rows = state_rows || s.constraints.row_order(r) <= 1;
+      if (!state_rows)
+        c.fail(at, "stabilization", "projection needs position or velocity constraints to project onto, and this "
+                                    "problem has none (hint: stabilization: baumgarte, or remove the key)");
+      if (s.options.stabilization == Stabilization::Projection && spec.baumgarte.value)
+        c.fail(spec.baumgarte.value, "baumgarte",
+               "stabilization: projection uses no Baumgarte gains (the rows are imposed as Phi'' = 0, c' = 0); "
+               "remove baumgarte: or write stabilization: both");
+    }
+    if (st.tolerance) s.options.projection_tolerance = c.number(st.tolerance, "stabilization.tolerance");
+    if (st.max_iterations) {
+      const double k = c.number(st.max_iterations, "stabilization.max_iterations");
+      if (!(k >= 1 && k <= 1000 && k == std::floor(k)))
+        c.fail(st.max_iterations, "stabilization.max_iterations", "expected a whole number from 1 to 1000, got " + fmt(k));
+      s.options.projection_max_iterations = static_cast<int>(k);
+    }
+    try {
+      s.options.validate();
+    } catch (const Error& e) {
+      c.fail(at, "stabilization", e.what());
+    }
+  }
 
   const int nrows = s.constraints.rows();
   if (nrows > m.nq)
@@ -435,7 +467,20 @@ void build_integrator(const SpecReader& c, const ScenarioSpec& spec, Problem& s)
   {
     const IntegratorSpec& in = spec.integrator;
     IntegratorOptions& o = s.integrator;
-    o.method = in.method == "dopri5" ? IntegratorMethod::DormandPrince45 : IntegratorMethod::RK4;
+    from_string(in.method, o.method);  // the reader accepted only the methods' names
+    if (o.method == IntegratorMethod::BDF && s.is_jerk_problem())
+      c.fail(spec.integrator.value["method"], "integrator.method",
+             "method: bdf is not available for problems with jerk constraints (order: jerk) yet: their reference "
+             "dynamics has no exact Jacobian (hint: method: rk4 or dopri5)");
+    if (in.max_order) {
+      const double k = c.number(in.max_order, "integrator.max_order");
+      if (o.method != IntegratorMethod::BDF)
+        c.fail(in.max_order, "integrator.max_order", "is an option of method: bdf only (this integrator is " +
+                                                         std::string(to_string(o.method)) + "); remove it or set method: bdf");
+      if (!(k >= 1 && k <= 5 && k == std::floor(k)))
+        c.fail(in.max_order, "integrator.max_order", "expected a whole number from 1 to 5 (the BDF order), got " + fmt(k));
+      o.max_order = static_cast<int>(k);
+    }
     if (in.step) o.step = c.number(in.step, "integrator.step");
     if (in.t0) o.t0 = c.number(in.t0, "integrator.t0");
     if (in.t1) o.t1 = c.number(in.t1, "integrator.t1");

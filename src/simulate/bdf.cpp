@@ -1,65 +1,95 @@
-// integrate_bdf: CVODES (SUNDIALS 6) with BDF, Newton iterations and a dense direct solver on the
-// caller's exact Jacobian. The C callbacks never let an exception cross SUNDIALS: they record it
-// and return −1 (unrecoverable); a non-finite derivative returns +1 (recoverable: CVODE retries
-// with a smaller step).
-#include "refdyn/simulate/bdf.hpp"
+// integrate() with IntegratorMethod::BDF: CVODES (SUNDIALS 6) with variable-order BDF, Newton
+// iterations and a dense direct solver on the caller's exact Jacobian.
+//
+// The C callbacks never let an exception cross SUNDIALS: a NumericalFailure (a singular
+// partition) or any other exception is kept and the callback returns −1 (unrecoverable); after
+// CVode returns, a NumericalFailure becomes the summary's status and anything else is rethrown.
+// A non-finite derivative returns +1 (recoverable: CVODE retries with a smaller step).
+#include "bdf.hpp"
 
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 
 #include <cvodes/cvodes.h>
+#include <cvodes/cvodes_proj.h>
 #include <nvector/nvector_serial.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <memory>
+#include <exception>
+#include <optional>
 
-namespace refdyn {
+namespace refdyn::detail {
 
 namespace {
 
 struct Callbacks {
-  const BdfRhs& f;
-  const BdfJacobian& jac;
-  Eigen::VectorXd x, dx;
+  const OdeStageRhs& f;
+  const OdeJacobian& jac;
+  const OdeProjection& projection;
+  Eigen::VectorXd x, dx, xp;
   Eigen::MatrixXd J;
-  std::string error;  // an exception from the caller's functions
+  std::optional<NumericalFailure> failure;  // the first NumericalFailure raised by f or the Jacobian
+  std::exception_ptr other;                 // any other exception: rethrown after the run
 };
 
 Eigen::Map<Eigen::VectorXd> view(N_Vector v) { return {N_VGetArrayPointer(v), N_VGetLength(v)}; }
 
+template <class Body>
+int guarded(Callbacks& c, Body&& body) {
+  try {
+    return body();
+  } catch (const NumericalFailure& e) {
+    if (!c.failure) c.failure.emplace(e);
+  } catch (...) {
+    if (!c.other) c.other = std::current_exception();
+  }
+  return -1;
+}
+
 int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void* user) {
   auto& c = *static_cast<Callbacks*>(user);
-  try {
+  return guarded(c, [&] {
     c.x = view(y);
-    c.f(t, c.x, c.dx);
+    c.f(Stage{}, t, c.x, c.dx);
     if (!c.dx.allFinite()) return 1;
     view(ydot) = c.dx;
     return 0;
-  } catch (const std::exception& e) {
-    c.error = e.what();
-    return -1;
-  }
+  });
 }
 
 int jacobian(sunrealtype t, N_Vector y, N_Vector, SUNMatrix J, void* user, N_Vector, N_Vector, N_Vector) {
   auto& c = *static_cast<Callbacks*>(user);
-  try {
+  return guarded(c, [&] {
     c.x = view(y);
     c.jac(t, c.x, c.J);
-    if (!c.J.allFinite()) return 1;
     const auto n = static_cast<Eigen::Index>(SUNDenseMatrix_Rows(J));
+    if (c.J.rows() != n || c.J.cols() != n)
+      throw Error("integrate (bdf): the Jacobian has size " + std::to_string(c.J.rows()) + "x" +
+                  std::to_string(c.J.cols()) + ", expected " + std::to_string(n) + "x" + std::to_string(n));
+    if (!c.J.allFinite()) return 1;
     Eigen::Map<Eigen::MatrixXd>(SUNDenseMatrix_Data(J), n, n) = c.J;  // column-major, like Eigen
     return 0;
-  } catch (const std::exception& e) {
-    c.error = e.what();
-    return -1;
-  }
+  });
 }
 
-void quiet(int, const char*, const char*, char*, void*) {}  // messages are taken from the flags
+// CVODE's projection after each step: corr = P(y) − y (the error estimate is not projected).
+int project(sunrealtype t, N_Vector y, N_Vector corr, sunrealtype, N_Vector, void* user) {
+  auto& c = *static_cast<Callbacks*>(user);
+  return guarded(c, [&] {
+    c.x = view(y);
+    c.xp = c.x;
+    c.projection(t, c.xp);
+    view(corr) = c.xp - c.x;
+    return 0;
+  });
+}
+
+void quiet(int, const char*, const char*, char*, void*) {}  // messages are made from the flags
 
 /// Owns the SUNDIALS objects of one run.
 struct Cvode {
@@ -68,6 +98,9 @@ struct Cvode {
   SUNMatrix A = nullptr;
   SUNLinearSolver LS = nullptr;
   void* mem = nullptr;
+  Cvode() = default;
+  Cvode(const Cvode&) = delete;
+  Cvode& operator=(const Cvode&) = delete;
   ~Cvode() {
     if (mem) CVodeFree(&mem);
     if (LS) SUNLinSolFree(LS);
@@ -78,56 +111,81 @@ struct Cvode {
 };
 
 void check(int flag, const char* what) {
-  if (flag < 0) throw std::runtime_error(std::string("integrate_bdf: ") + what + " failed (flag " + std::to_string(flag) + ")");
+  if (flag < 0) throw Error(std::string("integrate (bdf): SUNDIALS ") + what + " failed (flag " + std::to_string(flag) + ")");
 }
 
-std::string flag_text(int flag) {
-  char* name = CVodeGetReturnFlagName(flag);
-  std::string s = name ? name : "unknown";
-  std::free(name);
+void collect(void* mem, IntegrationSummary& s) {
+  long v = 0;
+  CVodeGetNumSteps(mem, &v), s.steps = v;
+  CVodeGetNumRhsEvals(mem, &v), s.rhs_evaluations = v;
+  CVodeGetNumJacEvals(mem, &v), s.jacobian_evaluations = v;
+  CVodeGetNumNonlinSolvIters(mem, &v), s.newton_iterations = v;
+  CVodeGetNumNonlinSolvConvFails(mem, &v), s.newton_failures = v;
+  CVodeGetNumErrTestFails(mem, &v), s.error_test_failures = v;
+  s.rejected_steps = s.newton_failures + s.error_test_failures;
+}
+
+/// The summary's status and message for a failed CVode call at time t (last step h).
+void describe_failure(int flag, double t, double h, const IntegratorOptions& o, IntegrationSummary& s) {
+  const std::string at = "at t = " + fmt(t) + " s";
   switch (flag) {
-    case CV_TOO_MUCH_WORK: return s + ": more than max_steps internal steps (hint: raise integrator.max_steps)";
-    case CV_TOO_MUCH_ACC: return s + ": the tolerances cannot be met in floating point (hint: larger rtol/atol)";
-    case CV_ERR_FAILURE: return s + ": the error test failed repeatedly or at the minimum step";
-    case CV_CONV_FAILURE: return s + ": the Newton iteration failed repeatedly or at the minimum step";
-    default: return s;
-  }
-}
-
-void validate(const BdfOptions& o, double t0, const Eigen::VectorXd& x0, const std::vector<double>& outputs) {
-  auto positive = [](double v) { return std::isfinite(v) && v > 0; };
-  if (!positive(o.rtol)) throw Error("integrator.rtol: expected a finite number > 0, got " + fmt(o.rtol));
-  if (!positive(o.atol)) throw Error("integrator.atol: expected a finite number > 0, got " + fmt(o.atol));
-  if (o.max_order < 1 || o.max_order > 5) throw Error("integrator.max_order: expected 1 to 5, got " + std::to_string(o.max_order));
-  if (o.max_steps < 1) throw Error("integrator.max_steps: expected a whole number >= 1");
-  for (const double h : {o.initial_step, o.min_step, o.max_step})
-    if (!(std::isfinite(h) && h >= 0)) throw Error("integrator: step bounds must be finite and >= 0, got " + fmt(h));
-  if (o.max_step > 0 && o.min_step > o.max_step) throw Error("integrator: min_step is larger than max_step");
-  if (!std::isfinite(t0) || !x0.allFinite()) throw Error("integrate_bdf: the initial time and state must be finite");
-  double last = t0;
-  for (const double t : outputs) {
-    if (!(std::isfinite(t) && t > last)) throw Error("integrate_bdf: output times must be finite and increasing after t0");
-    last = t;
+    case CV_TOO_MUCH_WORK:
+      s.status = IntegrationStatus::MaxSteps;
+      s.message = "stopped " + at + " after max_steps = " + std::to_string(o.max_steps) + " steps";
+      return;
+    case CV_TOO_MUCH_ACC:
+      s.status = IntegrationStatus::StepSizeCollapse;
+      s.message = at + " the tolerances rtol = " + fmt(o.rtol) + ", atol = " + fmt(o.atol) +
+                  " cannot be met in floating point (hint: larger tolerances)";
+      return;
+    case CV_ERR_FAILURE:
+    case CV_CONV_FAILURE:
+      s.status = IntegrationStatus::StepSizeCollapse;
+      s.message = at + " BDF could not take a step: " +
+                  (flag == CV_ERR_FAILURE ? "the local error test failed" : "the Newton iteration did not converge") +
+                  " repeatedly, down to the step h = " + fmt(h) + " s (min_step = " + fmt(o.min_step) +
+                  " s): the solution is singular or discontinuous there";
+      return;
+    case CV_REPTD_RHSFUNC_ERR:
+    case CV_UNREC_RHSFUNC_ERR:
+    case CV_FIRST_RHSFUNC_ERR:
+    case CV_LSETUP_FAIL:
+      s.status = IntegrationStatus::NonFinite;
+      s.message = at + " the right-hand side or its Jacobian became NaN or infinite and smaller steps did not help "
+                  "(the run diverged)";
+      return;
+    default: {
+      char* name = CVodeGetReturnFlagName(flag);
+      s.status = IntegrationStatus::NumericalFailure;
+      s.message = at + " CVODE stopped: " + (name ? name : "unknown flag " + std::to_string(flag));
+      std::free(name);
+    }
   }
 }
 
 }  // namespace
 
-BdfResult integrate_bdf(const BdfRhs& f, const BdfJacobian& jac, double t0, const Eigen::VectorXd& x0,
-                        const std::vector<double>& outputs, const BdfOptions& o) {
-  if (!f || !jac) throw Error("integrate_bdf: a right-hand side and its exact Jacobian are required");
-  validate(o, t0, x0, outputs);
-  const auto n = static_cast<sunindextype>(x0.size());
-  Callbacks cb{f, jac, x0, Eigen::VectorXd(x0.size()), Eigen::MatrixXd(x0.size(), x0.size()), {}};
+IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, Eigen::VectorXd& x,
+                                 const IntegratorOptions& o, const OdeObserver& obs, const OdeProjection& projection) {
+  IntegrationSummary s;
+  s.t_end = o.t0;
+  if (obs && !obs(o.t0, x)) {
+    s.status = IntegrationStatus::Stopped;
+    s.message = "stopped by the observer at t = " + fmt(o.t0) + " s";
+    return s;
+  }
+  const auto n = static_cast<sunindextype>(x.size());
+  Callbacks cb{f, jac, projection, x, Eigen::VectorXd(x.size()), x, Eigen::MatrixXd(x.size(), x.size()), std::nullopt,
+               nullptr};
   Cvode cv;
   check(SUNContext_Create(nullptr, &cv.ctx), "SUNContext_Create");
   cv.y = N_VNew_Serial(n, cv.ctx);
   if (!cv.y) throw std::bad_alloc();
-  view(cv.y) = x0;
+  view(cv.y) = x;
   cv.mem = CVodeCreate(CV_BDF, cv.ctx);
   if (!cv.mem) throw std::bad_alloc();
   check(CVodeSetErrHandlerFn(cv.mem, quiet, nullptr), "CVodeSetErrHandlerFn");
-  check(CVodeInit(cv.mem, rhs, t0, cv.y), "CVodeInit");
+  check(CVodeInit(cv.mem, rhs, o.t0, cv.y), "CVodeInit");
   check(CVodeSStolerances(cv.mem, o.rtol, o.atol), "CVodeSStolerances");
   check(CVodeSetUserData(cv.mem, &cb), "CVodeSetUserData");
   cv.A = SUNDenseMatrix(n, n, cv.ctx);
@@ -136,41 +194,47 @@ BdfResult integrate_bdf(const BdfRhs& f, const BdfJacobian& jac, double t0, cons
   check(CVodeSetLinearSolver(cv.mem, cv.LS, cv.A), "CVodeSetLinearSolver");
   check(CVodeSetJacFn(cv.mem, jacobian), "CVodeSetJacFn");
   check(CVodeSetMaxOrd(cv.mem, o.max_order), "CVodeSetMaxOrd");
-  check(CVodeSetMaxNumSteps(cv.mem, o.max_steps), "CVodeSetMaxNumSteps");
-  if (o.initial_step > 0) check(CVodeSetInitStep(cv.mem, o.initial_step), "CVodeSetInitStep");
-  if (o.min_step > 0) check(CVodeSetMinStep(cv.mem, o.min_step), "CVodeSetMinStep");
-  if (o.max_step > 0) check(CVodeSetMaxStep(cv.mem, o.max_step), "CVodeSetMaxStep");
-  if (outputs.size()) check(CVodeSetStopTime(cv.mem, outputs.back()), "CVodeSetStopTime");
-
-  BdfResult r;
-  r.t.push_back(t0);
-  r.x.push_back(x0);
-  r.ok = true;
-  for (const double tout : outputs) {
-    sunrealtype treached = 0;
-    const int flag = CVode(cv.mem, tout, cv.y, &treached, CV_NORMAL);
-    if (flag < 0) {
-      r.ok = false;
-      r.message = cb.error.empty() ? flag_text(flag) + " at t = " + fmt(treached)
-                                   : "the right-hand side or its Jacobian failed at t = " + fmt(treached) + ": " + cb.error;
-      break;
-    }
-    r.t.push_back(tout);
-    r.x.push_back(view(cv.y));
+  check(CVodeSetMinStep(cv.mem, o.min_step), "CVodeSetMinStep");
+  check(CVodeSetStopTime(cv.mem, o.t1), "CVodeSetStopTime");  // the right-hand side is not asked past t1
+  if (projection) {
+    check(CVodeSetProjFn(cv.mem, project), "CVodeSetProjFn");
+    check(CVodeSetProjErrEst(cv.mem, SUNFALSE), "CVodeSetProjErrEst");
   }
-  BdfCounters& k = r.counters;
-  long v = 0;
-  CVodeGetNumSteps(cv.mem, &v), k.steps = v;
-  CVodeGetNumRhsEvals(cv.mem, &v), k.rhs_evaluations = v;
-  CVodeGetNumJacEvals(cv.mem, &v), k.jacobian_evaluations = v;
-  CVodeGetNumNonlinSolvIters(cv.mem, &v), k.newton_iterations = v;
-  CVodeGetNumNonlinSolvConvFails(cv.mem, &v), k.newton_failures = v;
-  CVodeGetNumErrTestFails(cv.mem, &v), k.error_test_failures = v;
-  int q = 0;
-  CVodeGetLastOrder(cv.mem, &q), k.last_order = q;
-  sunrealtype h = 0;
-  CVodeGetLastStep(cv.mem, &h), k.last_step = h;
-  return r;
+
+  const double dt_out = o.output_interval > 0 ? o.output_interval : o.step;
+  for (long k = 1;; ++k) {
+    const double tout = std::min(o.t0 + k * dt_out, o.t1);
+    long taken = 0;
+    CVodeGetNumSteps(cv.mem, &taken);
+    check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - taken)), "CVodeSetMaxNumSteps");
+    sunrealtype reached = o.t0;
+    const int flag = CVode(cv.mem, tout, cv.y, &reached, CV_NORMAL);
+    if (cb.other) std::rethrow_exception(cb.other);
+    if (flag < 0) {
+      collect(cv.mem, s);
+      sunrealtype h = 0;
+      CVodeGetCurrentStep(cv.mem, &h);
+      if (cb.failure) {
+        s.status = IntegrationStatus::NumericalFailure;
+        s.message = cb.failure->what();
+      } else {
+        describe_failure(flag, reached, h, o, s);
+      }
+      return s;  // x holds the state of the last output
+    }
+    x = view(cv.y);
+    s.t_end = tout;
+    if (obs && !obs(tout, x)) {
+      collect(cv.mem, s);
+      s.status = IntegrationStatus::Stopped;
+      s.message = "stopped by the observer at t = " + fmt(tout) + " s";
+      return s;
+    }
+    if (tout >= o.t1) break;
+  }
+  collect(cv.mem, s);
+  s.t_end = o.t1;
+  return s;
 }
 
-}  // namespace refdyn
+}  // namespace refdyn::detail

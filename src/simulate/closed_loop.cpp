@@ -3,12 +3,14 @@
 
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/multibody/dual_dynamics.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 namespace refdyn {
 
@@ -61,6 +63,102 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   Eigen::Map<Eigen::VectorXd>(dx + n, n) = w.data.ddq;
   for (int k = 0; k < nz; ++k) dx[2 * n + k] = w.zdot[k];
 }
+
+// The joint system X = [x_ref; x_plant] that Dormand–Prince and BDF integrate: the planner's state
+// and the plant's, the reference q̂, q̂̇, q̂̈ taken from the planner at every evaluation.
+struct JointSystem {
+  JointSystem(const Model& m, const ForceSet& f, Controller& c, Planner& p, const Eigen::VectorXd& limit)
+      : plant(m), forces(f), controller(c), planner(p), limit(limit), w(m, f), nr(p.state_size()), xr(nr), dxr(nr),
+        data(m) {}
+  const Model& plant;
+  const ForceSet& forces;
+  Controller& controller;
+  Planner& planner;
+  const Eigen::VectorXd& limit;
+  PlantWorkspace w;
+  int nr;
+  Eigen::VectorXd xr, dxr;
+
+  /// The planner's state and derivative at X, the reference set in w.
+  void reference(double t, const Eigen::VectorXd& X) {
+    xr = X.head(nr);
+    planner.derivative(t, xr, dxr);
+    const double *q = nullptr, *qd = nullptr, *qdd = nullptr;
+    planner.reference(xr, dxr, q, qd, qdd);
+    const int n = plant.nv;
+    w.qr = Eigen::Map<const Eigen::VectorXd>(q, n);
+    w.qdr = Eigen::Map<const Eigen::VectorXd>(qd, n);
+    w.qddr = Eigen::Map<const Eigen::VectorXd>(qdd, n);
+  }
+  void derivative(double t, const Eigen::VectorXd& X, Eigen::VectorXd& dX) {
+    reference(t, X);
+    dX.head(nr) = dxr;
+    plant_derivative(plant, forces, controller, w, limit, t, X.data() + nr, dX.data() + nr);
+  }
+
+  // ∂ẋ/∂x (method bdf). The planner's block is its own Jacobian; the plant's rows come from dual
+  // numbers seeded on the plant's state and on the reference (q̂, q̂̇ from x_ref; q̂̈ carries the
+  // planner's rows ∂q̂̈/∂x_ref), and M δq̈ = δτ + δQ − δ(M q̈* + c + g) at the solved q̈* (a
+  // saturated joint's τ is constant). Evaluates derivative(t, X, ·) first.
+  Data data;
+  Eigen::VectorXd dX;
+  Eigen::MatrixXd Jr, r;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  std::vector<JacobianScalar> q, qd, z, xc, qr, qdr, qddr, tau, Q, zdot, xcdot, id;
+  void jacobian(double t, const Eigen::VectorXd& X, Eigen::MatrixXd& J) {
+    using D = JacobianScalar;
+    const int n = plant.nv, nz = forces.num_states(), nc = controller.num_states(), N = static_cast<int>(X.size());
+    dX.resize(N);
+    derivative(t, X, dX);  // dxr and the plant's q̈ (w.data.ddq) at X
+    planner.jacobian(t, X.head(nr), Jr);
+    J.setZero(N, N);
+    J.topLeftCorner(nr, nr) = Jr;
+    for (int i = 0; i < n; ++i) J(nr + i, nr + n + i) = 1.0;
+    for (auto* v : {&q, &qd, &qr, &qdr, &qddr, &tau, &Q, &id}) v->resize(n);
+    for (auto* v : {&z, &zdot}) v->resize(std::max(nz, 1));
+    for (auto* v : {&xc, &xcdot}) v->resize(std::max(nc, 1));
+    r.resize(n, N);
+    const double* xp = X.data() + nr;
+    for (int c0 = 0; c0 < N; c0 += kJacobianDirections) {
+      const int cols = std::min(kJacobianDirections, N - c0);
+      auto seed = [&](int col, double value) {
+        D v(value);
+        if (col >= c0 && col < c0 + cols) v.d[col - c0] = 1.0;
+        return v;
+      };
+      for (int i = 0; i < n; ++i) {
+        q[i] = seed(nr + i, xp[i]);
+        qd[i] = seed(nr + n + i, xp[n + i]);
+        qr[i] = seed(i, w.qr[i]);
+        qdr[i] = seed(n + i, w.qdr[i]);
+        qddr[i] = D(w.qddr[i]);
+        for (int k = 0; k < cols; ++k) qddr[i].d[k] = c0 + k < nr ? Jr(n + i, c0 + k) : 0.0;
+      }
+      for (int k = 0; k < nz; ++k) z[k] = seed(nr + 2 * n + k, xp[2 * n + k]);
+      for (int k = 0; k < nc; ++k) xc[k] = seed(nr + 2 * n + nz + k, xp[2 * n + nz + k]);
+      controller.compute_dual(t, q.data(), qd.data(), qr.data(), qdr.data(), qddr.data(), xc.data(), tau.data(),
+                              nc ? xcdot.data() : nullptr);
+      for (int i = 0; i < limit.size(); ++i)
+        if (std::abs(tau[i].v) > limit[i]) tau[i] = D(tau[i].v > 0 ? limit[i] : -limit[i]);
+      forces.evaluate_dual(t, q.data(), qd.data(), z.data(), n, Q.data(), zdot.data());
+      for (int i = 0; i < n; ++i) id[i] = D(w.data.ddq[i]);
+      inverse_dynamics_dual(plant, q.data(), qd.data(), id.data(), true, id.data());
+      for (int i = 0; i < n; ++i) {
+        const D res = tau[i] + Q[i] - id[i];
+        for (int k = 0; k < cols; ++k) r(i, c0 + k) = res.d[k];
+      }
+      for (int k = 0; k < nz; ++k)
+        for (int c = 0; c < cols; ++c) J(nr + 2 * n + k, c0 + c) = zdot[k].d[c];
+      for (int k = 0; k < nc; ++k)
+        for (int c = 0; c < cols; ++c) J(nr + 2 * n + nz + k, c0 + c) = xcdot[k].d[c];
+    }
+    unchecked::crba(plant, data, Eigen::Map<const Eigen::VectorXd>(xp, n));
+    llt.compute(data.M);
+    if (llt.info() != Eigen::Success)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
+    J.block(nr + n, 0, n, N) = llt.solve(r);
+  }
+};
 
 }  // namespace
 
@@ -162,32 +260,47 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       out.summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
     }
   } else {
-    if (!rd) throw Error("simulate_closed_loop: Dormand–Prince needs the planner (reference dynamics) to integrate jointly");
-    const int nr = rd->state_size();
-    Eigen::VectorXd xr(nr), dxr(nr);
-    const double *q_ref = nullptr, *qd_ref = nullptr, *qdd_ref = nullptr;
-    rd->reference(xr, dxr, q_ref, qd_ref, qdd_ref);  // views into xr, dxr
-    auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
-      xr = x.head(nr);
-      rd->derivative(t, xr, dxr);
-      dx.head(nr) = dxr;
-      set_ref(q_ref, qd_ref, qdd_ref);
-      plant_derivative(plant, plant_forces, controller, w, options.effort_limit, t, x.data() + nr, dx.data() + nr);
-    };
+    if (!rd)
+      throw Error(std::string("simulate_closed_loop: ") + to_string(io.method) +
+                  " needs the planner (reference dynamics) to integrate jointly");
+    JointSystem sys(plant, plant_forces, controller, *rd, options.effort_limit);
+    const int nr = sys.nr;
+    auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { sys.derivative(t, x, dx); };
     auto obs = [&](double t, const Eigen::VectorXd& x) {
-      xr = x.head(nr);
-      rd->derivative(t, xr, dxr);
-      set_ref(q_ref, qd_ref, qdd_ref);
+      sys.reference(t, x);
+      w.qr = sys.w.qr, w.qdr = sys.w.qdr, w.qddr = sys.w.qddr;
       record(t, x.data() + nr);
       return true;
     };
     Eigen::VectorXd x(nr + nx);
     x.head(nr) = plan.x.front();
     x.tail(nx) = x0;
-    out.summary = integrate(rhs, x, io, obs);
+    OdeJacobian jacobian;
+    if (io.method == IntegratorMethod::BDF)
+      jacobian = [&](double t, const Eigen::VectorXd& X, Eigen::MatrixXd& J) { sys.jacobian(t, X, J); };
+    OdeProjection projection;  // the planner's part of the state, when its stabilization projects
+    Eigen::VectorXd xr_projected(nr);
+    if (rd->projects())
+      projection = [&](double t, Eigen::VectorXd& X) {
+        xr_projected = X.head(nr);
+        rd->project(t, xr_projected);
+        X.head(nr) = xr_projected;
+      };
+    out.summary = integrate(rhs, x, io, obs, jacobian, projection);
   }
   out.summary.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
+}
+
+void closed_loop_derivative(const Model& plant, const ForceSet& plant_forces, Controller& controller, Planner& planner,
+                            const Eigen::VectorXd& effort_limit, double t, const Eigen::VectorXd& X,
+                            Eigen::VectorXd& dX, Eigen::MatrixXd* J) {
+  const int N = planner.state_size() + 2 * plant.nv + plant_forces.num_states() + controller.num_states();
+  check_vector("closed-loop state X", X, N, "X = [x_ref; q; qd; z_plant; xc]");
+  JointSystem sys(plant, plant_forces, controller, planner, effort_limit);
+  dX.resize(N);
+  sys.derivative(t, X, dX);
+  if (J) sys.jacobian(t, X, *J);
 }
 
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,

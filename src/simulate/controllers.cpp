@@ -1,6 +1,8 @@
 // Tracking controllers (controllers.hpp).
 #include "refdyn/simulate/controllers.hpp"
 
+#include "refdyn/multibody/dual_dynamics.hpp"
+
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
@@ -79,6 +81,54 @@ void PIDGravity::compute_with_state(double t, const Eigen::VectorXd& q, const Ei
   for (int i = 0; i < model_.nv; ++i) {
     tau[i] -= ki_[i] * xc[i];
     if (xc_dot) xc_dot[i] = q[i] - r.q[i];
+  }
+}
+
+void Controller::compute_dual(double, const JacobianScalar*, const JacobianScalar*, const JacobianScalar*,
+                              const JacobianScalar*, const JacobianScalar*, const JacobianScalar*, JacobianScalar*,
+                              JacobianScalar*) const {
+  throw Error("controller '" + name() + "' has no exact derivatives (Controller::compute_dual), which the closed "
+              "loop's implicit integration needs (hint: use method: rk4 or dopri5, or implement compute_dual)");
+}
+
+// τ = M(q) u + c + g = the inverse dynamics at q̈ = u.
+void ComputedTorquePD::compute_dual(double, const JacobianScalar* q, const JacobianScalar* qd,
+                                    const JacobianScalar* q_ref, const JacobianScalar* qd_ref,
+                                    const JacobianScalar* qdd_ref, const JacobianScalar*, JacobianScalar* tau,
+                                    JacobianScalar*) const {
+  const int n = model_.nv;
+  thread_local std::vector<JacobianScalar> u;
+  u.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const JacobianScalar e = q[i] - q_ref[i], ed = qd[i] - qd_ref[i];
+    u[i] = qdd_ref[i] - 2.0 * delta_[i] * ed - delta_[i] * delta_[i] * e;
+  }
+  inverse_dynamics_dual(model_, q, qd, u.data(), true, tau);
+}
+
+namespace {
+// τ = g(q) − K_p e − K_d ė (PD and PID + gravity).
+void pd_gravity_dual(const Model& model, const Eigen::VectorXd& kp, const Eigen::VectorXd& kd, const JacobianScalar* q,
+                     const JacobianScalar* qd, const JacobianScalar* q_ref, const JacobianScalar* qd_ref,
+                     JacobianScalar* tau) {
+  inverse_dynamics_dual(model, q, nullptr, nullptr, true, tau);
+  for (int i = 0; i < model.nv; ++i) tau[i] -= kp[i] * (q[i] - q_ref[i]) + kd[i] * (qd[i] - qd_ref[i]);
+}
+}  // namespace
+
+void PDGravity::compute_dual(double, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                             const JacobianScalar* qd_ref, const JacobianScalar*, const JacobianScalar*,
+                             JacobianScalar* tau, JacobianScalar*) const {
+  pd_gravity_dual(model_, kp_, kd_, q, qd, q_ref, qd_ref, tau);
+}
+
+void PIDGravity::compute_dual(double, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                              const JacobianScalar* qd_ref, const JacobianScalar*, const JacobianScalar* xc,
+                              JacobianScalar* tau, JacobianScalar* xc_dot) const {
+  pd_gravity_dual(model_, kp_, kd_, q, qd, q_ref, qd_ref, tau);
+  for (int i = 0; i < model_.nv; ++i) {
+    tau[i] -= ki_[i] * xc[i];
+    if (xc_dot) xc_dot[i] = q[i] - q_ref[i];
   }
 }
 

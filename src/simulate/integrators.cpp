@@ -1,5 +1,7 @@
 #include "refdyn/simulate/integrators.hpp"
 
+#include "bdf.hpp"
+
 #include "refdyn/common/error.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/common/text.hpp"
@@ -12,7 +14,21 @@
 namespace refdyn {
 
 const char* to_string(IntegratorMethod m) {
-  return m == IntegratorMethod::RK4 ? "rk4" : "dopri5";
+  switch (m) {
+    case IntegratorMethod::RK4: return "rk4";
+    case IntegratorMethod::DormandPrince45: return "dopri5";
+    case IntegratorMethod::BDF: return "bdf";
+  }
+  return "?";
+}
+
+bool from_string(const std::string& text, IntegratorMethod& m) {
+  for (const IntegratorMethod k : {IntegratorMethod::RK4, IntegratorMethod::DormandPrince45, IntegratorMethod::BDF})
+    if (text == to_string(k)) {
+      m = k;
+      return true;
+    }
+  return false;
 }
 
 const char* to_string(IntegrationStatus s) {
@@ -51,6 +67,8 @@ void IntegratorOptions::validate() const {
   need(atol > 0 && std::isfinite(atol), "atol", "a finite value > 0", atol);
   need(min_step > 0 && min_step < step, "min_step", "a value in (0, step)", min_step);
   need(max_steps > 0, "max_steps", "a positive count", static_cast<double>(max_steps));
+  need(max_order >= 1 && max_order <= 5, "max_order", "a whole number from 1 to 5 (the BDF order)",
+       static_cast<double>(max_order));
   const double span = t1 - t0;
   need(std::isfinite(span), "t1", "a time span t1 - t0 that is a finite number", span);
   // The step count must be a number the integrator can count to (1e-300 over 1e300 is not).
@@ -83,7 +101,7 @@ void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Worksp
 namespace {
 
 IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
-                                 const OdeObserver& obs) {
+                                 const OdeObserver& obs, const OdeProjection& projection) {
   IntegrationSummary s;
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
   const double h = (o.t1 - o.t0) / nsteps;  // exact landing on t1
@@ -124,6 +142,13 @@ IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const
     }
     ++s.steps;
     s.t_end = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
+    if (projection) try {
+        projection(s.t_end, x);
+      } catch (const NumericalFailure& e) {
+        s.status = IntegrationStatus::NumericalFailure;
+        s.message = e.what();
+        return s;
+      }
     if (obs && ((k + 1) % every == 0 || k + 1 == nsteps) && !obs(s.t_end, x)) {
       s.status = IntegrationStatus::Stopped;
       s.message = "stopped by the observer at t = " + fmt(s.t_end) + " s";
@@ -134,7 +159,7 @@ IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const
 }
 
 IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
-                                   const OdeObserver& obs) {
+                                   const OdeObserver& obs, const OdeProjection& projection) {
   namespace ode = boost::numeric::odeint;
   using Stepper = ode::runge_kutta_dopri5<Eigen::VectorXd, double, Eigen::VectorXd, double, ode::vector_space_algebra>;
   IntegrationSummary s;
@@ -194,6 +219,10 @@ IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, con
       }
       x = stepper.current_state();
       s.t_end = span.second;
+      if (projection && !stop) {
+        projection(s.t_end, x);  // a NumericalFailure is caught below
+        stepper.initialize(x, s.t_end, stepper.current_time_step());
+      }
       if (stop) {
         s.status = IntegrationStatus::Stopped;
         s.message = "stopped by the observer at t = " + fmt(s.t_end) + " s";
@@ -217,20 +246,27 @@ IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, con
 }  // namespace
 
 IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
-                             const OdeObserver& observer) {
+                             const OdeObserver& observer, const OdeJacobian& jacobian,
+                             const OdeProjection& projection) {
   if (!f) throw Error("integrate: expected a right-hand side function, got none");
   return integrate_staged([&f](const Stage&, double t, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(t, xx, dx); },
-                          x, o, observer);
+                          x, o, observer, jacobian, projection);
 }
 
 IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
-                                    const OdeObserver& observer) {
+                                    const OdeObserver& observer, const OdeJacobian& jacobian,
+                                    const OdeProjection& projection) {
   o.validate();
   if (!f) throw Error("integrate: expected a right-hand side function, got none");
+  if (o.method == IntegratorMethod::BDF && !jacobian)
+    throw Error("integrate: method bdf needs the exact Jacobian of the right-hand side, got none (refdyn does not "
+                "difference it numerically)");
   check_finite("initial state x0", x);
   const auto start = std::chrono::steady_clock::now();
-  IntegrationSummary s = o.method == IntegratorMethod::RK4 ? integrate_rk4(f, x, o, observer)
-                                                          : integrate_dopri(f, x, o, observer);
+  IntegrationSummary s = o.method == IntegratorMethod::RK4 ? integrate_rk4(f, x, o, observer, projection)
+                         : o.method == IntegratorMethod::BDF
+                             ? detail::integrate_bdf(f, jacobian, x, o, observer, projection)
+                             : integrate_dopri(f, x, o, observer, projection);
   s.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return s;
 }

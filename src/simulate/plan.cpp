@@ -1,14 +1,19 @@
 // plan_motion and plan_jerk_motion (plan.hpp): a reference dynamics integrated and recorded.
 #include "refdyn/simulate/plan.hpp"
 
+#include "refdyn/simulate/stability.hpp"
+
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 
+#include <Eigen/SVD>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 
 namespace refdyn {
 
@@ -109,6 +114,78 @@ class PlanRecorder {
   bool any_material_ = false;
 };
 
+/// A run that stopped on a singular or ill-conditioned system: whether the constraint Jacobian A
+/// itself is singular at the last valid state (redundant rows or a singular configuration: no
+/// partition can help) or regular (then another partition or the Lagrange solver works).
+void explain_singular_rows(ReferenceDynamics& rd, const Eigen::VectorXd& x, double t, IntegrationSummary& s) {
+  const Model& model = rd.model();
+  const int n = rd.nq();
+  Data data(model);
+  ConstraintEval ev(model, rd.constraint_set());
+  const Eigen::VectorXd q = x.head(n), qd = x.segment(n, n);
+  evaluate_constraints(model, data, rd.constraint_set(), ev, t, q, qd);
+  if (!ev.A.allFinite()) return;
+  const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(ev.A).singularValues();
+  const double smallest = sv[sv.size() - 1], largest = sv[0];
+  std::ostringstream os;
+  os << "[";
+  for (int i = 0; i < n; ++i) os << (i ? ", " : "") << model.joint_name[i] << " = " << fmt(q[i]);
+  os << "]";
+  if (!(smallest > 1e-10 * largest))
+    s.message = "at t = " + fmt(t) + " s the constraint Jacobian A is singular: its smallest singular value is " +
+                fmt(smallest) + " (largest " + fmt(largest) + ") at q = " + os.str() +
+                " — the constraints are redundant there or the mechanism is at a singular configuration, and no "
+                "partition or solver can help (hint: a task that avoids this configuration). The run ended with: " +
+                s.message;
+  else if (s.message.find("partition") != std::string::npos)
+    s.message += "; the constraint Jacobian A itself is regular there (singular values " + fmt(smallest) + " to " +
+                 fmt(largest) + " at q = " + os.str() + "): only this choice of dependent coordinates is singular";
+}
+
+/// An RK4 plan that failed (a singular partition, a NaN state, a residual above tolerance) may
+/// have failed because its step is unstable for stiff dynamics (stiff friction): then that is
+/// the report, with the eigenvalue, the stable step and the advice, and the symptom follows. The
+/// exact Jacobian is taken at the last valid state and, failing that, at the initial one;
+/// returns false when neither shows an unstable step (or no Jacobian can be formed).
+bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, const Eigen::VectorXd& x0,
+                           const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
+  const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+  const double h = (o.t1 - o.t0) / nsteps;
+  Eigen::MatrixXd J;
+  for (const auto& [t, x] : {std::pair<double, const Eigen::VectorXd*>{t_last, &x_last}, {o.t0, &x0}}) {
+    try {
+      rd.jacobian(t, *x, J);
+      if (!J.allFinite()) continue;
+      const StepStability k = rk4_step_stability(J, h);
+      if (k.stable) continue;
+      std::ostringstream lam;
+      lam << fmt(k.worst.real());
+      if (k.worst.imag() != 0) lam << (k.worst.imag() > 0 ? " + " : " - ") << fmt(std::abs(k.worst.imag())) << "i";
+      s.message = "the integration is unstable at step h = " + fmt(h) + " s: the problem is stiff (at t = " + fmt(t) +
+                  " s the eigenvalue of df/dx with the largest RK4 amplification is " + lam.str() +
+                  " 1/s, spectral radius " + fmt(k.spectral_radius) + " 1/s; RK4 is stable there only for steps below " +
+                  fmt(k.largest_stable_step) + " s): use method: bdf, or a step below " + fmt(k.largest_stable_step) +
+                  " s. The run ended with: " + s.message;
+      return true;
+    } catch (const Error&) {
+      // no Jacobian at this state (a singular partition, an element without one): try the next
+    }
+  }
+  return false;
+}
+
+/// What a failed plan's message says beyond the symptom (docs/implicit.md, "When a run fails").
+void explain_failure(ReferenceDynamics& rd, const IntegratorOptions& o, const Eigen::VectorXd& x0,
+                     const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
+  const IntegrationStatus st = s.status;
+  if (o.method == IntegratorMethod::RK4 &&
+      (st == IntegrationStatus::NumericalFailure || st == IntegrationStatus::NonFinite ||
+       st == IntegrationStatus::ResidualExceeded) &&
+      explain_unstable_step(rd, o, x0, x_last, t_last, s))
+    return;
+  if (st == IntegrationStatus::NumericalFailure && rd.num_constraints() > 0) explain_singular_rows(rd, x_last, t_last, s);
+}
+
 }  // namespace
 
 Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
@@ -168,7 +245,21 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     return true;
   };
   Eigen::VectorXd x = x0;
-  plan.summary = integrate_staged(rhs, x, options, obs);
+  OdeJacobian jacobian;
+  if (options.method == IntegratorMethod::BDF)
+    jacobian = [&rd](double t, const Eigen::VectorXd& xx, Eigen::MatrixXd& J) { rd.jacobian(t, xx, J); };
+  OdeProjection projection;
+  long projections = 0;
+  double largest_correction = 0;
+  if (rd.options().stabilization != Stabilization::Baumgarte)
+    projection = [&](double t, Eigen::VectorXd& xx) {
+      const ReferenceDynamics::StateProjection p = rd.project_state(t, xx);
+      if (p.iterations > 0) ++projections;
+      largest_correction = std::max({largest_correction, p.dq, p.dqd});
+    };
+  plan.summary = integrate_staged(rhs, x, options, obs, jacobian, projection);
+  plan.summary.projections = projections;
+  plan.summary.max_projection_correction = largest_correction;
   if (cut) {
     IntegrationSummary& s = plan.summary;
     s.status = IntegrationStatus::ResidualExceeded;
@@ -186,6 +277,7 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     st.data.shrink_to_fit();
   }
   plan.summary.max_constraint_residual = worst;
+  explain_failure(rd, options, x0, x, plan.summary.t_end, plan.summary);
   return plan;
 }
 

@@ -3,10 +3,18 @@
 #include "refdyn/simulate/planner.hpp"
 
 #include "refdyn/simulate/plan.hpp"
+#include "refdyn/common/error.hpp"
 
 #include <sstream>
 
 namespace refdyn {
+
+void Planner::jacobian(double, const Eigen::VectorXd&, Eigen::MatrixXd&) {
+  const std::string d = description();
+  throw Error("this planner" + (d.empty() ? std::string() : " (" + d + ")") + " has no exact Jacobian, which method: "
+              "bdf needs (hint: integrator method rk4 or dopri5; problems with jerk constraints are not integrated "
+              "implicitly yet)");
+}
 
 ReferencePlanner::ReferencePlanner(std::unique_ptr<ReferenceDynamics> rd) : owned_(std::move(rd)), rd_(owned_.get()) {}
 ReferencePlanner::ReferencePlanner(ReferenceDynamics& rd) : rd_(&rd) {}

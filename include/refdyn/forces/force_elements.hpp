@@ -4,6 +4,7 @@
 /// Sign convention: M q̈ + c + g = Q (+ controls, + constraint forces); Q is what the element
 /// applies to the joint (a friction torque opposes the motion: Q = −(…)).
 
+#include "refdyn/multibody/dual.hpp"
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/expression/time_function.hpp"
 
@@ -22,6 +23,12 @@ class ForceElement {
   /// derivatives (written). dQ_dqd (nq×nq, optional): adds ∂Q/∂q̇ (exact).
   virtual void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                      Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const = 0;
+  /// apply() over dual numbers, for the exact Jacobians of implicit integration (∂Q and ∂ż with
+  /// respect to q, q̇ and z along the seeded directions): adds the element's force to Q[0, nq) and
+  /// writes its state rates to zdot. Every kind refdyn provides has it; the default throws an
+  /// Error naming the element (a user-defined element without it cannot be integrated by BDF).
+  virtual void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                          JacobianScalar* Q, JacobianScalar* zdot) const;
   /// Adds the rate of the element's force along the motion, Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈
   /// (exact), to Qdot and returns true; the default provides none and returns false. Needed by
   /// jerk-level problems (p = 3, jerk.hpp), which reject elements without it (and elements with
@@ -72,6 +79,8 @@ class FlexibleDrive final : public ForceElement {
   bool actuator() const override { return true; }
   void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                  JacobianScalar* Q, JacobianScalar* zdot) const override;
   bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
                 Eigen::VectorXd& Qdot) const override;
   /// The drive torque alone.
@@ -106,6 +115,8 @@ class LuGreFriction final : public ForceElement {
   std::vector<std::string> state_names() const override { return {"z_" + joint_name_}; }
   void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
+  void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                  JacobianScalar* Q, JacobianScalar* zdot) const override;
   std::optional<SymbolicForm> symbolic() const override;
   const LuGreParams& params() const { return p_; }
   int joint() const { return j_; }
@@ -126,6 +137,9 @@ class ForceSet {
   /// Q = Σ elements (Q is overwritten), zdot for all states; dQ_dqd overwritten when given.
   void evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z, Eigen::VectorXd& Q,
                 double* zdot, Eigen::MatrixXd* dQ_dqd = nullptr) const;
+  /// evaluate() over dual numbers (ForceElement::apply_dual): Q (nq entries) is overwritten.
+  void evaluate_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                     int nq, JacobianScalar* Q, JacobianScalar* zdot) const;
   /// Generalized force of element k alone (allocates; for reporting).
   Eigen::VectorXd element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                 const double* z) const;

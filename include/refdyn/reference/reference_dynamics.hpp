@@ -35,6 +35,7 @@
 #include "refdyn/multibody/model.hpp"
 
 #include <Eigen/LU>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,14 @@ constexpr ReferenceSolver automatic_reference_solver(int nq, int /*rows*/) {
   return nq >= kLagrangeFrom ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
 }
 
+/// How the constraints are kept from drifting (docs/implicit.md, "Drift"):
+///   Baumgarte  — the stabilized rows Φ̈ + 2αΦ̇ + β²Φ = 0, ċ + β₁c = 0 (the paper's method);
+///   Projection — the plain rows Φ̈ = 0, ċ = 0 (α = β = β₁ = 0) and, after every accepted step,
+///                (q, q̇) projected back onto Φ = 0, Φ̇ = 0, c = 0 (project_state);
+///   Both       — Baumgarte's rows and the projection.
+enum class Stabilization { Baumgarte, Projection, Both };
+const char* to_string(Stabilization s);
+
 struct ReferenceDynamicsOptions {
   double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
   double beta = 50.0;                ///< Baumgarte β [1/s] (holonomic rows)
@@ -93,6 +102,10 @@ struct ReferenceDynamicsOptions {
   bool automatic_partition = false;
   double max_condition = 1e8;        ///< largest accepted κ = ‖A‖₁‖K_dc⁻¹‖₁ (see partition_condition)
   bool paper_literal_forces = false; ///< see the header comment
+  /// Drift control. With Projection, the constructor sets α = β = β₁ = 0.
+  Stabilization stabilization = Stabilization::Baumgarte;
+  double projection_tolerance = 1e-12;  ///< project_state: largest |Φ|, |Φ̇|, |c| accepted
+  int projection_max_iterations = 20;   ///< project_state: Newton iterations per level
   /// Throws refdyn::Error naming the bad field.
   void validate() const;
 };
@@ -156,6 +169,30 @@ class ReferenceDynamics {
   Consistency make_consistent(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double tol = 1e-12,
                               int max_iterations = 50);
 
+  /// ∂f/∂x at (t, x), exact: J (state_size() × state_size()) is resized and written. Forward-mode
+  /// dual numbers (JacobianScalar, ⌈n_x / kJacobianDirections⌉ sweeps) through the generic
+  /// multibody core, the force elements and the constraints give the derivatives of the KKT
+  /// system's residuals at the solved (q̈, λ); one factorization of M and of A M⁻¹ Aᵀ turns them
+  /// into ∂q̈/∂x (docs/implicit.md). Evaluates derivative(t, x, ·) first, so the last-call
+  /// results hold (t, x) afterwards. Throws Error when a force element or constraint has no
+  /// dual evaluation or with paper_literal_forces (whose forces depend on ∂Q/∂q̇ itself), and
+  /// NumericalFailure as derivative() does.
+  void jacobian(double t, const Eigen::VectorXd& x, Eigen::MatrixXd& J);
+
+  /// The least change of (q, q̇) in the metric of M(q) that puts x back on the constraints:
+  ///     min ½ δqᵀ M δq   s.t. Φ(q + δq, t) = 0          (holonomic rows; Newton iterations
+  ///                                                      δq = −M⁻¹Aᵀ(A M⁻¹ Aᵀ)⁻¹ Φ)
+  ///     min ½ δq̇ᵀ M δq̇   s.t. Φ̇ = 0, c(q, q̇ + δq̇, t) = 0  (holonomic and first-order rows)
+  /// to projection_tolerance (acceleration rows hold no state). x is corrected in place; z is
+  /// left alone. Throws NumericalFailure naming the rows, the time and the residual when the
+  /// iterations do not converge or A M⁻¹ Aᵀ is singular.
+  struct StateProjection {
+    double dq = 0, dqd = 0;            ///< ‖δq‖∞, ‖δq̇‖∞ applied
+    double residual_before = 0, residual_after = 0;  ///< max |Φ|, |Φ̇|, |c|
+    int iterations = 0;                ///< Newton iterations, both levels
+  };
+  StateProjection project_state(double t, Eigen::VectorXd& x);
+
   /// Worst constraint residual at (t, x): max over rows of |Φ| (holonomic) and |c| (first order);
   /// with acceleration rows, also |B q̈ + s| (then it evaluates derivative() once).
   double residual(double t, const Eigen::VectorXd& x);
@@ -197,6 +234,8 @@ class ReferenceDynamics {
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
   Eigen::VectorXd rk_;
   double cond_ = 1.0;
+  struct JacobianWork;  // src/reference/reference_jacobian.cpp; made at the first jacobian() call
+  std::shared_ptr<JacobianWork> jac_;
 };
 
 }  // namespace refdyn

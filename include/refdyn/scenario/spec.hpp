@@ -145,6 +145,13 @@ struct BaumgarteSpec {
   SpecValue kappa;  ///< jerk problems: gain on the projected dynamics residual
 };
 
+/// `stabilization: baumgarte | projection | both`, or `{method, tolerance, max_iterations}`.
+struct StabilizationSpec {
+  std::string method = "baumgarte";
+  SpecValue tolerance, max_iterations;
+  SpecValue value;                         ///< as written (null: not given)
+};
+
 struct InitialSpec {
   SpecValue q, qd;
   bool project = false;                    ///< consistency: project (else check)
@@ -154,8 +161,9 @@ struct InitialSpec {
 };
 
 struct IntegratorSpec {
-  std::string method = "rk4";              ///< rk4 | dopri5
-  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, residual_tolerance, max_steps;
+  std::string method = "rk4";              ///< rk4 | dopri5 | bdf
+  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, residual_tolerance, max_steps,
+      max_order;
   SpecValue value;
 };
 
@@ -220,6 +228,7 @@ struct ScenarioSpec {
   std::optional<std::vector<EntrySpec>> plant_forces;
   PartitionSpec partition;
   BaumgarteSpec baumgarte;
+  StabilizationSpec stabilization;
   std::string solver = "auto";             ///< projection | lagrange | auto (by size, resolved by build_problem)
   bool paper_literal_forces = false;
   InitialSpec initial;

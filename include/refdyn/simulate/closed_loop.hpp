@@ -43,12 +43,19 @@ struct ClosedLoopResult : Trajectory {
 /// Simulates the plant (model + plant_forces) under `controller` tracking `plan` from x0_plant
 /// = [q; q̇; z_plant] (the controller's states, if any, start at zero; x0_plant may also carry
 /// them). RK4: replays plan.stages through the integrator's stage hook (options.integrator must
-/// have the same t0, step, and t1 ≤ the plan's end). Dormand–Prince: integrates the reference
-/// jointly (needs the `planner` that made the plan, any order: its state and derivative give
-/// q̂, q̂̇, q̂̈ through Planner::reference).
+/// have the same t0, step, and t1 ≤ the plan's end). Dormand–Prince and BDF: integrate the
+/// reference jointly (need the `planner` that made the plan: its state and derivative give q̂,
+/// q̂̇, q̂̈ through Planner::reference; BDF also its Jacobian, Planner::jacobian).
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
                                       const Plan& plan, Planner* planner, const Eigen::VectorXd& x0_plant,
                                       const ClosedLoopOptions& options);
+/// The joint system that Dormand–Prince and BDF integrate, X = [x_ref; q; q̇; z_plant; xc] (the
+/// planner's state, then the plant's): its derivative dX and, when J is given, its exact
+/// Jacobian ∂Ẋ/∂X (dual numbers through the controller, the plant and the planner; docs/implicit.md).
+/// For tests and tools; allocates its workspace per call.
+void closed_loop_derivative(const Model& plant, const ForceSet& plant_forces, Controller& controller, Planner& planner,
+                            const Eigen::VectorXd& effort_limit, double t, const Eigen::VectorXd& X,
+                            Eigen::VectorXd& dX, Eigen::MatrixXd* J = nullptr);
 /// The same with a ReferenceDynamics (order ≤ 2) as the planner (null: RK4 replay only).
 ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
                                       const Plan& plan, ReferenceDynamics* rd, const Eigen::VectorXd& x0_plant,

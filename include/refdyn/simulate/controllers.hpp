@@ -4,6 +4,7 @@
 /// elements and initial state:  M(q) q̈ + c(q, q̇) + g(q) = τ + Q_plant(t, q, q̇, z).
 /// simulate_closed_loop (closed_loop.hpp) runs them; the scenario's controller kinds build them.
 
+#include "refdyn/multibody/dual.hpp"
 #include "refdyn/multibody/model.hpp"
 
 #include <string>
@@ -52,6 +53,13 @@ class Controller {
     else
       compute(t, q, qd, ref, tau);
   }
+  /// compute_with_state over dual numbers, for the closed loop's exact Jacobian (implicit
+  /// integration): every input may carry derivatives — the plant state q, q̇ (n each), the
+  /// reference q̂, q̂̇, q̂̈ (n each) and the controller's states xc; writes τ (n) and xc_dot. The
+  /// controllers refdyn provides have it; the default throws an Error naming the controller.
+  virtual void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                            const JacobianScalar* qd_ref, const JacobianScalar* qdd_ref, const JacobianScalar* xc,
+                            JacobianScalar* tau, JacobianScalar* xc_dot) const;
 };
 
 /// Feedback linearization + PD, paper (3.2)–(3.4):
@@ -69,6 +77,9 @@ class ComputedTorquePD final : public Controller {
   void compute_with_dynamics(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                              const ReferenceSample& ref, const Model& model, const Data& dynamics,
                              Eigen::VectorXd& tau) override;
+  void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                    const JacobianScalar* qd_ref, const JacobianScalar* qdd_ref, const JacobianScalar* xc,
+                    JacobianScalar* tau, JacobianScalar* xc_dot) const override;
  private:
   void outer_loop(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& r);  // u_
   const Model& model_;
@@ -83,6 +94,9 @@ class PDGravity final : public Controller {
   std::string name() const override { return "pd_gravity"; }
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                Eigen::VectorXd& tau) override;
+  void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                    const JacobianScalar* qd_ref, const JacobianScalar* qdd_ref, const JacobianScalar* xc,
+                    JacobianScalar* tau, JacobianScalar* xc_dot) const override;
  private:
   const Model& model_;
   Data data_;
@@ -104,6 +118,9 @@ class PIDGravity final : public Controller {
   void compute_with_state(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                           const double* xc, double* xc_dot, const Model& model, const Data* dynamics,
                           Eigen::VectorXd& tau) override;
+  void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                    const JacobianScalar* qd_ref, const JacobianScalar* qdd_ref, const JacobianScalar* xc,
+                    JacobianScalar* tau, JacobianScalar* xc_dot) const override;
  private:
   const Model& model_;
   Data data_;

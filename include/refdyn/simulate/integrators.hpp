@@ -1,8 +1,10 @@
 #pragma once
-/// Time integration of ẋ = f(t, x): classical fixed-step RK4 (the paper's scheme) and adaptive
-/// Dormand–Prince 5(4) with dense output (Boost.Odeint). Numerical outcomes are results: the
-/// Summary says whether the run reached t1 and, if not, when and why it stopped; the state and
-/// everything observed up to then are kept.
+/// Time integration of ẋ = f(t, x): classical fixed-step RK4 (the paper's scheme), adaptive
+/// Dormand–Prince 5(4) with dense output (Boost.Odeint), and implicit variable-order BDF (CVODE of
+/// SUNDIALS 6, dense Newton iterations on the caller's exact Jacobian ∂f/∂x — no finite
+/// differences) for stiff problems such as stiff LuGre bristles (docs/implicit.md). Numerical
+/// outcomes are results: the Summary says whether the run reached t1 and, if not, when and why it
+/// stopped; the state and everything observed up to then are kept.
 
 #include "refdyn/common/fields.hpp"
 
@@ -12,17 +14,21 @@
 
 namespace refdyn {
 
-enum class IntegratorMethod { RK4, DormandPrince45 };
+enum class IntegratorMethod { RK4, DormandPrince45, BDF };
+/// "rk4", "dopri5", "bdf" (the scenario's integrator.method).
 const char* to_string(IntegratorMethod m);
+/// The method named by to_string(m); false when `text` names none.
+bool from_string(const std::string& text, IntegratorMethod& m);
 
 struct IntegratorOptions {
   IntegratorMethod method = IntegratorMethod::RK4;
   double t0 = 0.0, t1 = 5.0;
-  double step = 1e-3;            ///< RK4 step; initial step for Dormand–Prince [s]
-  double output_interval = 0.0;  ///< observer sampling interval [s]; 0: every RK4 step (DP: `step`)
-  double rtol = 1e-8, atol = 1e-10;  ///< Dormand–Prince tolerances
-  double min_step = 1e-12;       ///< Dormand–Prince: smaller steps mean the run has collapsed
-  long max_steps = 100'000'000;
+  double step = 1e-3;            ///< RK4 step; initial step for Dormand–Prince; BDF: see output_interval [s]
+  double output_interval = 0.0;  ///< observer sampling interval [s]; 0: every RK4 step (DP, BDF: `step`)
+  double rtol = 1e-8, atol = 1e-10;  ///< Dormand–Prince and BDF tolerances (BDF: CVODE's scalar rtol, atol)
+  double min_step = 1e-12;       ///< Dormand–Prince, BDF: smaller steps mean the run has collapsed
+  long max_steps = 100'000'000;  ///< accepted steps over the whole run
+  int max_order = 5;             ///< BDF: highest order, 1…5 (BDF1 = implicit Euler)
   /// Throws refdyn::Error naming the bad field.
   void validate() const;
 };
@@ -45,11 +51,17 @@ struct IntegrationSummary {
   IntegrationStatus status = IntegrationStatus::Success;
   std::string message;           ///< empty on success; else when and why it stopped
   long steps = 0;                ///< accepted steps
-  long rejected_steps = 0;       ///< Dormand–Prince only
+  long rejected_steps = 0;       ///< Dormand–Prince; BDF: error-test plus Newton-convergence failures
   long rhs_evaluations = 0;
+  long jacobian_evaluations = 0; ///< BDF: evaluations of ∂f/∂x
+  long newton_iterations = 0;    ///< BDF: nonlinear (Newton) iterations
+  long newton_failures = 0;      ///< BDF: Newton iterations that did not converge (step retried smaller)
+  long error_test_failures = 0;  ///< BDF: steps rejected by the local error test
   double t_end = 0.0;            ///< time of the last valid state
   double wall_time = 0.0;        ///< [s]
   double max_constraint_residual = 0.0;  ///< filled by callers that integrate constrained systems
+  long projections = 0;          ///< stabilization by projection: steps whose state was corrected
+  double max_projection_correction = 0.0;  ///< the largest correction ‖δq‖∞ or ‖δq̇‖∞ applied
   bool ok() const { return status == IntegrationStatus::Success; }
 };
 
@@ -63,8 +75,14 @@ struct Fields<IntegrationSummary> {
                            field("steps", &S::steps),
                            field("rejected_steps", &S::rejected_steps),
                            field("rhs_evaluations", &S::rhs_evaluations, "", sink::Wire | sink::Python),
+                           field("jacobian_evaluations", &S::jacobian_evaluations, "", sink::Wire | sink::Python),
+                           field("newton_iterations", &S::newton_iterations, "", sink::Wire | sink::Python),
+                           field("newton_failures", &S::newton_failures, "", sink::Wire | sink::Python),
+                           field("error_test_failures", &S::error_test_failures, "", sink::Wire | sink::Python),
                            field("t_end", &S::t_end, "s"),
                            field("max_constraint_residual", &S::max_constraint_residual, "m or rad"),
+                           field("projections", &S::projections, "", sink::Wire | sink::Python),
+                           field("max_projection_correction", &S::max_projection_correction, "", sink::Wire | sink::Python),
                            field("wall_time", &S::wall_time, "s") | JsonKey{"wall_time_s"});
   }
 };
@@ -74,13 +92,25 @@ using OdeRhs = std::function<void(double t, const Eigen::VectorXd& x, Eigen::Vec
 /// Called at t0 and every output sample; return false to stop.
 using OdeObserver = std::function<bool(double t, const Eigen::VectorXd& x)>;
 
+/// ∂f/∂x at (t, x), exact; J is resized to n×n and written (BDF's Newton iterations).
+using OdeJacobian = std::function<void(double t, const Eigen::VectorXd& x, Eigen::MatrixXd& J)>;
+
+/// Called after every accepted step with the new state, which it may correct in place (a
+/// projection onto constraints, ReferenceDynamics::project_state). It throws NumericalFailure
+/// when it cannot; the run then stops with that status. RK4 and Dormand–Prince continue from the
+/// corrected state (Dormand–Prince's samples inside the step are its interpolant, before the
+/// correction); BDF passes the correction to CVODE's projection (CVodeSetProjFn).
+using OdeProjection = std::function<void(double t, Eigen::VectorXd& x)>;
+
 /// Integrates from x (at options.t0) to options.t1; on return x holds the last valid state.
+/// BDF needs `jacobian` (an Error without it); the other methods ignore it.
 IntegrationSummary integrate(const OdeRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
-                             const OdeObserver& observer = {});
+                             const OdeObserver& observer = {}, const OdeJacobian& jacobian = {},
+                             const OdeProjection& projection = {});
 
 /// Which evaluation of the right-hand side a call is: RK4 stage `stage` (0..3, at t, t + h/2,
 /// t + h/2, t + h) of step `step` (0-based). Dormand–Prince: step = stage = −1 (odeint does not
-/// say; its evaluations include rejected trial steps).
+/// say; its evaluations include rejected trial steps), and BDF likewise (Newton iterates).
 struct Stage {
   long step = -1;
   int stage = -1;
@@ -89,7 +119,8 @@ struct Stage {
 using OdeStageRhs = std::function<void(const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx)>;
 /// integrate() with the stage identity passed to the right-hand side.
 IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
-                                    const OdeObserver& observer = {});
+                                    const OdeObserver& observer = {}, const OdeJacobian& jacobian = {},
+                                    const OdeProjection& projection = {});
 
 /// One classical RK4 step of size h in place, with caller-provided scratch (k1..k4, tmp: size
 /// of x). No heap allocation.

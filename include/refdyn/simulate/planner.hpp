@@ -64,6 +64,13 @@ class Planner {
                                         const Eigen::VectorXd* qdd_hint = nullptr) = 0;
   /// ẋ at (t, x). Throws NumericalFailure where the equations are singular.
   virtual void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) = 0;
+  /// ∂ẋ/∂x at (t, x), exact (implicit integration, method bdf); J is resized and written. The
+  /// default throws an Error saying the planner has none.
+  virtual void jacobian(double t, const Eigen::VectorXd& x, Eigen::MatrixXd& J);
+  /// Whether the planner's state is projected onto its constraints after each step
+  /// (stabilization: projection or both), and the projection itself (the default: none).
+  virtual bool projects() const { return false; }
+  virtual void project(double /*t*/, Eigen::VectorXd& /*x*/) {}
   /// The reference a controller tracks at (x, ẋ): q̂ = x[0, n), q̂̇ = x[n, 2n), q̂̈ = ẋ[n, 2n).
   void reference(const Eigen::VectorXd& x, const Eigen::VectorXd& xdot, const double*& q, const double*& qd,
                  const double*& qdd) const {
@@ -94,6 +101,9 @@ class ReferencePlanner final : public Planner {
   /// Refers to `rd` (which must outlive the planner).
   explicit ReferencePlanner(ReferenceDynamics& rd);
   ReferenceDynamics& dynamics() { return *rd_; }
+  void jacobian(double t, const Eigen::VectorXd& x, Eigen::MatrixXd& J) override { rd_->jacobian(t, x, J); }
+  bool projects() const override { return rd_->options().stabilization != Stabilization::Baumgarte; }
+  void project(double t, Eigen::VectorXd& x) override { rd_->project_state(t, x); }
 
   const Model& model() const override { return rd_->model(); }
   int state_size() const override { return rd_->state_size(); }
