@@ -87,6 +87,24 @@ TEST(ExpressionAlloc, EvaluateDoesNotAllocate) {
   }
 }
 
+// The dual-number tape (exact Jacobians, issue 21): no allocation with a workspace, nor with
+// the per-thread one once it has grown.
+TEST(ExpressionAlloc, DualEvaluateDoesNotAllocate) {
+  const std::vector<Expression> exprs = {
+      Expression("(x/a)^2 + (y/b)^2 - 1", {"x", "y"}, {{"a", 0.4}, {"b", 0.3}}),
+      Expression("exp(sin(x*y)) / (1 + cos(x)^2) + x^y + atan2(y, x) + sqrt(x)", {"x", "y"}),
+  };
+  JacobianScalar x[2] = {JacobianScalar::variable(0.7, 0), JacobianScalar::variable(1.3, 1)};
+  JacobianScalar v, g[2], h[4];
+  for (const Expression& e : exprs) {
+    SCOPED_TRACE(e.source());
+    ExpressionDualWorkspace ws(e);
+    EXPECT_EQ(allocations_during([&] { e.evaluate(x, v, g, h, ws); }), 0);
+    e.evaluate(x, v, g, h);
+    EXPECT_EQ(allocations_during([&] { e.evaluate(x, v, g, h); }), 0);
+  }
+}
+
 TEST(ExpressionAlloc, LargeTapesWithWorkspaceDoNotAllocate) {
   std::vector<std::string> vars;
   std::string text;

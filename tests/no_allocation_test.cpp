@@ -6,6 +6,7 @@
 // and asserts that nothing was allocated. Argument checks may build error strings only when
 // they fail; the success paths must not allocate.
 #include "refdyn/common/error.hpp"
+#include "refdyn/constraints/constraints.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
@@ -224,6 +225,34 @@ TEST(NoAllocation, EachFunctionSeparately) {
   EXPECT_EQ(count([&] { sink += kinetic_energy(m, data, q, qd); }), 0) << "kinetic_energy";
   EXPECT_EQ(count([&] { sink += potential_energy(m, data, q); }), 0) << "potential_energy";
   EXPECT_TRUE(std::isfinite(sink));
+}
+
+// The constraints over dual numbers (exact Jacobians, issue 21): evaluate_constraints_dual with
+// every ready-made kind and expression constraints of each order allocates nothing once its
+// ConstraintEvalDual is built.
+TEST(NoAllocation, ConstraintsOverDualNumbers) {
+  const Model m = models::paper_manipulator();
+  ConstraintSet set;
+  set.add(point_on_surface(m, "E", elliptic_cylinder(0.5, 0.3)));
+  set.add(point_coordinate(m, "E", 2, sinusoid(0.1, 1.0, 0.0, 0.9)));
+  set.add(joint_trajectory(m, m.joint_name[0], polynomial({0.1, 0.2})));
+  set.add(joint_coupling(m, m.joint_name[1], m.joint_name[0], 0.5));
+  set.add(knife_edge(m, "E", Vec3(0, 1, 0)));
+  set.add(point_speed(m, "E", Vec3(1, 0, 0), polynomial({0.3})));
+  set.add(expression_constraint(m, "e0", "sin(x(E))*exp(y(E)) + sqrt(1 + z(E)^2) - 2"));
+  set.add(expression_constraint(m, "e1", "vx(E)*cos(x(E)) + atan2(vy(E), 2)", true));
+  set.add(expression_constraint(m, "e2", "ax(E)*cos(q(" + m.joint_name[0] + ")) + az(E)", ConstraintOrder::Acceleration));
+  ConstraintEvalDual ev(m, set);
+  std::vector<JacobianScalar> q(m.nv), qd(m.nv);
+  for (int i = 0; i < m.nv; ++i) {
+    q[i] = JacobianScalar::variable(0.3 * (i + 1), i % kJacobianDirections);
+    qd[i] = JacobianScalar::variable(-0.2 * (i + 1), (i + 2) % kJacobianDirections);
+  }
+  evaluate_constraints_dual(m, set, ev, 0.4, q.data(), qd.data());  // warm-up
+  const long before = g_allocations;
+  for (int rep = 0; rep < 10; ++rep) evaluate_constraints_dual(m, set, ev, 0.4 + 0.01 * rep, q.data(), qd.data());
+  EXPECT_EQ(g_allocations - before, 0);
+  for (const JacobianScalar& g : ev.gamma) EXPECT_TRUE(std::isfinite(g.v) && std::isfinite(g.d[0]));
 }
 
 // The checks still throw (and may allocate then) on bad input: the fast success paths did not

@@ -27,7 +27,35 @@ double TaskGeometry::value(const std::string& k) const {
   return std::nan("");
 }
 
+// Dual-number evaluation (evaluate_dual, eval_dual): the same formulas as the double code next
+// to each, over JacobianScalar with the arrays of linear3.hpp; the double code is left as it was
+// (its results are compared bit for bit by the paper study).
+using JS = JacobianScalar;
+using V3D = multibody::Vec3T<JS>;
+using M3D = multibody::Mat3T<JS>;
+
+void Constraint::evaluate_dual(const ConstraintInputDual&, JS*, JS*, JS*, JS*) const {
+  throw Error("constraint '" + name + "' (" + describe() +
+              ") has no exact derivatives: its kind does not implement evaluate_dual (hint: an implicit "
+              "integrator's exact Jacobian needs it; use an explicit integrator, or write the constraint as an "
+              "expression constraint)");
+}
+
+ImplicitSurface::ValueDual ImplicitSurface::eval_dual(const V3D&, double) const {
+  throw Error("surface " + describe() +
+              " has no exact derivatives: its kind does not implement eval_dual (hint: an implicit integrator's "
+              "exact Jacobian needs it; use an explicit integrator)");
+}
+
 namespace {
+
+ImplicitSurface::ValueDual zero_surface_value() {
+  ImplicitSurface::ValueDual v;
+  v.f = v.ft = v.ftt = JS(0.0);
+  v.grad = v.grad_t = multibody::zero3<JS>();
+  v.hess = multibody::zero33<JS>();
+  return v;
+}
 
 // ---------------- surfaces ----------------
 class EllipticCylinder final : public ImplicitSurface {
@@ -41,6 +69,15 @@ class EllipticCylinder final : public ImplicitSurface {
     v.grad = Vec3(2 * x * ia2_, 2 * y * ib2_, 0);
     v.hess(0, 0) = 2 * ia2_;
     v.hess(1, 1) = 2 * ib2_;
+    return v;
+  }
+  ValueDual eval_dual(const V3D& r, double) const override {
+    const JS x = r[0] - JS(cx_.value), y = r[1] - JS(cy_.value);
+    ValueDual v = zero_surface_value();
+    v.f = x * x * JS(ia2_) + y * y * JS(ib2_) - JS(1.0);
+    v.grad = {JS(2.0) * x * JS(ia2_), JS(2.0) * y * JS(ib2_), JS(0.0)};
+    v.hess[0] = JS(2 * ia2_);
+    v.hess[4] = JS(2 * ib2_);
     return v;
   }
   std::string describe() const override {
@@ -71,6 +108,14 @@ class Sphere final : public ImplicitSurface {
     v.hess = 2 * Mat3::Identity();
     return v;
   }
+  ValueDual eval_dual(const V3D& r, double) const override {
+    ValueDual v = zero_surface_value();
+    const V3D e = multibody::sub(r, multibody::lift<JS>(c_));
+    v.f = multibody::dot(e, e) - JS(R_.value * R_.value);
+    v.grad = multibody::scale(e, JS(2.0));
+    v.hess = multibody::scale(multibody::identity3<JS>(), JS(2.0));
+    return v;
+  }
   std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
   std::optional<TaskGeometry> geometry() const override {
     return TaskGeometry{"sphere", "", {{"cx", c_.x()}, {"cy", c_.y()}, {"cz", c_.z()}, {"r", R_}}};
@@ -99,6 +144,16 @@ class Plane final : public ImplicitSurface {
     v.grad = n_;
     v.ft = -h.df;
     v.ftt = -h.ddf;
+    return v;
+  }
+  ValueDual eval_dual(const V3D& r, double t) const override {
+    const TimeValue h = h_->eval(t);
+    ValueDual v = zero_surface_value();
+    const V3D n = multibody::lift<JS>(n_);
+    v.f = multibody::dot(n, r) - JS(h.f);
+    v.grad = n;
+    v.ft = JS(-h.df);
+    v.ftt = JS(-h.ddf);
     return v;
   }
   bool rheonomic() const override { return true; }
@@ -141,6 +196,15 @@ class PointOnSurface final : public Constraint {
     A.row(0).noalias() = f.grad.transpose().lazyProduct(P.C);
     gamma[0] = f.grad.dot(P.d) + P.v.dot(f.hess * P.v) + 2 * f.grad_t.dot(P.v) + f.ftt;
   }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    using namespace multibody;
+    const PointStateT<JS>& P = in.points[p_];
+    const ImplicitSurface::ValueDual f = s_->eval_dual(P.r, in.t);
+    phi[0] = f.f;
+    phid[0] = dot(f.grad, P.v) + f.ft;
+    for (int j = 0; j < in.n; ++j) A[j] = dot(f.grad, P.C[j]);
+    gamma[0] = dot(f.grad, P.d) + dot(P.v, mul(f.hess, P.v)) + JS(2.0) * dot(f.grad_t, P.v) + f.ftt;
+  }
   std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
   std::optional<SymbolicForm> symbolic() const override { return s_->symbolic(pn_); }
   std::optional<TaskGeometry> geometry() const override {
@@ -170,6 +234,14 @@ class PointCoordinate final : public Constraint {
     A.row(0) = P.C.row(k_);
     gamma[0] = P.d[k_] - f.ddf;
   }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    const PointStateT<JS>& P = in.points[p_];
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = P.r[k_] - JS(f.f);
+    phid[0] = P.v[k_] - JS(f.df);
+    for (int j = 0; j < in.n; ++j) A[j] = P.C[j][k_];
+    gamma[0] = P.d[k_] - JS(f.ddf);
+  }
   std::string describe() const override {
     return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
   }
@@ -198,6 +270,14 @@ class JointTrajectory final : public Constraint {
     A(0, j_) = 1.0;
     gamma[0] = -f.ddf;
   }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    const TimeValue f = f_->eval(in.t);
+    phi[0] = in.q[j_] - JS(f.f);
+    phid[0] = in.qd[j_] - JS(f.df);
+    std::fill_n(A, in.n, JS(0.0));
+    A[j_] = JS(1.0);
+    gamma[0] = JS(-f.ddf);
+  }
   std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
   std::optional<SymbolicForm> symbolic() const override { return with_function("q(" + jn_ + ") - (", *f_, ")"); }
   const TimeFunction* target() const override { return f_.get(); }
@@ -222,6 +302,14 @@ class JointCoupling final : public Constraint {
     A(0, j_) = 1.0;
     A(0, l_) = -ratio_.value;
     gamma[0] = 0.0;
+  }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    phi[0] = in.q[j_] - JS(ratio_.value) * in.q[l_] - JS(offset_.value);
+    phid[0] = in.qd[j_] - JS(ratio_.value) * in.qd[l_];
+    std::fill_n(A, in.n, JS(0.0));
+    A[j_] = JS(1.0);
+    A[l_] = JS(-ratio_.value);
+    gamma[0] = JS(0.0);
   }
   std::string describe() const override {
     return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
@@ -258,6 +346,17 @@ class PointsCoincide final : public Constraint {
       gamma[i] = P.d[k] - Q.d[k];
     }
   }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    const PointStateT<JS>& P = in.points[p1_];
+    const PointStateT<JS>& Q = in.points[p2_];
+    for (size_t i = 0; i < axes_.size(); ++i) {
+      const int k = axes_[i];
+      phi[i] = P.r[k] - Q.r[k];
+      phid[i] = P.v[k] - Q.v[k];
+      for (int j = 0; j < in.n; ++j) A[i * in.n + j] = P.C[j][k] - Q.C[j][k];
+      gamma[i] = P.d[k] - Q.d[k];
+    }
+  }
   std::string describe() const override { return "r(" + n1_ + ") - r(" + n2_ + ") = 0"; }
   std::optional<SymbolicForm> symbolic() const override {
     SymbolicForm f;
@@ -288,6 +387,15 @@ class KnifeEdge final : public Constraint {
     phid[0] = phi[0];
     A.row(0).noalias() = n.transpose().lazyProduct(P.C);
     gamma[0] = P.w.cross(n).dot(P.v) + n.dot(P.d);
+  }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    using namespace multibody;
+    const PointStateT<JS>& P = in.points[p_];
+    const V3D n = mul(P.R, lift<JS>(a_));
+    phi[0] = dot(n, P.v);
+    phid[0] = phi[0];
+    for (int j = 0; j < in.n; ++j) A[j] = dot(n, P.C[j]);
+    gamma[0] = dot(cross(P.w, n), P.v) + dot(n, P.d);
   }
   std::string describe() const override { return "no lateral slip at " + pn_; }
   std::optional<SymbolicForm> symbolic() const override {
@@ -324,6 +432,16 @@ class PointSpeed final : public Constraint {
     phid[0] = phi[0];
     A.row(0).noalias() = u_.transpose().lazyProduct(P.C);
     gamma[0] = u_.dot(P.d) - s.df;
+  }
+  void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
+    using namespace multibody;
+    const PointStateT<JS>& P = in.points[p_];
+    const TimeValue s = s_->eval(in.t);
+    const V3D u = lift<JS>(u_);
+    phi[0] = dot(u, P.v) - JS(s.f);
+    phid[0] = phi[0];
+    for (int j = 0; j < in.n; ++j) A[j] = dot(u, P.C[j]);
+    gamma[0] = dot(u, P.d) - JS(s.df);
   }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
   std::optional<SymbolicForm> symbolic() const override {
@@ -532,6 +650,72 @@ void evaluate_constraints_after_bias_forces(const Model& model, Data& data, cons
   // every body as a pure translation: subtract it in the world frame.
   point_states_from_body_motion(model, data, set.points(), -model.gravity, ev.points);
   evaluate_rows(set, ev, t, q, qd);
+}
+
+// ---------------- dual-number evaluation ----------------
+ConstraintEvalDual::ConstraintEvalDual(const Model& model, const ConstraintSet& set)
+    : model_id(model.id), m(set.rows()), n(model.nv), phi(set.rows()), phid(set.rows()), gamma(set.rows()),
+      A(static_cast<size_t>(set.rows()) * model.nv), points(model.point_name.size()),
+      bodies(multibody::bodies_from_model<JS>(model)), q(model.nv) {
+  int most = 0;
+  for (const auto& c : set.constraints()) most = std::max(most, c->scratch_size_dual());
+  scratch.assign(static_cast<size_t>(most), JS(0.0));
+  for (auto& p : points) {
+    p.r = p.v = p.d = p.w = p.wd = multibody::zero3<JS>();
+    p.R = multibody::identity3<JS>();
+    p.C.assign(model.nv, multibody::zero3<JS>());
+    p.Jw.assign(model.nv, multibody::zero3<JS>());
+  }
+  // size the kinematics once (no allocation in the evaluations)
+  multibody::forward_poses(bodies, q, poses);
+  multibody::forward_motion(bodies, poses, q.data(), static_cast<const JS*>(nullptr), multibody::zero3<JS>(), true,
+                            motion);
+}
+
+void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev, double t,
+                               const JS* q, const JS* qd) {
+  using namespace multibody;
+  if (ev.model_id != model.id || ev.m != set.rows() || ev.n != model.nv ||
+      ev.points.size() != model.point_name.size())
+    throw Error("evaluate_constraints_dual: the ConstraintEvalDual was built for another model or constraint set "
+                "(hint: ConstraintEvalDual ev(model, set) with the same model and set)");
+  if (!q || !qd) throw Error("evaluate_constraints_dual: expected q and qd (n dual numbers each), got a null pointer");
+  const int n = model.nv;
+  std::copy(q, q + n, ev.q.begin());
+  forward_poses(ev.bodies, ev.q, ev.poses);
+  // velocities and drift accelerations (q̈ = 0), base at rest (kinematics, not gravity)
+  forward_motion(ev.bodies, ev.poses, qd, static_cast<const JS*>(nullptr), zero3<JS>(), true, ev.motion);
+  for (int k : set.points()) {
+    PointStateT<JS>& P = ev.points[k];
+    const int b = model.point_body[k];
+    std::fill(P.C.begin(), P.C.end(), zero3<JS>());
+    std::fill(P.Jw.begin(), P.Jw.end(), zero3<JS>());
+    if (b < 0) {
+      P.r = ev.bodies.points[k].position;
+      P.v = P.d = P.w = P.wd = zero3<JS>();
+      P.R = identity3<JS>();
+      continue;
+    }
+    const PointKinematics<JS> pk = point_kinematics(ev.bodies.points[k], ev.poses, ev.motion);
+    P.r = pk.r;
+    P.v = pk.v;
+    P.d = pk.a;
+    P.R = ev.poses.R[b];
+    P.w = mul(P.R, ev.motion.w[b]);
+    P.wd = mul(P.R, ev.motion.wd[b]);
+    for (int j : model.support[b]) {
+      P.C[j] = point_jacobian_column(ev.bodies, ev.poses, j, P.r);
+      if (model.joint_type[j] == JointType::Revolute) P.Jw[j] = mul(ev.poses.R[j], ev.bodies.bodies[j].axis);
+    }
+  }
+  std::fill(ev.A.begin(), ev.A.end(), JS(0.0));
+  const ConstraintInputDual in{t, n, q, qd, ev.points, ev.scratch.data()};
+  for (int k = 0; k < set.size(); ++k) {
+    const auto& c = set.constraints()[k];
+    const int r = set.row_offset(k);
+    c->evaluate_dual(in, ev.phi.data() + r, ev.phid.data() + r, ev.A.data() + static_cast<size_t>(r) * n,
+                     ev.gamma.data() + r);
+  }
 }
 
 }  // namespace refdyn

@@ -128,6 +128,10 @@ class ExpressionConstraint final : public Constraint {
     const int n = static_cast<int>(vars_.size());
     return 3 * n + n * n;  // w, ẇ, gradient, Hessian
   }
+  int scratch_size_dual() const override {
+    const int n = static_cast<int>(vars_.size());
+    return 3 * n + n * n + expr_->register_count();  // w, ẇ, gradient, Hessian, tape registers
+  }
   int rows() const override { return 1; }
   bool first_order() const override { return order_ == 1; }
   int order() const override { return order_; }
@@ -219,6 +223,109 @@ class ExpressionConstraint final : public Constraint {
       for (size_t k = 0; k < n; ++k) {
         fd += grad[k] * wd[k];
         if (wd[k] == 0) continue;
+        for (size_t l = 0; l < n; ++l) quad += wd[k] * hess[k * n + l] * wd[l];
+      }
+      phid[0] = fd;
+      g += quad;
+    }
+    gamma[0] = g;
+  }
+
+  /// evaluate() over dual numbers: the same formulas, with the expression's value, gradient and
+  /// Hessian from the dual tape (Expression::evaluate over JacobianScalar), so their
+  /// dependence on q, q̇ (through w) is differentiated exactly. No term is skipped on a zero
+  /// value (a zero f_k may have non-zero derivatives).
+  void evaluate_dual(const ConstraintInputDual& in, JacobianScalar* phi, JacobianScalar* phid, JacobianScalar* A,
+                     JacobianScalar* gamma) const override {
+    using JS = JacobianScalar;
+    const size_t n = vars_.size();
+    const int nq = in.n;
+    if (!in.scratch)
+      throw Error("constraint '" + name + "': ConstraintInputDual::scratch is null (hint: evaluate with a "
+                  "ConstraintEvalDual, which owns scratch_size_dual() dual numbers)");
+    JS* w = in.scratch;
+    JS* wd = w + n;
+    JS* grad = wd + n;
+    JS* hess = grad + n;
+    JS* regs = hess + n * n;
+    const JS zero(0.0);
+    for (size_t k = 0; k < n; ++k) {
+      const Var& v = vars_[k];
+      wd[k] = zero;
+      switch (v.kind) {
+        case VarKind::PointCoord:
+          w[k] = in.points[v.index].r[v.axis];
+          wd[k] = in.points[v.index].v[v.axis];
+          break;
+        case VarKind::PointVel: w[k] = in.points[v.index].v[v.axis]; break;
+        case VarKind::PointAcc: w[k] = order_ == 2 ? in.points[v.index].d[v.axis] : zero; break;
+        case VarKind::Joint:
+          w[k] = in.q[v.index];
+          wd[k] = in.qd[v.index];
+          break;
+        case VarKind::JointVel: w[k] = in.qd[v.index]; break;
+        case VarKind::JointAcc: w[k] = zero; break;
+        case VarKind::Time:
+          w[k] = JS(in.t);
+          wd[k] = JS(1.0);
+          break;
+      }
+    }
+    std::fill_n(A, nq, zero);
+    JS f = zero;
+    if (order_ == 2) {
+      // B q̈ + s = 0: s = f at q̈ = 0, B = Σ_acc f_w ∂w/∂q̈
+      expr_->evaluate(w, f, grad, nullptr, regs);
+      for (size_t k = 0; k < n; ++k) {
+        const Var& v = vars_[k];
+        if (v.kind == VarKind::PointAcc) {
+          const auto& C = in.points[v.index].C;
+          for (int j = 0; j < nq; ++j) A[j] += grad[k] * C[j][v.axis];
+        } else if (v.kind == VarKind::JointAcc) {
+          A[v.index] += grad[k];
+        }
+      }
+      gamma[0] = f;
+      phi[0] = zero;
+      phid[0] = zero;
+      return;
+    }
+    const bool first = order_ == 1;
+    expr_->evaluate(w, f, grad, first ? nullptr : hess, regs);
+    phi[0] = f;
+    JS g = zero;
+    for (size_t k = 0; k < n; ++k) {
+      const Var& v = vars_[k];
+      const JS& fk = grad[k];
+      const PointStateT<JS>* P = is_point(v.kind) ? &in.points[v.index] : nullptr;
+      if (!first) {
+        if (v.kind == VarKind::PointCoord) {
+          for (int j = 0; j < nq; ++j) A[j] += fk * P->C[j][v.axis];
+          g += fk * P->d[v.axis];
+        } else if (v.kind == VarKind::Joint) {
+          A[v.index] += fk;
+        }
+      } else {
+        switch (v.kind) {
+          case VarKind::PointVel:
+            for (int j = 0; j < nq; ++j) A[j] += fk * P->C[j][v.axis];
+            g += fk * P->d[v.axis];
+            break;
+          case VarKind::JointVel: A[v.index] += fk; break;
+          case VarKind::PointCoord: g += fk * P->v[v.axis]; break;
+          case VarKind::Joint: g += fk * in.qd[v.index]; break;
+          case VarKind::Time: g += fk; break;
+          case VarKind::PointAcc:
+          case VarKind::JointAcc: break;
+        }
+      }
+    }
+    if (first) {
+      phid[0] = f;
+    } else {
+      JS fd = zero, quad = zero;
+      for (size_t k = 0; k < n; ++k) {
+        fd += grad[k] * wd[k];
         for (size_t l = 0; l < n; ++l) quad += wd[k] * hess[k * n + l] * wd[l];
       }
       phid[0] = fd;

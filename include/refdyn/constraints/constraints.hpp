@@ -11,7 +11,10 @@
 /// Everything is exact: analytic kinematics (C, d of kinematics.hpp) chained with exact
 /// derivatives of the task functions.
 
+#include "refdyn/common/dual.hpp"
 #include "refdyn/multibody/model.hpp"
+#include "refdyn/multibody/dual.hpp"
+#include "refdyn/multibody/generic_kinematics.hpp"
 #include "refdyn/expression/time_function.hpp"
 
 #include <map>
@@ -65,6 +68,28 @@ struct ConstraintInput {
   double* scratch = nullptr;
 };
 
+/// Point kinematics over a scalar S: PointState's quantities (same meanings and conventions,
+/// world axes) as arrays of linear3.hpp, for the dual-number evaluation.
+template <class S>
+struct PointStateT {
+  multibody::Vec3T<S> r, v, d, w, wd;   ///< position, velocity, drift (acceleration − C q̈), ω, ω̇ drift
+  multibody::Mat3T<S> R;                ///< orientation of the carrying body (row-major)
+  std::vector<multibody::Vec3T<S>> C;   ///< n columns of ∂r/∂q
+  std::vector<multibody::Vec3T<S>> Jw;  ///< n columns of the angular Jacobian
+};
+
+/// What evaluate_dual reads: ConstraintInput over dual numbers (q, q̇: n values each; t is a
+/// plain double, time is not differentiated) and scratch of at least scratch_size_dual() dual
+/// numbers owned by the caller's ConstraintEvalDual.
+struct ConstraintInputDual {
+  double t;
+  int n;
+  const JacobianScalar* q;
+  const JacobianScalar* qd;
+  const std::vector<PointStateT<JacobianScalar>>& points;  ///< indexed by model point index
+  JacobianScalar* scratch = nullptr;
+};
+
 class Constraint {
  public:
   virtual ~Constraint() = default;
@@ -82,6 +107,16 @@ class Constraint {
   virtual std::string describe() const = 0;
   /// Doubles of scratch memory evaluate() needs (ConstraintInput::scratch).
   virtual int scratch_size() const { return 0; }
+  /// evaluate() over dual numbers (for exact Jacobians): phi, phid, gamma (rows() each) and A
+  /// (rows() × n, row-major) as functions of the dual q, q̇ of `in`; the value parts equal
+  /// evaluate()'s results to rounding, the derivative parts are the exact directional
+  /// derivatives along the seeds. The rows of A arrive zeroed (evaluate_constraints_dual).
+  /// Kinds without it keep this default, which throws Error("constraint '<name>' (<describe()>)
+  /// has no exact derivatives: ...").
+  virtual void evaluate_dual(const ConstraintInputDual& in, JacobianScalar* phi, JacobianScalar* phid,
+                             JacobianScalar* A, JacobianScalar* gamma) const;
+  /// Dual numbers of scratch memory evaluate_dual() needs (ConstraintInputDual::scratch).
+  virtual int scratch_size_dual() const { return 0; }
   /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
   /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
   virtual const TimeFunction* target() const { return nullptr; }
@@ -112,6 +147,15 @@ class ImplicitSurface {
     Vec3 grad_t = Vec3::Zero();   ///< ∂²f/∂r∂t
   };
   virtual Value eval(const Vec3& r, double t) const = 0;
+  /// Value over dual numbers: every entry as a function of the dual position r (t a constant).
+  struct ValueDual {
+    JacobianScalar f, ft, ftt;
+    multibody::Vec3T<JacobianScalar> grad, grad_t;
+    multibody::Mat3T<JacobianScalar> hess;
+  };
+  /// eval() over dual numbers (exact derivatives w.r.t. r through the dual parts). Surfaces
+  /// without it keep this default, which throws Error naming the surface.
+  virtual ValueDual eval_dual(const multibody::Vec3T<JacobianScalar>& r, double t) const;
   virtual bool rheonomic() const { return false; }
   virtual std::string describe() const = 0;
   /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
@@ -207,6 +251,32 @@ struct ConstraintEval {
   std::vector<PointState> points;    ///< indexed by model point index
   std::vector<double> scratch;       ///< for the constraints' evaluate() (largest scratch_size)
 };
+
+/// Workspace + result of evaluate_constraints_dual, sized once for (model, set).
+struct ConstraintEvalDual {
+  ConstraintEvalDual(const Model& model, const ConstraintSet& set);
+  std::uint64_t model_id;                        ///< the model it was sized for
+  int m, n;                                      ///< rows of the set, model.nv
+  std::vector<JacobianScalar> phi, phid, gamma;  ///< size m (same meaning as ConstraintEval)
+  std::vector<JacobianScalar> A;                 ///< m×n, row-major: A[row*n + col]
+  std::vector<PointStateT<JacobianScalar>> points;  ///< indexed by model point index
+  std::vector<JacobianScalar> scratch;           ///< for evaluate_dual (largest scratch_size_dual)
+  // forward kinematics over dual numbers (the generic core)
+  multibody::Bodies<JacobianScalar> bodies;
+  multibody::Poses<JacobianScalar> poses;
+  multibody::Motions<JacobianScalar> motion;
+  std::vector<JacobianScalar> q;                 ///< q as a vector (forward_poses reads one)
+};
+
+/// ConstraintEval's quantities at (t, q, q̇) with q, q̇ dual numbers (arrays of n = model.nv);
+/// t is a plain double (time is not differentiated; functions of time enter as constants). The
+/// value parts equal evaluate_constraints' results (to rounding); the derivative parts are the
+/// exact directional derivatives along the seeds of q and q̇ (forward kinematics, point
+/// kinematics with q̈ = 0 for the drifts, and every constraint's evaluate_dual over dual
+/// numbers). No heap allocation after the first call with a given ev. Checks that ev belongs
+/// to this model and set; throws the Error of a kind without evaluate_dual.
+void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev, double t,
+                               const JacobianScalar* q, const JacobianScalar* qd);
 
 /// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and
 /// the point kinematics of every point the set reads. No heap allocation. Checks that data and

@@ -71,6 +71,8 @@
 /// registers (nor the quadratic kernel); larger tapes allocate once per thread and size, or
 /// never with an ExpressionWorkspace sized for the expression (tests/expression_alloc_test.cpp).
 
+#include "refdyn/common/dual.hpp"
+
 #include <cstddef>
 #include <map>
 #include <memory>
@@ -95,6 +97,22 @@ class ExpressionWorkspace {
  private:
   friend class Expression;
   std::vector<double> registers_;
+};
+
+/// Caller-owned dual-number registers for the dual-number Expression::evaluate (as
+/// ExpressionWorkspace for the double one): sized from an expression, evaluation does not
+/// allocate. One workspace per thread; it grows (allocating) for a larger expression.
+class ExpressionDualWorkspace {
+ public:
+  ExpressionDualWorkspace() = default;
+  explicit ExpressionDualWorkspace(const Expression& e);
+  /// Grows (never shrinks) to fit `e`.
+  void reserve_for(const Expression& e);
+  std::size_t size() const { return registers_.size(); }
+
+ private:
+  friend class Expression;
+  std::vector<JacobianScalar> registers_;
 };
 
 /// Construction options beyond the derivative order.
@@ -165,6 +183,22 @@ class Expression {
   /// expression (ExpressionWorkspace(expr) or reserve_for(expr)).
   void evaluate(const double* x, double& value, double* grad, double* hess,
                 ExpressionWorkspace& ws) const;
+
+  /// The same over dual numbers (common/dual.hpp): x, value, gradient and Hessian are
+  /// JacobianScalar, so the derivative parts of value, grad and hess are the exact directional
+  /// derivatives along the seeds of x (third derivatives of f included, through the Hessian
+  /// tape). Runs the same tape as the double evaluate (never the quadratic kernel); values equal
+  /// the double ones to rounding. Comparisons, Sign and Select act on the value parts (the
+  /// branch taken is not differentiated, as in the double engine). Same order checks. The
+  /// first form uses a per-thread workspace (allocates once per thread and size); the second
+  /// never allocates with a workspace sized for this expression; the third takes
+  /// register_count() registers from the caller.
+  void evaluate(const JacobianScalar* x, JacobianScalar& value, JacobianScalar* grad,
+                JacobianScalar* hess) const;
+  void evaluate(const JacobianScalar* x, JacobianScalar& value, JacobianScalar* grad,
+                JacobianScalar* hess, ExpressionDualWorkspace& ws) const;
+  void evaluate(const JacobianScalar* x, JacobianScalar& value, JacobianScalar* grad,
+                JacobianScalar* hess, JacobianScalar* registers) const;
 
   /// Canonical GiNaC printout of the expression after parameter substitution.
   std::string text() const;

@@ -54,6 +54,27 @@ class Distance final : public Constraint {
     A.row(0).noalias() = u.transpose().lazyProduct(P.C - Q.C);
     gamma[0] = u.dot(P.d - Q.d) + (delta_dot.squaredNorm() - ud * ud) / rho - d.ddf;
   }
+  void evaluate_dual(const ConstraintInputDual& in, JacobianScalar* phi, JacobianScalar* phid, JacobianScalar* A,
+                     JacobianScalar* gamma) const override {
+    using namespace multibody;
+    using JS = JacobianScalar;
+    const PointStateT<JS>& P = in.points[a_];
+    const PointStateT<JS>& Q = in.points[b_];
+    const Vec3T<JS> delta = sub(P.r, Q.r), delta_dot = sub(P.v, Q.v);
+    const JS rho = sqrt(dot(delta, delta));
+    if (!(rho.v > 1e-12))
+      throw NumericalFailure(in.t, "at t = " + fmt(in.t) + " s the points '" + an_ + "' and '" + bn_ +
+                                       "' of distance constraint '" + name +
+                                       "' coincide: the distance has no direction there");
+    const JS inv = JS(1.0) / rho;
+    const Vec3T<JS> u = scale(delta, inv);
+    const TimeValue d = d_->eval(in.t);
+    const JS ud = dot(u, delta_dot);
+    phi[0] = rho - JS(d.f);
+    phid[0] = ud - JS(d.df);
+    for (int j = 0; j < in.n; ++j) A[j] = dot(u, sub(P.C[j], Q.C[j]));
+    gamma[0] = dot(u, sub(P.d, Q.d)) + (dot(delta_dot, delta_dot) - ud * ud) * inv - JS(d.ddf);
+  }
 
  private:
   int a_, b_;
