@@ -68,6 +68,14 @@ void print_plan(const Problem& p, const Plan& plan) {
   std::printf("scenario '%s': %d DOF, %d constraint rows; plan %s, %ld steps, t_end = %.6g s, max |Phi| = %.3g, %.3f s\n",
               p.name.c_str(), p.model.nq, p.constraints.rows(), to_string(plan.summary.status), plan.summary.steps,
               plan.summary.t_end, plan.summary.max_constraint_residual, plan.summary.wall_time);
+  const IntegrationSummary& k = plan.summary;
+  if (k.jacobian_evaluations > 0)
+    std::printf("  bdf: %ld RHS and %ld Jacobian evaluations, %ld Newton iterations (%ld failed), %ld error-test "
+                "failures\n", k.rhs_evaluations, k.jacobian_evaluations, k.newton_iterations, k.newton_failures,
+                k.error_test_failures);
+  if (k.projections > 0)
+    std::printf("  projection: %ld steps corrected, largest correction %.3g\n", k.projections,
+                k.max_projection_correction);
   if (!plan.summary.ok()) std::printf("  stopped: %s\n", plan.summary.message.c_str());
 }
 
@@ -164,8 +172,18 @@ int run_check(const std::string& file, const InputOptions& in) {
       std::printf("%s%s = %.3e", k ? "   " : " ", residuals[k].label.c_str(), residuals[k].values[r]);
     std::printf("\n");
   }
-  std::cout << "integrator: " << to_string(s.integrator.method) << ", step " << s.integrator.step << " s, t = ["
-            << s.integrator.t0 << ", " << s.integrator.t1 << "] s";
+  const IntegratorOptions& io = s.integrator;
+  std::cout << "integrator: " << to_string(io.method);
+  if (io.method == IntegratorMethod::RK4)
+    std::cout << ", step " << io.step << " s";
+  else
+    std::cout << ", rtol " << io.rtol << ", atol " << io.atol
+              << (io.method == IntegratorMethod::BDF ? ", max order " + std::to_string(io.max_order) : std::string())
+              << ", samples every " << (io.output_interval > 0 ? io.output_interval : io.step) << " s";
+  std::cout << ", t = [" << io.t0 << ", " << io.t1 << "] s";
+  if (s.options.stabilization != Stabilization::Baumgarte)
+    std::cout << "; stabilization: " << to_string(s.options.stabilization) << " (tolerance "
+              << fmt(s.options.projection_tolerance) << ")";
   if (planner->checks_residual_tolerance())
     std::cout << "; the plan stops where max |Phi| > "
               << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))

@@ -8,6 +8,7 @@
 #include "dh_tables.hpp"
 #include "refdyn/constraints/constraints.hpp"
 #include "refdyn/models/paper_example.hpp"
+#include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 
 #include <benchmark/benchmark.h>
@@ -19,6 +20,7 @@ using namespace refdyn;
 namespace {
 
 struct Setup {
+  explicit Setup(Model m) : model(std::move(m)) {}
   Model model;
   ForceSet forces;
   ConstraintSet constraints;
@@ -31,7 +33,7 @@ std::unique_ptr<Setup> paper() {
   p.lugre_rot.sigma0 = p.lugre_lin.sigma0 = 1e5;
   p.lugre_rot.sigma1 = p.lugre_lin.sigma1 = 300;
   static models::PaperExample ex(p);  // owns what the dynamics refers to
-  auto s = std::make_unique<Setup>();
+  auto s = std::make_unique<Setup>(ex.model);
   s->rd = std::make_unique<ReferenceDynamics>(ex.model, ex.forces, ex.constraints, ex.options());
   s->x = s->rd->make_state(ex.q0(), Eigen::Vector3d(0.1, -0.2, 0.05));
   s->x.tail(3) << 1e-7, -2e-7, 1e-8;
@@ -39,10 +41,9 @@ std::unique_ptr<Setup> paper() {
 }
 
 std::unique_ptr<Setup> arm7() {
-  auto s = std::make_unique<Setup>();
   ModelDescription d = refdyn_bench::description_from_table(refdyn_bench::random_table(7, 7));
   d.add_point("tip", d.links.back().name, Vec3(0.05, 0.02, 0.1));
-  s->model = build_model(d);
+  auto s = std::make_unique<Setup>(build_model(d));
   for (int j = 0; j < 7; ++j)
     s->forces.add(std::make_shared<LuGreFriction>(s->model, s->model.joint_name[j], LuGreParams{0.3, 0.2, 1e5, 300, 0, 0.1}));
   Eigen::VectorXd q(7), qd(7);

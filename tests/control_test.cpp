@@ -2,7 +2,9 @@
 // feasibility report.
 #include "refdyn/simulate/closed_loop.hpp"
 #include "refdyn/simulate/plan.hpp"
+#include "refdyn/simulate/planner.hpp"
 #include "refdyn/simulate/feasibility.hpp"
+#include "refdyn/models/paper_example.hpp"
 #include "refdyn/models/paper_manipulator.hpp"
 #include "refdyn/models/paper_study.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
@@ -10,6 +12,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <random>
 
 using namespace refdyn;
 using refdyn::test::near;
@@ -217,6 +220,74 @@ TEST(Control, DormandPrinceJointIntegrationAgreesWithRk4) {
   ASSERT_NEAR(dp.t.back(), 1.0, 1e-12);
   EXPECT_TRUE(near(dp.x.back(), rk.x.back(), 1e-7, 1e-9));
   EXPECT_TRUE(near(dp.q_ref.back(), rk.q_ref.back(), 1e-7, 1e-9));
+}
+
+// The closed loop's exact Jacobian (implicit integration) against central differences of its
+// derivative, for each controller, with plant friction (bristle states), a PID's integral states
+// and a saturated joint; X = [x_ref; q; q̇; z_plant; xc].
+TEST(Control, ClosedLoopJacobianMatchesFiniteDifferences) {
+  Fixture& f = fixture();
+  models::PaperExampleParams stiff;
+  stiff.lugre_rot.sigma0 = stiff.lugre_lin.sigma0 = 1e4;
+  stiff.lugre_rot.sigma1 = stiff.lugre_lin.sigma1 = 50;
+  models::PaperExample plant_ex(stiff);  // its forces: drive + stiff LuGre (3 states)
+  ReferencePlanner planner(f.rd);
+  PIDGravity pid(f.ex.model, Eigen::Vector3d(400, 300, 900), Eigen::Vector3d(50, 40, 30), Eigen::Vector3d(40, 30, 60));
+  PDGravity pd(f.ex.model, Eigen::Vector3d(400, 300, 900), Eigen::Vector3d(40, 30, 60));
+  ComputedTorquePD ct(f.ex.model, Eigen::Vector3d(40, 3, 60));
+  const std::vector<std::pair<Controller*, Eigen::VectorXd>> cases = {
+      {&ct, Eigen::VectorXd()}, {&pd, Eigen::VectorXd()}, {&pid, Eigen::VectorXd()}, {&ct, Eigen::Vector3d(1e3, 1e3, 5.0)}};
+  std::mt19937 rng(11);
+  for (const auto& [c, limit] : cases) {
+    const int nr = planner.state_size(), nz = plant_ex.forces.num_states(), nc = c->num_states();
+    Eigen::VectorXd X(nr + 6 + nz + nc);
+    X.head(nr) = f.plan.x[300];
+    X.segment(nr, 6) = f.plan.x[300].head(6) + test::random_vector(rng, 6, 0.05);
+    X.segment(nr + 6, nz) = test::random_vector(rng, nz, 1e-5);
+    X.tail(nc) = test::random_vector(rng, nc, 0.01);
+    const double t = f.plan.t[300];
+    Eigen::VectorXd dX;
+    Eigen::MatrixXd J;
+    closed_loop_derivative(f.ex.model, plant_ex.forces, *c, planner, limit, t, X, dX, &J);
+    Eigen::MatrixXd Jfd(X.size(), X.size());
+    Eigen::VectorXd Xp = X, fp, fm;
+    for (Eigen::Index j = 0; j < X.size(); ++j) {
+      const double h = 1e-6 * std::max(1.0, std::abs(X[j]));
+      Xp[j] = X[j] + h;
+      closed_loop_derivative(f.ex.model, plant_ex.forces, *c, planner, limit, t, Xp, fp);
+      Xp[j] = X[j] - h;
+      closed_loop_derivative(f.ex.model, plant_ex.forces, *c, planner, limit, t, Xp, fm);
+      Xp[j] = X[j];
+      Jfd.col(j) = (fp - fm) / (2 * h);
+    }
+    const double scale = std::max(1.0, Jfd.cwiseAbs().maxCoeff());
+    EXPECT_LE((J - Jfd).cwiseAbs().maxCoeff(), 1e-7 * scale) << c->name() << (limit.size() ? " saturated" : "");
+  }
+}
+
+// BDF on the joint system gives the Dormand–Prince closed loop (both tight).
+TEST(Control, BdfJointIntegrationAgreesWithDormandPrince) {
+  Fixture& f = fixture();
+  const ForceSet none;
+  ClosedLoopOptions o;
+  o.integrator = f.ex.integrator();
+  o.integrator.t1 = 1.0;
+  o.integrator.output_interval = 0.1;
+  o.integrator.rtol = 1e-10;
+  o.integrator.atol = 1e-12;
+  o.integrator.method = IntegratorMethod::DormandPrince45;
+  ComputedTorquePD c1(f.ex.model, Eigen::Vector3d(40, 3, 60));
+  ReferenceDynamics rd1(f.ex.model, f.ex.forces, f.ex.constraints, f.ex.options());
+  const ClosedLoopResult dp = simulate_closed_loop(f.ex.model, none, c1, f.plan, &rd1, plant_start(60), o);
+  o.integrator.method = IntegratorMethod::BDF;
+  ComputedTorquePD c2(f.ex.model, Eigen::Vector3d(40, 3, 60));
+  ReferenceDynamics rd2(f.ex.model, f.ex.forces, f.ex.constraints, f.ex.options());
+  const ClosedLoopResult bdf = simulate_closed_loop(f.ex.model, none, c2, f.plan, &rd2, plant_start(60), o);
+  ASSERT_TRUE(dp.summary.ok()) << dp.summary.message;
+  ASSERT_TRUE(bdf.summary.ok()) << bdf.summary.message;
+  ASSERT_EQ(bdf.t.size(), dp.t.size());
+  EXPECT_TRUE(near(bdf.x.back(), dp.x.back(), 1e-6, 1e-8));
+  EXPECT_GT(bdf.summary.jacobian_evaluations, 0);
 }
 
 TEST(Control, SaturationIsRespected) {

@@ -1,6 +1,8 @@
 // ReferenceDynamics::jacobian (the exact ∂f/∂x of implicit integration) against central finite
 // differences of derivative(), which are allowed here in the tests and nowhere in the engine.
 #include "refdyn/forces/force_elements.hpp"
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/scenario/problem.hpp"
 #include "refdyn/models/paper_example.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/simulate/integrators.hpp"
@@ -81,6 +83,27 @@ TEST(ReferenceJacobian, PaperArmWithStiffFrictionMatchesFiniteDifferences) {
   }
 }
 
+// The example mechanisms: a closed loop with a rheonomic drive row (four-bar), first-order rows
+// (knife-edge unicycle), an acceleration-level row (waiter tray), and a 7-DOF arm with an
+// expression row, each with the Lagrange and the projection solver where both apply.
+TEST(ReferenceJacobian, ExampleMechanismsMatchFiniteDifferences) {
+  std::mt19937 rng(8);
+  for (const char* rel : {"examples/four_bar/four_bar.yaml", "examples/unicycle/unicycle.yaml",
+                          "examples/waiter_tray/waiter_tray.yaml", "examples/urdf_arm_line/urdf_arm_line.yaml",
+                          "examples/planar_2r_circle/planar_2r_circle.yaml"}) {
+    SCOPED_TRACE(rel);
+    auto s = io::load_problem(std::string(REFDYN_SOURCE_DIR) + "/" + rel);
+    for (const ReferenceSolver solver : {ReferenceSolver::Lagrange, ReferenceSolver::Projection}) {
+      ReferenceDynamicsOptions o = s->options;
+      o.solver = solver;
+      ReferenceDynamics rd(s->model, s->forces, s->constraints, o);
+      Eigen::VectorXd x = rd.make_state(s->q0, s->qd0);
+      x.segment(rd.nq(), rd.nq()) += test::random_vector(rng, rd.nq(), 0.1);  // off the constraints: Baumgarte terms act
+      expect_jacobian_matches(rd, s->integrator.t0 + 0.37, x);
+    }
+  }
+}
+
 TEST(ReferenceJacobian, RefusesWhatItCannotDifferentiate) {
   models::PaperExample ex;
   ReferenceDynamicsOptions o = ex.options();
@@ -89,6 +112,19 @@ TEST(ReferenceJacobian, RefusesWhatItCannotDifferentiate) {
   Eigen::MatrixXd J;
   test::expect_error_mentioning([&] { rd.jacobian(0.0, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), J); },
                           {"paper_literal_forces"});
+  // A user's force element without a dual evaluation is named.
+  struct Push final : ForceElement {
+    std::string name() const override { return "push"; }
+    void apply(double, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
+               Eigen::MatrixXd*) const override {
+      Q[0] += 1.0;
+    }
+  };
+  ForceSet forces = ex.forces;
+  forces.add(std::make_shared<Push>());
+  ReferenceDynamics rd2(ex.model, forces, ex.constraints, ex.options());
+  test::expect_error_mentioning([&] { rd2.jacobian(0.0, rd2.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), J); },
+                                {"force element 'push' has no exact derivatives", "method: rk4 or dopri5"});
 }
 
 }  // namespace

@@ -13,7 +13,7 @@
 // double M: δλ = S⁻¹(A M⁻¹ r₁ − r₂), δq̈ = M⁻¹(r₁ − Aᵀ δλ), S = A M⁻¹ Aᵀ.
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
-#include "refdyn/constraints/constraints_dual_stub.hpp"
+#include "refdyn/constraints/constraints.hpp"
 #include "refdyn/multibody/dual_dynamics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"

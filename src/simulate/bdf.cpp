@@ -223,6 +223,16 @@ IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, E
       return s;  // x holds the state of the last output
     }
     x = view(cv.y);
+    // CVODE's output is interpolated between its (projected) steps: project the sample too, so
+    // that every recorded state is on the constraints (CVODE's own state is left alone).
+    if (projection) try {
+        projection(tout, x);
+      } catch (const NumericalFailure& e) {
+        collect(cv.mem, s);
+        s.status = IntegrationStatus::NumericalFailure;
+        s.message = e.what();
+        return s;
+      }
     s.t_end = tout;
     if (obs && !obs(tout, x)) {
       collect(cv.mem, s);

@@ -144,15 +144,25 @@ void explain_singular_rows(ReferenceDynamics& rd, const Eigen::VectorXd& x, doub
 
 /// An RK4 plan that failed (a singular partition, a NaN state, a residual above tolerance) may
 /// have failed because its step is unstable for stiff dynamics (stiff friction): then that is
-/// the report, with the eigenvalue, the stable step and the advice, and the symptom follows. The
-/// exact Jacobian is taken at the last valid state and, failing that, at the initial one;
-/// returns false when neither shows an unstable step (or no Jacobian can be formed).
-bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, const Eigen::VectorXd& x0,
+/// the report, with the eigenvalue, the stable step and the advice, and the symptom follows. A
+/// stiff mode may only appear once the motion has started (LuGre's bristles are stiff at speed,
+/// not at rest) and the last states of a diverged run are garbage, so the exact Jacobian is
+/// checked at the last valid state, then at up to 64 recorded samples from the end backwards,
+/// and at the initial state; returns false when none shows an unstable step (or no Jacobian
+/// can be formed).
+bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, const Plan& plan, const Eigen::VectorXd& x0,
                            const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
   const double h = (o.t1 - o.t0) / nsteps;
+  std::vector<std::pair<double, const Eigen::VectorXd*>> states{{t_last, &x_last}};
+  const size_t count = plan.x.size(), stride = std::max<size_t>(1, count / 64);
+  for (size_t i = 0; i < 64 && i * stride < count; ++i) {
+    const size_t k = count - 1 - i * stride;
+    states.push_back({plan.t[k], &plan.x[k]});
+  }
+  states.push_back({o.t0, &x0});
   Eigen::MatrixXd J;
-  for (const auto& [t, x] : {std::pair<double, const Eigen::VectorXd*>{t_last, &x_last}, {o.t0, &x0}}) {
+  for (const auto& [t, x] : states) {
     try {
       rd.jacobian(t, *x, J);
       if (!J.allFinite()) continue;
@@ -175,13 +185,13 @@ bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, co
 }
 
 /// What a failed plan's message says beyond the symptom (docs/implicit.md, "When a run fails").
-void explain_failure(ReferenceDynamics& rd, const IntegratorOptions& o, const Eigen::VectorXd& x0,
+void explain_failure(ReferenceDynamics& rd, const IntegratorOptions& o, const Plan& plan, const Eigen::VectorXd& x0,
                      const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
   const IntegrationStatus st = s.status;
   if (o.method == IntegratorMethod::RK4 &&
       (st == IntegrationStatus::NumericalFailure || st == IntegrationStatus::NonFinite ||
        st == IntegrationStatus::ResidualExceeded) &&
-      explain_unstable_step(rd, o, x0, x_last, t_last, s))
+      explain_unstable_step(rd, o, plan, x0, x_last, t_last, s))
     return;
   if (st == IntegrationStatus::NumericalFailure && rd.num_constraints() > 0) explain_singular_rows(rd, x_last, t_last, s);
 }
@@ -277,7 +287,7 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     st.data.shrink_to_fit();
   }
   plan.summary.max_constraint_residual = worst;
-  explain_failure(rd, options, x0, x, plan.summary.t_end, plan.summary);
+  explain_failure(rd, options, plan, x0, x, plan.summary.t_end, plan.summary);
   return plan;
 }
 

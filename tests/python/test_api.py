@@ -136,6 +136,23 @@ def test_track_on_threads_gives_the_bits_of_one_thread():
         assert [j["peak_tau"] for j in s["joints"]] == [j["peak_abs_tau"] for j in rec["joints"]]
 
 
+def test_bdf_and_projection_are_chosen_in_the_scenario_dict():
+    rk4 = refdyn.plan(minimal_dict())
+    d = minimal_dict()
+    d["integrator"] = {"method": "bdf", "rtol": 1e-10, "atol": 1e-12, "step": 1e-3, "t0": 0, "t1": 0.5}
+    d["stabilization"] = "both"
+    bdf = refdyn.plan(d)
+    assert bdf.ok, bdf.message
+    assert bdf.summary["jacobian_evaluations"] > 0
+    assert bdf.summary["newton_iterations"] >= bdf.summary["steps"]
+    assert bdf.summary["projections"] >= 0
+    assert rk4.summary["jacobian_evaluations"] == 0
+    assert np.allclose(bdf.q[-1], rk4.q[-1], rtol=0, atol=1e-6)
+    d["integrator"]["max_order"] = 7
+    with pytest.raises(refdyn.Error, match="max_order"):
+        refdyn.plan(d)
+
+
 def test_stopped_plan_is_a_status_not_an_exception():
     d = minimal_dict(t1=1.0)
     d["constraints"][0]["expression"] = "x(E) - (L1 + 0.5*t)"   # out of reach near t = 0.8 s

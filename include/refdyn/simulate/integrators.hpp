@@ -74,15 +74,15 @@ struct Fields<IntegrationSummary> {
                            field("message", &S::message),
                            field("steps", &S::steps),
                            field("rejected_steps", &S::rejected_steps),
-                           field("rhs_evaluations", &S::rhs_evaluations, "", sink::Wire | sink::Python),
-                           field("jacobian_evaluations", &S::jacobian_evaluations, "", sink::Wire | sink::Python),
-                           field("newton_iterations", &S::newton_iterations, "", sink::Wire | sink::Python),
-                           field("newton_failures", &S::newton_failures, "", sink::Wire | sink::Python),
-                           field("error_test_failures", &S::error_test_failures, "", sink::Wire | sink::Python),
+                           field("rhs_evaluations", &S::rhs_evaluations, "", sink::Json | sink::Wire | sink::Python),
+                           field("jacobian_evaluations", &S::jacobian_evaluations, "", sink::Json | sink::Wire | sink::Python),
+                           field("newton_iterations", &S::newton_iterations, "", sink::Json | sink::Wire | sink::Python),
+                           field("newton_failures", &S::newton_failures, "", sink::Json | sink::Wire | sink::Python),
+                           field("error_test_failures", &S::error_test_failures, "", sink::Json | sink::Wire | sink::Python),
                            field("t_end", &S::t_end, "s"),
                            field("max_constraint_residual", &S::max_constraint_residual, "m or rad"),
-                           field("projections", &S::projections, "", sink::Wire | sink::Python),
-                           field("max_projection_correction", &S::max_projection_correction, "", sink::Wire | sink::Python),
+                           field("projections", &S::projections, "", sink::Json | sink::Wire | sink::Python),
+                           field("max_projection_correction", &S::max_projection_correction, "", sink::Json | sink::Wire | sink::Python),
                            field("wall_time", &S::wall_time, "s") | JsonKey{"wall_time_s"});
   }
 };
