@@ -76,6 +76,9 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   NMN_.setZero(n_ - m_, n_ - m_);
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
+  W_.setZero(n_, n_);
+  ws_.setZero(std::max(n_, 1));
+  qr_ = Eigen::HouseholderQR<Eigen::MatrixXd>(n_, m_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
   // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
   // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.
@@ -127,13 +130,15 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 // n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
 // which the compiler unrolls completely (one source, no second copy of the algorithm). The KKT
 // route (solve_lagrange) is dispatched the same way onto fixed- or dynamic-size Eigen objects.
-#define REFDYN_SIZED_DISPATCH(call, args)                     \
+#define REFDYN_FIXED_DISPATCH(call, args)                     \
   if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
   if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
   if (n_ == 3 && m_ == 2) return call<3, 2> args;             \
   if (n_ == 4 && m_ == 1) return call<4, 1> args;             \
   if (n_ == 4 && m_ == 2) return call<4, 2> args;             \
-  if (n_ == 4 && m_ == 3) return call<4, 3> args;             \
+  if (n_ == 4 && m_ == 3) return call<4, 3> args;
+#define REFDYN_SIZED_DISPATCH(call, args) \
+  REFDYN_FIXED_DISPATCH(call, args)       \
   return call<0, 0> args;
 
 bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
@@ -393,12 +398,68 @@ void ReferenceDynamics::solve_projection(double t) {
     choose_partition(t, q_, qd_);
     if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
   }
-  REFDYN_SIZED_DISPATCH(solve_projection_sized, (t))
+  // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
+  // other size takes the orthonormal basis (see the header comment).
+  REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))
+  solve_projection_orthonormal(t);
+}
+
+void ReferenceDynamics::solve_projection_orthonormal(double t) {
+  const int n = n_, m = m_, k = n - m;
+  // Projected force f = F (paper-literal: F + (∂Q/∂q̇)ᵀ q̇), as in solve_projection_sized.
+  if (opt_.paper_literal_forces) {
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    tmp_n_ += F_;
+  } else {
+    tmp_n_ = F_;
+  }
+  // Aᵀ = Q [R; 0] (Householder, Q = H_0 ⋯ H_{m−1}); Z = the last k columns of Q is an orthonormal
+  // basis of the null space of A, the same space N spans. In y = Qᵀ q̈ = [y1; y2]:
+  //   A q̈ = rhs            ⇔  Rᵀ y1 = rhs,
+  //   Zᵀ(M q̈ − f) = 0      ⇔  W22 y2 = (Qᵀ f)_2 − W21 y1,   W = Qᵀ M Q,
+  // with W22 = ZᵀMZ SPD and cond(W22) ≤ cond(M): no amplification by cond(K_dc).
+  // The reflectors are applied one by one (no temporaries, no allocation).
+  W_ = data_.M;
+  double* ws = ws_.data();
+  auto reflector = [&](int j) { return qr_.matrixQR().col(j).tail(n - j - 1); };
+  if (m > 0) {
+    qr_.compute(ev_.A.transpose());
+    for (int j = 0; j < m; ++j) {  // W ← H_j W H_j
+      const double tau = qr_.hCoeffs().coeff(j);
+      W_.bottomRows(n - j).applyHouseholderOnTheLeft(reflector(j), tau, ws);
+      W_.rightCols(n - j).applyHouseholderOnTheRight(reflector(j), tau, ws);
+    }
+    for (int j = 0; j < m; ++j)  // Qᵀ f = H_{m−1} ⋯ H_0 f
+      tmp_n_.tail(n - j).applyHouseholderOnTheLeft(reflector(j), qr_.hCoeffs().coeff(j), ws);
+    tmp_m_ = rhs_;  // y1 = R⁻ᵀ rhs
+    qr_.matrixQR().topLeftCorner(m, m).triangularView<Eigen::Upper>().transpose().solveInPlace(tmp_m_);
+  }
+  double* y = tmp_n_.data();  // becomes y = [y1; y2]
+  if (k > 0) {
+    if (m > 0) tmp_n_.tail(k).noalias() -= W_.bottomLeftCorner(k, m).lazyProduct(tmp_m_);
+    if (k == 1) {
+      const double w = W_(n - 1, n - 1);
+      if (!(w > 0))
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      y[n - 1] /= w;
+    } else {
+      llt_k_.compute(W_.bottomRightCorner(k, k));
+      if (llt_k_.info() != Eigen::Success)
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      auto y2 = tmp_n_.tail(k);
+      llt_k_.solveInPlace(y2);
+    }
+  }
+  for (int r = 0; r < m; ++r) y[r] = tmp_m_[r];
+  for (int j = m - 1; j >= 0; --j)  // q̈ = Q y = H_0 ⋯ H_{m−1} y
+    tmp_n_.tail(n - j).applyHouseholderOnTheLeft(reflector(j), qr_.hCoeffs().coeff(j), ws);
+  qdd_ = tmp_n_;
 }
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_projection_sized(double t) {
-  const int n = N > 0 ? N : n_, m = N > 0 ? Mr : m_, k = n - m;
+  static_assert(N > 0, "sizes known at run time take solve_projection_orthonormal");
+  const int n = N, m = Mr, k = n - m;
   // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
   if (opt_.paper_literal_forces) {
     tmp_n_.noalias() = dQ_.transpose() * qd_;
@@ -501,6 +562,7 @@ KktStatus kkt_solve(const auto& M, const auto& A, const auto& F, const auto& rhs
 
 void ReferenceDynamics::solve_lagrange(double t) { REFDYN_SIZED_DISPATCH(solve_lagrange_sized, (t)) }
 #undef REFDYN_SIZED_DISPATCH
+#undef REFDYN_FIXED_DISPATCH
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_lagrange_sized(double t) {

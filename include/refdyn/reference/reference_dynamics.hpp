@@ -35,6 +35,7 @@
 #include "refdyn/multibody/model.hpp"
 
 #include <Eigen/LU>
+#include <Eigen/QR>
 #include <string>
 #include <vector>
 
@@ -84,7 +85,7 @@ struct ReferenceDynamicsOptions {
   double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
   double beta = 50.0;                ///< Baumgarte β [1/s] (holonomic rows)
   double beta_first_order = 50.0;    ///< β₁ [1/s] for first-order rows: ċ + β₁ c = 0
-  ReferenceSolver solver = ReferenceSolver::Projection;
+  ReferenceSolver solver = ReferenceSolver::Automatic;
   /// Independent (control-input) coordinates by joint name; n − m of them. Empty: chosen
   /// automatically (best-conditioned K_dc) at the first evaluation.
   std::vector<std::string> independent;
@@ -169,7 +170,8 @@ class ReferenceDynamics {
   template <int N, int Mr>
   bool factor_partition_sized();  // N = 0: sizes at run time
   template <int N, int Mr>
-  void solve_projection_sized(double t);
+  void solve_projection_sized(double t);  // the partitioned basis N, fixed small sizes only
+  void solve_projection_orthonormal(double t);  // the orthonormal basis from a QR of Aᵀ (other sizes)
   template <int N, int Mr>
   void solve_lagrange_sized(double t);
   std::string partition_message(double t) const;
@@ -196,6 +198,9 @@ class ReferenceDynamics {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
   Eigen::VectorXd rk_;
+  Eigen::MatrixXd W_;  // Qᵀ M Q (orthonormal route)
+  Eigen::VectorXd ws_;  // Householder workspace
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr_;  // Aᵀ = Q R
   double cond_ = 1.0;
 };
 
