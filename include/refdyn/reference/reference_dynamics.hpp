@@ -35,7 +35,6 @@
 #include "refdyn/multibody/model.hpp"
 
 #include <Eigen/LU>
-#include <Eigen/QR>
 #include <string>
 #include <vector>
 
@@ -198,9 +197,8 @@ class ReferenceDynamics {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
   Eigen::VectorXd rk_;
-  Eigen::MatrixXd W_;  // Qᵀ M Q (orthonormal route)
-  Eigen::VectorXd ws_;  // Householder workspace
-  Eigen::HouseholderQR<Eigen::MatrixXd> qr_;  // Aᵀ = Q R
+  Eigen::MatrixXd W_, qrA_;  // orthonormal route: Qᵀ M Q; Aᵀ = Q R (R and the reflectors)
+  Eigen::VectorXd ws_, tau_;  // orthonormal route: workspace; the reflectors' τ
   double cond_ = 1.0;
 };
 
