@@ -239,6 +239,7 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
       forces.add(std::make_shared<LuGreFriction>(model, model.joint_name[n / 2], LuGreParams{}));
       forces.add(joint_effort(model, model.joint_name[1], sinusoid(1.0, 2.0)));
       ReferenceDynamicsOptions po, lo;
+      po.solver = ReferenceSolver::Projection;
       lo.solver = ReferenceSolver::Lagrange;
       ReferenceDynamics proj(model, forces, set, po), lag(model, forces, set, lo);
       const Eigen::VectorXd q = test::random_vector(rng, n, 2.0), qd = test::random_vector(rng, n, 1.0);
