@@ -129,8 +129,10 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 // set-up costs more than the flops, and stores through double* would otherwise force the
 // members to be reloaded in every iteration. The loops are templates on the sizes: N = 0 reads
 // n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
-// which the compiler unrolls completely (one source, no second copy of the algorithm). The KKT
-// route (solve_lagrange) is dispatched the same way onto fixed- or dynamic-size Eigen objects.
+// which the compiler unrolls completely (one source, no second copy of the algorithm). The
+// partitioned solve (solve_projection_sized) exists only for those fixed pairs; every other size
+// takes solve_projection_orthonormal (header comment: why). The KKT route (solve_lagrange) is
+// dispatched the same way onto fixed- or dynamic-size Eigen objects.
 #define REFDYN_FIXED_DISPATCH(call, args)                     \
   if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
   if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
