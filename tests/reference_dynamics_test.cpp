@@ -16,6 +16,7 @@
 #include <functional>
 #include <numbers>
 #include <numeric>
+#include <tuple>
 
 using namespace refdyn;
 using refdyn::test::expect_error_mentioning;
@@ -495,6 +496,38 @@ TEST(ReferenceDynamics, ProjectionIsAsAccurateAsLagrangeOnLargeChains) {
               << "); error against a long-double KKT solve, relative to max(1, |q̈|∞): projection " << worst_proj
               << ", Lagrange " << worst_lag << ", the partitioned basis N = [I; −K_dc⁻¹K_ic] " << worst_partitioned[0]
               << " (automatic partitions), " << worst_partitioned[1] << " (poor partitions)\n";
+  }
+}
+
+// The orthonormal route's edge cases: as many rows as coordinates (no null space, q̈ = A⁻¹ rhs)
+// and a single row on a model outside the fixed-size kernels; projection = Lagrange.
+TEST(ReferenceDynamics, OrthonormalRouteWithFullAndSingleRowSets) {
+  std::mt19937 rng(2106);
+  const Model arm2 = build_model(planar_arm(2));
+  ConstraintSet full;  // the tip's x and y: 2 rows on 2 coordinates
+  full.add(point_coordinate(arm2, "tip", 0, sinusoid(0.1, 1.0, 0.0, 1.2)));
+  full.add(point_coordinate(arm2, "tip", 1, constant(0.8)));
+  const Model chain6 = build_model(test::random_chain(rng, {.dof = 6}));
+  ConstraintSet single;
+  single.add(point_coordinate(chain6, "tip", 2, constant(0.2)));
+  ForceSet forces2, forces6;
+  forces2.add(joint_damping(arm2, "q1", 0.4));
+  forces6.add(joint_damping(chain6, chain6.joint_name[2], 0.4));
+  for (auto [model, set, forces] : {std::tuple{&arm2, &full, &forces2}, std::tuple{&chain6, &single, &forces6}}) {
+    const int n = model->nq;
+    ReferenceDynamicsOptions po, lo;
+    po.solver = ReferenceSolver::Projection;
+    lo.solver = ReferenceSolver::Lagrange;
+    ReferenceDynamics proj(*model, *forces, *set, po), lag(*model, *forces, *set, lo);
+    Eigen::VectorXd q = test::random_vector(rng, n, 1.0);
+    if (n == 2) q << 0.4, 1.1;  // the arm away from its stretched (singular) pose
+    const Eigen::VectorXd qd = test::random_vector(rng, n, 1.0);
+    const Eigen::VectorXd x = proj.make_state(q, qd);
+    Eigen::VectorXd xp(x.size()), xl(x.size());
+    proj.derivative(0.3, x, xp);
+    lag.derivative(0.3, x, xl);
+    EXPECT_LE((xp - xl).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, xl.cwiseAbs().maxCoeff())) << n;
+    EXPECT_TRUE(near(proj.lambda(), lag.lambda(), 1e-10, 1e-12)) << n;
   }
 }
 
