@@ -64,7 +64,7 @@ struct Case {
   std::unique_ptr<refdyn::Data> data;
   std::unique_ptr<KdlPeer> kdl;
   std::vector<Eigen::VectorXd> q, qd, qdd, tau;
-  // Constrained FD (models with a "tip" point and at least 7 DOF): 4 rows, no applied forces.
+  // Constrained FD (models with a "tip" point and at least 5 DOF): 4 rows, no applied forces.
   refdyn::ForceSet forces;
   refdyn::ConstraintSet constraints;
   std::unique_ptr<refdyn::ReferenceDynamics> rd_proj, rd_lag, rd_auto;
@@ -194,7 +194,7 @@ std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::
     c->qdd.push_back(Eigen::Map<const Eigen::VectorXd>(qdd.data() + k * n, n));
     c->tau.push_back(Eigen::Map<const Eigen::VectorXd>(tau.data() + k * n, n));
   }
-  if (n >= 7 && !c->model.point_name.empty()) setup_constrained(*c);
+  if (n >= 5 && !c->model.point_name.empty()) setup_constrained(*c);  // 4 rows: n ≥ 5
   if (tip && c->constrained) setup_tip(*c, table);
   return c;
 }
@@ -538,7 +538,7 @@ int main(int argc, char** argv) {
     cases.push_back(make_case(t, model_from_table(t), 2000 + dof, /*tip=*/true));
   }
   // Extra sizes for the crossovers (FD and CFD only): kAbaFrom, kLagrangeFrom.
-  for (int dof : {2, 4, 5, 10, 20, 24}) {
+  for (int dof : {2, 4, 5, 6, 10, 20, 24}) {
     const DHTable t = refdyn_bench::random_table(dof, 1000 + dof);
     cases.push_back(make_case(t, model_from_table(t), 2000 + dof));
     cases.back()->crossover_only = true;

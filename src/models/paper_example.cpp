@@ -57,6 +57,7 @@ ReferenceDynamicsOptions PaperExample::options() const {
   o.alpha = params.alpha;
   o.beta = params.beta;
   o.independent = {"psi1"};
+  o.solver = ReferenceSolver::Projection;  // the paper's method (also what Automatic picks at 3 DOF)
   return o;
 }
 

@@ -80,6 +80,10 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   NMN_.setZero(n_ - m_, n_ - m_);
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
+  W_.setZero(n_, n_);
+  ws_.setZero(std::max(n_, 1));
+  qrA_.setZero(n_, m_);
+  tau_.setZero(std::max(m_, 1));
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
   // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
   // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.
@@ -129,15 +133,19 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
 // set-up costs more than the flops, and stores through double* would otherwise force the
 // members to be reloaded in every iteration. The loops are templates on the sizes: N = 0 reads
 // n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
-// which the compiler unrolls completely (one source, no second copy of the algorithm). The KKT
-// route (solve_lagrange) is dispatched the same way onto fixed- or dynamic-size Eigen objects.
-#define REFDYN_SIZED_DISPATCH(call, args)                     \
+// which the compiler unrolls completely (one source, no second copy of the algorithm). The
+// partitioned solve (solve_projection_sized) exists only for those fixed pairs; every other size
+// takes solve_projection_orthonormal (header comment: why). The KKT route (solve_lagrange) is
+// dispatched the same way onto fixed- or dynamic-size Eigen objects.
+#define REFDYN_FIXED_DISPATCH(call, args)                     \
   if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
   if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
   if (n_ == 3 && m_ == 2) return call<3, 2> args;             \
   if (n_ == 4 && m_ == 1) return call<4, 1> args;             \
   if (n_ == 4 && m_ == 2) return call<4, 2> args;             \
-  if (n_ == 4 && m_ == 3) return call<4, 3> args;             \
+  if (n_ == 4 && m_ == 3) return call<4, 3> args;
+#define REFDYN_SIZED_DISPATCH(call, args) \
+  REFDYN_FIXED_DISPATCH(call, args)       \
   return call<0, 0> args;
 
 bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
@@ -397,12 +405,143 @@ void ReferenceDynamics::solve_projection(double t) {
     choose_partition(t, q_, qd_);
     if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
   }
-  REFDYN_SIZED_DISPATCH(solve_projection_sized, (t))
+  // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
+  // other size takes the orthonormal basis (see the header comment).
+  REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))
+  solve_projection_orthonormal(t);
+}
+
+void ReferenceDynamics::solve_projection_orthonormal(double t) {
+  const int n = n_, m = m_, k = n - m;
+  // Projected force f = F (paper-literal: F + (∂Q/∂q̇)ᵀ q̇), as in solve_projection_sized.
+  if (opt_.paper_literal_forces) {
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    tmp_n_ += F_;
+  } else {
+    tmp_n_ = F_;
+  }
+  // Aᵀ = Q [R; 0] by Householder reflectors, Q = H_0 ⋯ H_{m−1}, H_j = I − τ_j v_j v_jᵀ (v_j zero
+  // above j, 1 at j). Z = the last k columns of Q is an orthonormal basis of the null space of
+  // A, the space N spans. With y = Qᵀ q̈ = [y1; y2] and W = Qᵀ M Q:
+  //   A q̈ = rhs           ⇔  Rᵀ y1 = rhs
+  //   Zᵀ(M q̈ − f) = 0     ⇔  W22 y2 = (Qᵀ f)_2 − W21 y1,   W22 = ZᵀMZ (SPD, cond ≤ cond(M)),
+  // so no K_dc⁻¹ enters: the rounding error is that of a Cholesky solve with M, as in the KKT
+  // route. Plain loops over column-major storage, like the kernels above (no temporaries).
+  double* __restrict V = qrA_.data();  // n × m: Aᵀ, then R (upper) and the reflectors (below)
+  double* __restrict tau = tau_.data();
+  double* __restrict W = W_.data();  // n × n
+  double* __restrict p = ws_.data();
+  double* __restrict f = tmp_n_.data();
+  const double* __restrict A = ev_.A.data();  // m × n
+  for (int c = 0; c < m; ++c)
+    for (int i = 0; i < n; ++i) V[static_cast<size_t>(c) * n + i] = A[static_cast<size_t>(i) * m + c];
+  for (int j = 0; j < m; ++j) {  // reflector j from column j, rows j..n−1, applied to columns j+1..m−1
+    double* __restrict x = V + static_cast<size_t>(j) * n;
+    double tail = 0;
+    for (int i = j + 1; i < n; ++i) tail += x[i] * x[i];
+    const double alpha = x[j];
+    if (!(tail > 0)) {  // already of the form β e_j: H_j = I
+      tau[j] = 0;
+      continue;
+    }
+    const double beta = alpha >= 0 ? -std::sqrt(alpha * alpha + tail) : std::sqrt(alpha * alpha + tail);
+    tau[j] = (beta - alpha) / beta;
+    const double s = 1.0 / (alpha - beta);
+    for (int i = j + 1; i < n; ++i) x[i] *= s;
+    x[j] = beta;
+    for (int c = j + 1; c < m; ++c) {  // column c −= τ v (vᵀ column c)
+      double* __restrict y = V + static_cast<size_t>(c) * n;
+      double d = y[j];
+      for (int i = j + 1; i < n; ++i) d += x[i] * y[i];
+      d *= tau[j];
+      y[j] -= d;
+      for (int i = j + 1; i < n; ++i) y[i] -= d * x[i];
+    }
+  }
+  // W = Qᵀ M Q: W ← H_j W H_j for j = 0 … m−1, as the symmetric rank-2 update
+  //   p = τ W v,  w = p − (τ vᵀp / 2) v,  W ← W − v wᵀ − w vᵀ;
+  // and Qᵀ f = H_{m−1} ⋯ H_0 f.
+  const double* __restrict Mp = data_.M.data();
+  for (size_t i = 0; i < static_cast<size_t>(n) * n; ++i) W[i] = Mp[i];
+  for (int j = 0; j < m; ++j) {
+    if (tau[j] == 0) continue;
+    const double* __restrict v = V + static_cast<size_t>(j) * n;  // v[j] = 1 (stored: R(j, j))
+    const double tj = tau[j];
+    for (int i = 0; i < n; ++i) p[i] = W[static_cast<size_t>(j) * n + i];
+    for (int c = j + 1; c < n; ++c) {
+      const double vc = v[c];
+      const double* __restrict col = W + static_cast<size_t>(c) * n;
+      for (int i = 0; i < n; ++i) p[i] += vc * col[i];
+    }
+    double vp = p[j];
+    for (int i = j + 1; i < n; ++i) vp += v[i] * p[i];
+    const double half = 0.5 * tj * tj * vp;
+    for (int i = 0; i < n; ++i) p[i] *= tj;  // p = τ W v
+    p[j] -= half;                            // w = p − (τ vᵀp / 2) v   (vᵀp with p = τWv: τ²/2 vᵀWv)
+    for (int i = j + 1; i < n; ++i) p[i] -= half * v[i];
+    // W −= v wᵀ + w vᵀ: column c gets −v·w[c] (rows j..) and −w·v[c] (c ≥ j).
+    for (int c = 0; c < n; ++c) {
+      double* __restrict col = W + static_cast<size_t>(c) * n;
+      const double wc = p[c];
+      col[j] -= wc;
+      for (int i = j + 1; i < n; ++i) col[i] -= v[i] * wc;
+      if (c >= j) {
+        const double vc = c == j ? 1.0 : v[c];
+        for (int i = 0; i < n; ++i) col[i] -= p[i] * vc;
+      }
+    }
+    double d = f[j];  // f ← H_j f
+    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
+    d *= tj;
+    f[j] -= d;
+    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
+  }
+  double* __restrict y1 = tmp_m_.data();  // Rᵀ y1 = rhs (forward substitution)
+  const double* __restrict rhs = rhs_.data();
+  for (int r = 0; r < m; ++r) {
+    double sum = rhs[r];
+    for (int c = 0; c < r; ++c) sum -= V[static_cast<size_t>(r) * n + c] * y1[c];  // R(c, r)
+    y1[r] = sum / V[static_cast<size_t>(r) * n + r];
+  }
+  if (k > 0) {
+    double* rk = rk_.data();  // y2; rk_ and NMN_ also reach the LLT through the members: no restrict
+    double* NMN = NMN_.data();
+    for (int c = 0; c < k; ++c) {
+      double v = f[m + c];
+      for (int r = 0; r < m; ++r) v -= W[static_cast<size_t>(r) * n + m + c] * y1[r];  // W21(c, r)
+      rk[c] = v;
+      for (int c2 = 0; c2 < k; ++c2) NMN[c2 * k + c] = W[static_cast<size_t>(m + c2) * n + m + c];
+    }
+    if (k == 1) {
+      if (!(NMN[0] > 0))
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      rk[0] /= NMN[0];
+    } else {
+      llt_k_.compute(NMN_);
+      if (llt_k_.info() != Eigen::Success)
+        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+      llt_k_.solveInPlace(rk_);
+    }
+    for (int c = 0; c < k; ++c) f[m + c] = rk[c];
+  }
+  for (int r = 0; r < m; ++r) f[r] = y1[r];
+  for (int j = m - 1; j >= 0; --j) {  // q̈ = Q y = H_0 ⋯ H_{m−1} y
+    if (tau[j] == 0) continue;
+    const double* __restrict v = V + static_cast<size_t>(j) * n;
+    double d = f[j];
+    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
+    d *= tau[j];
+    f[j] -= d;
+    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
+  }
+  double* __restrict qdd = qdd_.data();
+  for (int i = 0; i < n; ++i) qdd[i] = f[i];
 }
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_projection_sized(double t) {
-  const int n = N > 0 ? N : n_, m = N > 0 ? Mr : m_, k = n - m;
+  static_assert(N > 0, "sizes known at run time take solve_projection_orthonormal");
+  const int n = N, m = Mr, k = n - m;
   // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
   if (opt_.paper_literal_forces) {
     tmp_n_.noalias() = dQ_.transpose() * qd_;
@@ -505,6 +644,7 @@ KktStatus kkt_solve(const auto& M, const auto& A, const auto& F, const auto& rhs
 
 void ReferenceDynamics::solve_lagrange(double t) { REFDYN_SIZED_DISPATCH(solve_lagrange_sized, (t)) }
 #undef REFDYN_SIZED_DISPATCH
+#undef REFDYN_FIXED_DISPATCH
 
 template <int N, int Mr>
 void ReferenceDynamics::solve_lagrange_sized(double t) {

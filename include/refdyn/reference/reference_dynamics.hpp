@@ -4,7 +4,7 @@
 /// dynamics M q̈ = F, F = Q − c − g, merged with all constraints (ConstraintSet) into one
 /// system free of reaction forces.
 ///
-/// Projection (default, the paper's method). The user partitions the velocities into
+/// Projection (the paper's method). The user partitions the velocities into
 /// independent q̇_ic (the control inputs) and dependent q̇_dc. With A = [K_ic K_dc],
 ///     ∂q̇_dc/∂q̇_ic = −K_dc⁻¹ K_ic,   N = ∂q̇/∂q̇_ic  (n × (n−m)),
 /// and the reduced equations are stacked with the stabilized constraints:
@@ -13,6 +13,25 @@
 ///     A q̈ = −γ − β₁ c              first-order rows (ċ + β₁ c = 0)
 /// solved by the null-space method (q̈ = q̈_p + N u with A q̈_p = rhs, (NᵀMN) u = Nᵀ(F − M q̈_p)),
 /// which is the same system with an (n−m)×(n−m) SPD solve.
+///
+/// Null-space basis. The equations only need *a* basis of the null space of A; N above is the
+/// paper's partitioned one, and its rounding error grows with cond(K_dc)² · cond(M) (N carries
+/// K_dc⁻¹; measured: 4.5e-6 in q̈ against 6.5e-9 for the KKT solve on the benchmark's 30-DOF chain
+/// with κ = 639, 5e-9 relative with κ ≈ 1e4: tests/reference_dynamics_test.cpp,
+/// ProjectionIsAsAccurateAsLagrangeOnLargeChains). So the solve uses:
+///  - the partitioned N in the fixed-size kernels (n ≤ 4, 1 ≤ m < n: the paper's 3-DOF example
+///    among them), where it is exact to rounding and the fastest; their outputs are unchanged;
+///  - for every other size an orthonormal basis Z of the same space from a Householder QR
+///    Aᵀ = Q [R; 0] (Z = the last n − m columns of Q): with y = Qᵀ q̈ = [y1; y2],
+///    Rᵀ y1 = rhs and (ZᵀMZ) y2 = Zᵀ F − ZᵀMQ₁ y1, so no K_dc⁻¹ enters and the error is
+///    cond(M)·ε like the KKT solve's, whatever the partition (equal to Lagrange to 1e-10 relative
+///    to |q̈|∞ on random 30- and 60-DOF chains, also with partitions of κ ≈ 1e4).
+///    Chosen over one step of iterative refinement of the partitioned solve (measured too:
+///    about as accurate for κ ≤ 1e4 and 15–20 % faster at 7–10 DOF, but 10 % slower at 60 DOF,
+///    and its first solve, hence its convergence, still degrades with cond(K_dc)²).
+/// The partition keeps its meaning either way: the independent coordinates q̇_ic (chosen or
+/// given by `independent`), κ = partition_condition() and its max_condition check (a singular
+/// or ill-conditioned K_dc is still reported), λ from K_dcᵀλ = −Q_c,dc, make_consistent.
 /// Lagrange (KKT) form, the independent check: [[M, Aᵀ],[A, 0]] [q̈; λ] = [F; rhs], i.e.
 ///     M q̈ = F − Aᵀ λ,
 /// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
@@ -55,14 +74,15 @@ class NumericalFailure : public Error {
 enum class ReferenceSolver { Projection, Lagrange, Automatic };
 
 /// Models with at least this many coordinates take the Lagrange (KKT) solver under
-/// ReferenceSolver::Automatic; smaller ones the projection. Measured with
+/// ReferenceSolver::Automatic (the default); smaller ones the projection. Measured with
 /// `dynamics_bench --benchmark_filter=CFD` (bench/README.md, "Forward dynamics"; one evaluation
 /// with 4 constraint rows, CPU-time medians of projection over Lagrange with its ABA
-/// factorization, two runs 2026-11-25): 0.73/0.74 at 7, 0.88/0.88 at 10, 0.99/1.01 at 15,
-/// 1.05/1.08 at 20, 1.11/1.15 at 24, 1.31/1.31 at 30, 2.16/2.21 at 60 DOF: the crossover is at
-/// 15, where the two tie (the paper's 3-DOF example: projection 1.35× faster, bench/README.md,
-/// reference_dynamics_bench).
-inline constexpr int kLagrangeFrom = 16;
+/// factorization, two runs 2026-11-26, after the projection took the orthonormal basis):
+/// 0.81/0.83 at 5, 0.99/0.96 at 6, 1.12/1.00 at 7, 1.18/1.19 at 10, 1.23/1.27 at 15, 1.36/1.26
+/// at 20, 1.35/1.31 at 24, 1.37/1.43 at 30, 2.04/2.24 at 60 DOF: they tie at 6, so Lagrange from
+/// 7 (was 16 with the partitioned basis, which tied at 15). The paper's 3-DOF example keeps the
+/// projection (fixed-size kernels).
+inline constexpr int kLagrangeFrom = 7;
 
 /// From this many coordinates the Lagrange (KKT) solver factors M by the articulated-body
 /// algorithm instead of forming it: u = M⁻¹F by ABA, M⁻¹Aᵀ by its O(n) solves
@@ -93,7 +113,9 @@ struct ReferenceDynamicsOptions {
   double alpha = 100.0;              ///< Baumgarte α [1/s] (holonomic rows)
   double beta = 50.0;                ///< Baumgarte β [1/s] (holonomic rows)
   double beta_first_order = 50.0;    ///< β₁ [1/s] for first-order rows: ċ + β₁ c = 0
-  ReferenceSolver solver = ReferenceSolver::Projection;
+  /// Automatic (default): by size, automatic_reference_solver. The paper example and scenarios
+  /// naming `solver: projection` set Projection explicitly.
+  ReferenceSolver solver = ReferenceSolver::Automatic;
   /// Independent (control-input) coordinates by joint name; n − m of them. Empty: chosen
   /// automatically (best-conditioned K_dc) at the first evaluation.
   std::vector<std::string> independent;
@@ -206,7 +228,8 @@ class ReferenceDynamics {
   template <int N, int Mr>
   bool factor_partition_sized();  // N = 0: sizes at run time
   template <int N, int Mr>
-  void solve_projection_sized(double t);
+  void solve_projection_sized(double t);  // the partitioned basis N, fixed small sizes only
+  void solve_projection_orthonormal(double t);  // the orthonormal basis from a QR of Aᵀ (other sizes)
   template <int N, int Mr>
   void solve_lagrange_sized(double t);
   std::string partition_message(double t) const;
@@ -233,6 +256,8 @@ class ReferenceDynamics {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
   Eigen::VectorXd rk_;
+  Eigen::MatrixXd W_, qrA_;  // orthonormal route: Qᵀ M Q; Aᵀ = Q R (R and the reflectors)
+  Eigen::VectorXd ws_, tau_;  // orthonormal route: workspace; the reflectors' τ
   double cond_ = 1.0;
   struct JacobianWork;  // src/reference/reference_jacobian.cpp; made at the first jacobian() call
   std::shared_ptr<JacobianWork> jac_;
