@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 namespace refdyn {
@@ -147,20 +148,17 @@ void explain_singular_rows(ReferenceDynamics& rd, const Eigen::VectorXd& x, doub
 /// the report, with the eigenvalue, the stable step and the advice, and the symptom follows. A
 /// stiff mode may only appear once the motion has started (LuGre's bristles are stiff at speed,
 /// not at rest) and the last states of a diverged run are garbage, so the exact Jacobian is
-/// checked at the last valid state, then at up to 64 recorded samples from the end backwards,
-/// and at the initial state; returns false when none shows an unstable step (or no Jacobian
-/// can be formed).
+/// checked at up to 64 recorded samples in time order, then at the last valid state: the
+/// earliest unstable one is reported (the closest to the intended motion). Returns false when
+/// none shows an unstable step (or no Jacobian can be formed).
 bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, const Plan& plan, const Eigen::VectorXd& x0,
                            const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
   const double h = (o.t1 - o.t0) / nsteps;
-  std::vector<std::pair<double, const Eigen::VectorXd*>> states{{t_last, &x_last}};
+  std::vector<std::pair<double, const Eigen::VectorXd*>> states{{o.t0, &x0}};
   const size_t count = plan.x.size(), stride = std::max<size_t>(1, count / 64);
-  for (size_t i = 0; i < 64 && i * stride < count; ++i) {
-    const size_t k = count - 1 - i * stride;
-    states.push_back({plan.t[k], &plan.x[k]});
-  }
-  states.push_back({o.t0, &x0});
+  for (size_t k = 0; k < count; k += stride) states.push_back({plan.t[k], &plan.x[k]});
+  states.push_back({t_last, &x_last});
   Eigen::MatrixXd J;
   for (const auto& [t, x] : states) {
     try {
@@ -168,13 +166,17 @@ bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, co
       if (!J.allFinite()) continue;
       const StepStability k = rk4_step_stability(J, h);
       if (k.stable) continue;
-      std::ostringstream lam;
-      lam << fmt(k.worst.real());
-      if (k.worst.imag() != 0) lam << (k.worst.imag() > 0 ? " + " : " - ") << fmt(std::abs(k.worst.imag())) << "i";
+      auto g3 = [](double v) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.3g", v);
+        return std::string(b);
+      };
+      std::string lam = g3(k.worst.real());
+      if (k.worst.imag() != 0) lam += (k.worst.imag() > 0 ? " + " : " - ") + g3(std::abs(k.worst.imag())) + "i";
       s.message = "the integration is unstable at step h = " + fmt(h) + " s: the problem is stiff (at t = " + fmt(t) +
-                  " s the eigenvalue of df/dx with the largest RK4 amplification is " + lam.str() +
-                  " 1/s, spectral radius " + fmt(k.spectral_radius) + " 1/s; RK4 is stable there only for steps below " +
-                  fmt(k.largest_stable_step) + " s): use method: bdf, or a step below " + fmt(k.largest_stable_step) +
+                  " s the eigenvalue of df/dx with the largest RK4 amplification is " + lam + " 1/s, spectral radius " +
+                  g3(k.spectral_radius) + " 1/s; RK4 is stable there only for steps below " +
+                  g3(k.largest_stable_step) + " s): use method: bdf, or a step below " + g3(k.largest_stable_step) +
                   " s. The run ended with: " + s.message;
       return true;
     } catch (const Error&) {
