@@ -43,6 +43,16 @@ TEST(Stability, ComplexPairAgainstTheStabilityFunction) {
   test::expect_error_mentioning([] { rk4_step_stability(Eigen::MatrixXd::Zero(2, 3), 0.1); }, {"square"});
 }
 
+// A mode that grows physically (an inverted pendulum falling, λ = +3) is not a numerical
+// instability: RK4 follows e^{hλ} (it grows a little less), at any step that resolves it.
+TEST(Stability, PhysicalGrowthIsNotAnInstability) {
+  Eigen::MatrixXd J(2, 2);
+  J << 0, 1, 9, 0;  // θ'' = 9 θ: λ = ±3
+  EXPECT_TRUE(rk4_step_stability(J, 1e-3).stable);
+  EXPECT_TRUE(rk4_step_stability(J, 0.2).stable);
+  EXPECT_FALSE(rk4_step_stability(J, 1.0).stable);  // the λ = −3 mode: h·λ = −3 < −2.785
+}
+
 // The paper's plan with stiff friction (σ0 = 1e5, σ1 = 300) under RK4 at 1e-3 s: it fails, and the
 // report says the step is unstable because the problem is stiff — not the partition it broke.
 TEST(Stability, StiffPaperPlanUnderRk4IsReportedAsStiff) {

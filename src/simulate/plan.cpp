@@ -14,6 +14,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <limits>
 #include <sstream>
 
 namespace refdyn {
@@ -144,46 +146,65 @@ void explain_singular_rows(ReferenceDynamics& rd, const Eigen::VectorXd& x, doub
 }
 
 /// An RK4 plan that failed (a singular partition, a NaN state, a residual above tolerance) may
-/// have failed because its step is unstable for stiff dynamics (stiff friction): then that is
-/// the report, with the eigenvalue, the stable step and the advice, and the symptom follows. A
-/// stiff mode may only appear once the motion has started (LuGre's bristles are stiff at speed,
-/// not at rest) and the last states of a diverged run are garbage, so the exact Jacobian is
-/// checked at up to 64 recorded samples in time order, then at the last valid state: the
-/// earliest unstable one is reported (the closest to the intended motion). Returns false when
-/// none shows an unstable step (or no Jacobian can be formed).
+/// have failed because its step is outside RK4's stability region for the dynamics (stiff
+/// friction, strong Baumgarte gains with a long step): then that is the report, with the
+/// eigenvalue, the stable step and the advice, and the symptom follows. A stiff mode may only
+/// appear once the motion has started (LuGre's bristles are stiff at speed, not at rest), so the
+/// exact Jacobian is checked at the initial state and at up to 64 recorded samples in time
+/// order; the earliest unstable one is reported (the closest to the intended motion). The state
+/// the run stopped at is not used: it may already be past a singularity or blown up (a task
+/// leaving the workspace passes through a singular configuration first). A state where the constraint Jacobian A is (nearly) singular — 1/κ₂(A)
+/// below 1e-8, or below 1 % of its value at the first state — ends the search: eigenvalues grow
+/// without bound near a singular configuration, and the singularity (a task leaving the
+/// workspace), not the step, is the cause (explain_singular_rows). "Stiff" is said when the stable step
+/// shrinks below 1 % of the step taken at a later checked state. Returns false when no state
+/// shows an unstable step (or no Jacobian can be formed).
 bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, const Plan& plan, const Eigen::VectorXd& x0,
-                           const Eigen::VectorXd& x_last, double t_last, IntegrationSummary& s) {
+                           IntegrationSummary& s) {
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
   const double h = (o.t1 - o.t0) / nsteps;
   std::vector<std::pair<double, const Eigen::VectorXd*>> states{{o.t0, &x0}};
   const size_t count = plan.x.size(), stride = std::max<size_t>(1, count / 64);
   for (size_t k = 0; k < count; k += stride) states.push_back({plan.t[k], &plan.x[k]});
-  states.push_back({t_last, &x_last});
   Eigen::MatrixXd J;
+  std::optional<StepStability> first;
+  double t_first = 0, smallest = std::numeric_limits<double>::infinity(), reference_conditioning = 0;
   for (const auto& [t, x] : states) {
     try {
-      rd.jacobian(t, *x, J);
-      if (!J.allFinite()) continue;
-      const StepStability k = rk4_step_stability(J, h);
-      if (k.stable) continue;
-      auto g3 = [](double v) {
-        char b[32];
-        std::snprintf(b, sizeof b, "%.3g", v);
-        return std::string(b);
-      };
-      std::string lam = g3(k.worst.real());
-      if (k.worst.imag() != 0) lam += (k.worst.imag() > 0 ? " + " : " - ") + g3(std::abs(k.worst.imag())) + "i";
-      s.message = "the integration is unstable at step h = " + fmt(h) + " s: the problem is stiff (at t = " + fmt(t) +
-                  " s the eigenvalue of df/dx with the largest RK4 amplification is " + lam + " 1/s, spectral radius " +
-                  g3(k.spectral_radius) + " 1/s; RK4 is stable there only for steps below " +
-                  g3(k.largest_stable_step) + " s): use method: bdf, or a step below " + g3(k.largest_stable_step) +
-                  " s. The run ended with: " + s.message;
-      return true;
+      rd.jacobian(t, *x, J);  // also evaluates the constraints at (t, x)
     } catch (const Error&) {
-      // no Jacobian at this state (a singular partition, an element without one): try the next
+      continue;  // no Jacobian at this state (a singular partition, an element without one)
     }
+    if (!J.allFinite()) continue;
+    if (rd.num_constraints() > 0) {  // the conditioning of A: 1/κ₂ against the first state's
+      const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(rd.constraints().A).singularValues();
+      const double inverse_condition = sv[sv.size() - 1] / sv[0];
+      if (!(reference_conditioning > 0)) reference_conditioning = inverse_condition;
+      if (!(inverse_condition > 1e-8) || inverse_condition < 1e-2 * reference_conditioning) break;
+    }
+    const StepStability k = rk4_step_stability(J, h);
+    if (k.stable) continue;
+    smallest = std::min(smallest, k.largest_stable_step);
+    if (!first) first = k, t_first = t;
   }
-  return false;
+  if (!first) return false;
+  const StepStability& k = *first;
+  auto g3 = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3g", v);
+    return std::string(b);
+  };
+  std::string lam = g3(k.worst.real());
+  if (k.worst.imag() != 0) lam += (k.worst.imag() > 0 ? " + " : " - ") + g3(std::abs(k.worst.imag())) + "i";
+  const bool stiff = smallest < 0.01 * h;  // not a step a little too long: a stiff mode
+  s.message = "the integration is unstable at step h = " + fmt(h) + " s" + (stiff ? ": the problem is stiff" : "") +
+              " (from t = " + fmt(t_first) + " s on: there the eigenvalue of df/dx with the largest RK4 amplification is " +
+              lam + " 1/s, spectral radius " + g3(k.spectral_radius) + " 1/s, and RK4 is stable only for steps below " +
+              g3(k.largest_stable_step) + " s" +
+              (stiff ? ", a bound that falls to " + g3(smallest) + " s as the motion goes on): use method: bdf"
+                     : "): use a step below " + g3(k.largest_stable_step) + " s (or method: dopri5 or bdf)") +
+              ". The run ended with: " + s.message;
+  return true;
 }
 
 /// What a failed plan's message says beyond the symptom (docs/implicit.md, "When a run fails").
@@ -193,7 +214,7 @@ void explain_failure(ReferenceDynamics& rd, const IntegratorOptions& o, const Pl
   if (o.method == IntegratorMethod::RK4 &&
       (st == IntegrationStatus::NumericalFailure || st == IntegrationStatus::NonFinite ||
        st == IntegrationStatus::ResidualExceeded) &&
-      explain_unstable_step(rd, o, plan, x0, x_last, t_last, s))
+      explain_unstable_step(rd, o, plan, x0, s))
     return;
   if (st == IntegrationStatus::NumericalFailure && rd.num_constraints() > 0) explain_singular_rows(rd, x_last, t_last, s);
 }
