@@ -185,4 +185,35 @@ std::vector<int> movable_links(const ModelDescription& d) {
   return out;
 }
 
+ConstraintPtr renamed(NewConstraint c, const std::string& name) {
+  c->name = name;
+  return c;
+}
+
+Vec3 random_unit(std::mt19937& rng) {
+  Vec3 v = test::random_vector(rng, 3);
+  while (v.norm() < 0.1) v = test::random_vector(rng, 3);
+  return v.normalized();
+}
+
+/// Every ready-made kind of constraints.hpp.
+ConstraintSet all_kinds(const Model& model, std::mt19937& rng) {
+  ConstraintSet set;
+  set.add(renamed(point_on_surface(model, "tip", elliptic_cylinder(0.7, 0.4, 0.1, -0.2)), "ellipse"));
+  set.add(renamed(point_on_surface(model, "mid", sphere(Vec3(0.2, 0.1, -0.3), 0.8)), "sphere"));
+  set.add(renamed(point_on_surface(model, "tip", plane(random_unit(rng), sinusoid(0.3, 2.0, 0.1, 0.2))),
+                  "moving_plane"));
+  set.add(point_coordinate(model, "tip", 0, sinusoid(0.2, 1.7, 0.3, 0.5)));
+  set.add(point_coordinate(model, "mid", 2, raised_cosine(0.6, 0.1, 5.0)));
+  set.add(joint_trajectory(model, model.joint_name[model.nq / 2], polynomial({0.2, -0.4, 0.3, 0.05})));
+  set.add(joint_coupling(model, model.joint_name[0], model.joint_name[model.nq - 1], -1.7, 0.3));
+  set.add(points_coincide(model, "tip", "mid"));
+  set.add(points_coincide(model, "tip", "anchor", {0, 2}));
+  set.add(knife_edge(model, "tip", random_unit(rng)));
+  set.add(knife_edge(model, "mid", random_unit(rng)));
+  set.add(renamed(point_speed(model, "tip", random_unit(rng), sinusoid(0.4, 2.3, -0.2, 0.1)), "speed_tip_a"));
+  set.add(renamed(point_speed(model, "mid", random_unit(rng), polynomial({0.3, 0.2, -0.1})), "speed_mid"));
+  return set;
+}
+
 }  // namespace refdyn::test

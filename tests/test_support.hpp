@@ -1,6 +1,7 @@
 #pragma once
 // Shared helpers for the test suite: seeded random models and states, and one tolerance check.
 #include "refdyn/common/error.hpp"
+#include "refdyn/constraints/constraints.hpp"
 #include "refdyn/multibody/model.hpp"
 
 #include <gtest/gtest.h>
@@ -79,5 +80,14 @@ Vec3 reference_point_position(const ModelDescription& d, const Eigen::VectorXd& 
 
 /// Description index of the link behind each Model body (the movable links, in order).
 std::vector<int> movable_links(const ModelDescription& d);
+
+
+/// A constraint from a factory, named.
+ConstraintPtr renamed(NewConstraint c, const std::string& name);
+/// A random unit vector (never from a nearly zero draw).
+Vec3 random_unit(std::mt19937& rng);
+/// Every ready-made kind of constraints.hpp on a model with points "tip", "mid" and "anchor"
+/// (the constraint tests' zoo: random_chain's tip plus those two).
+ConstraintSet all_kinds(const Model& model, std::mt19937& rng);
 
 }  // namespace refdyn::test

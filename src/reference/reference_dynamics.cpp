@@ -398,6 +398,23 @@ void ReferenceDynamics::write_derivative(Eigen::VectorXd& xdot) const {
   for (int i = 0; i < nz; ++i) out[2 * n + i] = zd[i];
 }
 
+// (Nᵀ M N) u = r in place (NMN_, rk_; k independent coordinates): a scalar division for k = 1
+// (the paper's case), else a Cholesky factorization. Both projection routes end with it.
+void ReferenceDynamics::solve_reduced_mass(double t, int k) {
+  double* NMN = NMN_.data();
+  double* rk = rk_.data();
+  if (k == 1) {
+    if (!(NMN[0] > 0))
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+    rk[0] /= NMN[0];
+  } else {
+    llt_k_.compute(NMN_);
+    if (llt_k_.info() != Eigen::Success)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+    llt_k_.solveInPlace(rk_);
+  }
+}
+
 void ReferenceDynamics::solve_projection(double t) {
   if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
   if (!factor_partition()) {
@@ -512,16 +529,7 @@ void ReferenceDynamics::solve_projection_orthonormal(double t) {
       rk[c] = v;
       for (int c2 = 0; c2 < k; ++c2) NMN[c2 * k + c] = W[static_cast<size_t>(m + c2) * n + m + c];
     }
-    if (k == 1) {
-      if (!(NMN[0] > 0))
-        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-      rk[0] /= NMN[0];
-    } else {
-      llt_k_.compute(NMN_);
-      if (llt_k_.info() != Eigen::Success)
-        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-      llt_k_.solveInPlace(rk_);
-    }
+    solve_reduced_mass(t, k);
     for (int c = 0; c < k; ++c) f[m + c] = rk[c];
   }
   for (int r = 0; r < m; ++r) f[r] = y1[r];
@@ -599,16 +607,7 @@ void ReferenceDynamics::solve_projection_sized(double t) {
     rk[c] = v;
   }
   if (k > 0) {
-    if (k == 1) {  // one independent coordinate (the paper's case): a scalar division
-      if (!(NMN[0] > 0))
-        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-      rk[0] /= NMN[0];
-    } else {
-      llt_k_.compute(NMN_);
-      if (llt_k_.info() != Eigen::Success)
-        throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-      llt_k_.solveInPlace(rk_);
-    }
+    solve_reduced_mass(t, k);
     for (int c = 0; c < k; ++c) {
       qdd[ind[c]] += rk[c];
       for (int r = 0; r < m; ++r) qdd[dep[r]] += G[c * m + r] * rk[c];

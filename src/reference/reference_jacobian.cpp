@@ -9,7 +9,8 @@
 // at the solution (q̈*, λ*):
 //     M δq̈ + Aᵀ δλ = −∂R₁/∂x δx,     A δq̈ = −∂R₂/∂x δx,
 // where ∂R/∂x δx is R evaluated in dual numbers with q̈*, λ* held constant (one sweep gives
-// kJacobianDirections directions). The KKT system is solved by the range-space method with the
+// kJacobianDirections directions; a sweep over force-state columns only evaluates the force
+// elements, the only ones that read z). The KKT system is solved by the range-space method with the
 // double M: δλ = S⁻¹(A M⁻¹ r₁ − r₂), δq̈ = M⁻¹(r₁ − Aᵀ δλ), S = A M⁻¹ Aᵀ.
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
@@ -70,17 +71,24 @@ void ReferenceDynamics::jacobian(double t, const Eigen::VectorXd& x, Eigen::Matr
     }
     for (int i = 0; i < nz; ++i) w.z[i] = seed(2 * n + i, x[2 * n + i]);
 
-    inverse_dynamics_dual(model_, w.q.data(), w.qd.data(), w.qdd.data(), true, w.tau.data());
+    // Only the force elements read z: a sweep of force-state columns alone skips Newton–Euler
+    // and the constraints (their derivatives along z are zero).
+    const bool kinematic = c0 < 2 * n;
+    if (kinematic) inverse_dynamics_dual(model_, w.q.data(), w.qd.data(), w.qdd.data(), true, w.tau.data());
     forces_.evaluate_dual(t, w.q.data(), w.qd.data(), w.z.data(), n, w.Q.data(), w.zdot.data());
-    if (m > 0) evaluate_constraints_dual(model_, constraints_, w.ev, t, w.q.data(), w.qd.data());
+    if (kinematic && m > 0) evaluate_constraints_dual(model_, constraints_, w.ev, t, w.q.data(), w.qd.data());
 
     const int cols = std::min(kDir, nx - c0);
     for (int i = 0; i < n; ++i) {
-      D r = w.tau[i] - w.Q[i];
-      for (int row = 0; row < m; ++row) r += w.ev.A[static_cast<size_t>(row) * n + i] * lambda_[row];
+      D r = -w.Q[i];
+      if (kinematic) {
+        r += w.tau[i];
+        for (int row = 0; row < m; ++row) r += w.ev.A[static_cast<size_t>(row) * n + i] * lambda_[row];
+      }
       for (int k = 0; k < cols; ++k) w.r1(i, c0 + k) = -r.d[k];
     }
-    for (int row = 0; row < m; ++row) {
+    if (!kinematic) w.r2.middleCols(c0, cols).setZero();
+    for (int row = 0; kinematic && row < m; ++row) {
       D b = w.ev.gamma[row];
       if (acceleration_row_[row]) {
       } else if (first_order_row_[row]) {

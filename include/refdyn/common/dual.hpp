@@ -149,7 +149,10 @@ template <int N> Dual<N> pow(const Dual<N>& x, const Dual<N>& y) {
 
 namespace refdyn {
 /// Directions per sweep of the engine's exact Jacobians ∂f/∂x (reference dynamics, force
-/// elements, constraints): a Jacobian of n_x columns takes ⌈n_x / kJacobianDirections⌉ sweeps.
-inline constexpr int kJacobianDirections = 4;
+/// elements, constraints): a Jacobian of n_x columns takes ⌈2n / kJacobianDirections⌉ full
+/// sweeps (the force-state columns only evaluate the force elements). Eight: the derivative
+/// part of a Dual<8> is one 512-bit vector, and 2n ≤ 8 (up to 4 DOF, the paper's arm) takes one
+/// sweep; measured with bench/implicit_bench (bench/README.md, "Implicit integration").
+inline constexpr int kJacobianDirections = 8;
 using JacobianScalar = ad::Dual<kJacobianDirections>;
 }  // namespace refdyn

@@ -192,7 +192,7 @@ class ReferenceDynamics {
                               int max_iterations = 50);
 
   /// ∂f/∂x at (t, x), exact: J (state_size() × state_size()) is resized and written. Forward-mode
-  /// dual numbers (JacobianScalar, ⌈n_x / kJacobianDirections⌉ sweeps) through the generic
+  /// dual numbers (JacobianScalar, ⌈2n / kJacobianDirections⌉ full sweeps) through the generic
   /// multibody core, the force elements and the constraints give the derivatives of the KKT
   /// system's residuals at the solved (q̈, λ); one factorization of M and of A M⁻¹ Aᵀ turns them
   /// into ∂q̈/∂x (docs/implicit.md). Evaluates derivative(t, x, ·) first, so the last-call
@@ -222,6 +222,7 @@ class ReferenceDynamics {
  private:
   void write_derivative(Eigen::VectorXd& xdot) const;  // ẋ = [q̇; q̈; ż] from the workspaces
   void solve_projection(double t);
+  void solve_reduced_mass(double t, int k);  // (Nᵀ M N) u = r in NMN_, rk_
   void solve_lagrange(double t);
   void solve_lagrange_aba(double t);  // the KKT solve with ABA's factorization (kAbaLagrangeFrom)
   bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
