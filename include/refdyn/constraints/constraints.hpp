@@ -223,6 +223,15 @@ NewConstraint expression_constraint(const Model& model, const std::string& name,
                                     ConstraintOrder order, const std::map<std::string, double>& parameters = {},
                                     ConstraintOrigin origin = ConstraintOrigin::Programmed);
 
+/// The total time derivative of an expression along the motion, as a text of the same
+/// language: d/dt f = ∂f/∂t + Σ ∂f/∂w ẇ with x(P) → vx(P) → ax(P) → jx(P) (likewise y, z) and
+/// q(j) → qd(j) → qdd(j) → qddd(j); the partial derivatives exact (GiNaC), the parameters
+/// substituted. A position expression gives its velocity-level row, an acceleration expression
+/// its jerk-level row (`differentiate: true` in a scenario). Throws Error (naming `name`) for a
+/// text that does not parse or that involves jerks (their derivative is of order 4).
+std::string differentiate_expression_text(const Model& model, const std::string& name, const std::string& text,
+                                          const std::map<std::string, double>& parameters = {});
+
 /// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
 class ConstraintSet {
  public:
