@@ -266,7 +266,7 @@ class ExpressionConstraint final : public Constraint {
         case VarKind::JointVel: w[k] = in.qd[v.index]; break;
         case VarKind::JointAcc: w[k] = zero; break;
         case VarKind::Time:
-          w[k] = JS(in.t);
+          w[k] = in.t;  // a seeded t differentiates f's explicit time dependence
           wd[k] = JS(1.0);
           break;
       }
@@ -380,14 +380,25 @@ class ExpressionConstraint final : public Constraint {
   std::unique_ptr<Expression> expr_;
 };
 
+ExpressionOptions third_derivative() {
+  ExpressionOptions o;
+  o.derivative_order = 0;
+  o.differentiate_times = 3;
+  o.differentiate_variable = 0;
+  return o;
+}
+
+/// f, f', f'' from one tape (value, gradient, Hessian in t); f''' from a second, value-only
+/// tape of d³f/dt³, differentiated by GiNaC.
 class ExpressionTimeFunction final : public TimeFunction {
  public:
   ExpressionTimeFunction(const std::string& text, const std::map<std::string, double>& params)
-      : text_(text), params_(params), expr_(text, {"t"}, params, 2) {}
+      : text_(text), params_(params), expr_(text, {"t"}, params, 2), third_(text, {"t"}, params, third_derivative()) {}
   std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
   TimeValue eval(double t) const override {
     TimeValue v;
     expr_.evaluate(&t, v.f, &v.df, &v.ddf);
+    v.dddf = third_.value(&t);
     return v;
   }
   std::string describe() const override { return text_; }
@@ -395,6 +406,7 @@ class ExpressionTimeFunction final : public TimeFunction {
   std::string text_;
   std::map<std::string, double> params_;
   Expression expr_;
+  Expression third_;  // d³f/dt³
 };
 
 }  // namespace
