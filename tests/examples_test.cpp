@@ -62,6 +62,10 @@ Planned plan_scenario(std::unique_ptr<Problem> sc) {
   p.sc = std::move(sc);
   Problem& s = *p.sc;
   p.n = s.model.nq;
+  if (s.is_jerk_problem()) {  // its own planner (JerkDynamics); no ReferenceDynamics
+    p.plan = plan_problem(s, *s.make_planner());
+    return p;
+  }
   p.rd = std::make_unique<ReferenceDynamics>(s.model, s.forces, s.constraints, s.options);
   p.plan = plan_motion(*p.rd, p.rd->make_state(s.q0, s.qd0), s.integrator, s.residual_from);
   return p;
@@ -560,6 +564,41 @@ TEST(Examples, StickSlipTableSticksBelowTheBreakAwayTorqueThenSlips) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// 5c. Mixed orders (examples/mixed_orders): a holonomic height row and a jerk row (the derivative
+// of an acceleration-level law) on a spatial 3R arm with LuGre friction. Checked from the
+// recorded motion alone: the tip's recorded height, and the acceleration-level law with a_E from
+// central differences of the recorded tip positions (error ~h²/12 |d⁴r/dt⁴|) and q̈ from the
+// recorded state.
+TEST(Examples, MixedOrdersKeepTheHeightAndTheWristLaw) {
+  const Planned p = plan_file("examples/mixed_orders/mixed_orders.yaml");
+  ASSERT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
+  ASSERT_TRUE(p.sc->is_jerk_problem());
+  const Model& m = p.sc->model;
+  const double a = p.param("a"), z0 = p.param("z0"), h = p.sc->integrator.step;
+  const int E = m.point_index("E");
+  Data data(m);
+  auto tip = [&](size_t k) {
+    forward_kinematics(m, data, p.q(k));
+    return point_position(m, data, E);
+  };
+  double height = 0, law = 0, law_scale = 0;
+  for (size_t k = 1; k + 1 < p.plan.t.size(); ++k) {
+    const double t = p.plan.t[k];
+    height = std::max(height, std::abs(tip(k).z() - z0 - a * std::sin(t)));
+    const Vec3 acc = (tip(k + 1) - 2 * tip(k) + tip(k - 1)) / (h * h);
+    const Eigen::VectorXd& x = p.plan.x[k];
+    const double q2 = x[1], qd1 = x[3], qdd3 = x[8];
+    law = std::max(law, std::abs(qdd3 + 0.2 * std::cos(q2) * acc.z() + 0.1 * qd1 * acc.y() - 0.8 * std::cos(2 * t)));
+    law_scale = std::max(law_scale, std::abs(0.8 * std::cos(2 * t)));
+  }
+  std::printf("[ mixed_orders ] max |z(E) - z0 - a sin t| = %.2e m, max |wrist law| = %.2e 1/s^2 (its terms up to %.2f)\n",
+              height, law, law_scale);
+  EXPECT_LT(height, 1e-6);
+  EXPECT_LT(law, 1e-5);
+  EXPECT_EQ(p.plan.state_names.back(), "z_q1");
+}
+
+// ---------------------------------------------------------------------------------------------
 // 6. Every example through the command line: check and plan exit 0 and plan writes plan.csv.
 TEST(Examples, RunThroughTheCommandLine) {
   char tmpl[] = "/tmp/refdyn_examples_XXXXXX";
@@ -569,7 +608,8 @@ TEST(Examples, RunThroughTheCommandLine) {
                                        "examples/four_bar/four_bar.yaml", "examples/urdf_arm_line/urdf_arm_line.yaml",
                                        "examples/waiter_tray/waiter_tray.yaml", "examples/paper/paper.yaml",
                                        "examples/stiff_friction/stiff_friction.yaml",
-                                       "examples/stiff_friction/stick_slip.yaml"};
+                                       "examples/stiff_friction/stick_slip.yaml",
+                                       "examples/mixed_orders/mixed_orders.yaml"};
   for (const auto& rel : files) {
     const std::string file = source_path(rel), name = fs::path(rel).stem().string();
     const fs::path out = tmp / name;

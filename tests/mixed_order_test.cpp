@@ -237,7 +237,7 @@ integrator: {method: rk4, step: @H@, t0: 0, t1: 3}
                     (x.segment(4, 2) - a * u).cwiseAbs().maxCoeff()});
     }
     err.push_back(e);
-    std::printf("[ mixed ] jerk on a line, h = %.3f: max error in position, speed, acceleration = %.3e\n", h, e);
+    std::printf("[ mixed ] jerk on a line, h = %.4f: max error in position, speed, acceleration = %.3e\n", h, e);
   }
   EXPECT_LT(err[2], 1e-9);
   const double r = err[1] / err[2];

@@ -156,7 +156,8 @@ TEST(Planner, JerkPlansLikePlanJerkMotion) {
   EXPECT_TRUE(planner->state_has_acceleration());
   EXPECT_FALSE(planner->checks_residual_tolerance());
   EXPECT_FALSE(planner->partition().has_value());
-  EXPECT_EQ(planner->description(), "jerk-level problem (p = 3): state [q; qd; qdd], kappa = 40 1/s");
+  EXPECT_EQ(planner->description(), "jerk-level problem (p = 3): state [q; qd; qdd], kappa = 40 1/s; no partition: a "
+                                    "KKT system with the mass matrix (partition: is not used)");
   EXPECT_FALSE(std::isfinite(p->residual_tolerance));  // not checked: summary.json writes null
   const Eigen::VectorXd x = p->initial_state(*planner);
   EXPECT_TRUE(same_bits(x, x0));

@@ -402,7 +402,7 @@ void JerkDynamics::evaluate_rows(double t) {
     d.q[i] = JacobianScalar::variable(q_[i], 0, qd_[i]);
     d.qd[i] = JacobianScalar::variable(qd_[i], 0, qdd_[i]);
   }
-  evaluate_constraints_dual(model_, lower_, d.ev, t /*DUALTIME*/, d.q.data(), d.qd.data());
+  evaluate_constraints_dual(model_, lower_, d.ev, JacobianScalar::variable(t, 0, 1.0), d.q.data(), d.qd.data());
   const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
   for (size_t i = 0; i < lower_row_.size(); ++i) {
     const int r = lower_row_[i];
