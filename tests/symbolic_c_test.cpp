@@ -8,8 +8,10 @@
 // spatial-algebra RNEA/CRBA with analytic point kinematics and its own constraint code.
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/reference/jerk.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 
+#include "arm_jerk/reference_dynamics.h"
 #include "every_kind/reference_dynamics.h"
 #include "four_bar/reference_dynamics.h"
 #include "paper/reference_dynamics.h"
@@ -157,6 +159,69 @@ TEST(GeneratedC, EqualsTheEngineAtRandomStates) {
     std::printf("%-14s n = %d, m = %d: max rel. difference M/c/g/Q %.1e, constraints %.1e, xdot %.1e\n",
                 G.example.c_str(), n, m, worst_dyn, worst_con, worst_rhs);
   }
+}
+
+
+/// The generated C of a jerk problem (state x = [q, q̇, q̈, z]) against JerkDynamics: M, c, g, Q,
+/// the jerk row's B and s (A and γ of PREFIX_constraints), R = M q̈ + c + g − Q and ẋ = [q̇, q̈, q⃛].
+TEST(GeneratedC, JerkProblemEqualsJerkDynamics) {
+  const auto problem = io::load_problem(std::string(REFDYN_SOURCE_DIR) + "/tests/data/symbolic/arm_jerk.yaml");
+  ASSERT_TRUE(problem->is_jerk_problem());
+  const Model& model = problem->model;
+  const int n = model.nq, m = problem->constraints.rows();
+  ASSERT_EQ(ARM_JERK_NQ, n);
+  ASSERT_EQ(ARM_JERK_NC, m);
+  ASSERT_EQ(ARM_JERK_NZ, 0);
+  ASSERT_EQ(ARM_JERK_NX, 3 * n);
+  arm_jerk_params p;
+  arm_jerk_default_params(&p);
+  EXPECT_EQ(p.rd_kappa, 40.0);  // baumgarte.kappa of the scenario
+  JerkDynamics jd(model, problem->jerk_constraints, JerkDynamicsOptions{problem->kappa}, &problem->forces);
+  Data data(model);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  double worst_dyn = 0, worst_row = 0, worst_R = 0, worst_rhs = 0, worst_qddd = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    Eigen::VectorXd q = problem->q0, qd(n), qdd(n);
+    for (int i = 0; i < n; ++i) {
+      q[i] += 0.5 * U(rng);
+      qd[i] = 2.0 * U(rng);
+      qdd[i] = 5.0 * U(rng);
+    }
+    const double t = 2.0 * 0.5 * (1 + U(rng));
+    Eigen::VectorXd x(3 * n);
+    x << q, qd, qdd;
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M(n, n), A(m, n), G(m, n), Gdot(m, n);
+    Eigen::VectorXd c(n), g(n), Q(n), zd(1), phi(m), phid(m), gamma(m), R(n), Rdot(n), b(m), xdot(3 * n);
+    arm_jerk_mass(x.data(), &p, M.data());
+    arm_jerk_bias(x.data(), &p, c.data(), g.data());
+    arm_jerk_forces(t, x.data(), &p, Q.data(), zd.data());
+    arm_jerk_constraints(t, x.data(), &p, phi.data(), phid.data(), A.data(), gamma.data());
+    arm_jerk_jerk(t, x.data(), &p, R.data(), Rdot.data(), G.data(), Gdot.data(), b.data());
+    ASSERT_EQ(arm_jerk_rhs(t, x.data(), &p, xdot.data()), 0);
+
+    const Eigen::MatrixXd M_e = mass_matrix(model, data, q);
+    const Eigen::VectorXd g_e = gravity_forces(model, data, q);
+    const Eigen::VectorXd c_e = bias_forces(model, data, q, qd) - g_e;
+    Eigen::VectorXd Q_e(n);
+    double z = 0, zdot = 0;
+    problem->forces.evaluate(t, q, qd, &z, Q_e, &zdot);
+    worst_dyn = std::max({worst_dyn, rel(M, M_e), rel(c, c_e), rel(g, g_e), rel(Q, Q_e)});
+    Eigen::VectorXd xdot_e(3 * n);
+    jd.derivative(t, x, xdot_e);
+    worst_row = std::max({worst_row, rel(A, jd.B()), rel(G, jd.B()), rel(gamma, jd.s()), rel(b, -jd.s()),
+                          phi.cwiseAbs().maxCoeff(), phid.cwiseAbs().maxCoeff()});
+    worst_R = std::max(worst_R, rel(R, jd.constraint_force()));
+    worst_rhs = std::max(worst_rhs, rel(xdot, xdot_e));
+    worst_qddd = std::max(worst_qddd, rel(xdot.tail(n), xdot_e.tail(n)));
+  }
+  EXPECT_LT(worst_dyn, 1e-12) << "M, c, g, Q";
+  EXPECT_LT(worst_row, 1e-12) << "B, s";
+  EXPECT_LT(worst_R, 1e-12) << "R";
+  EXPECT_LT(worst_rhs, 1e-12) << "xdot";
+  EXPECT_LT(worst_qddd, 1e-12) << "qddd";
+  std::printf("arm_jerk       n = %d, m = %d: max rel. difference M/c/g/Q %.1e, B/s %.1e, R %.1e, xdot %.1e "
+              "(qddd %.1e)\n", n, m, worst_dyn, worst_row, worst_R, worst_rhs, worst_qddd);
 }
 
 }  // namespace

@@ -131,7 +131,7 @@ std::string SymbolicReferenceDynamics::latex() const {
   const Impl& S = *impl_;
   const int n = S.n, m = S.m;
   std::vector<ex> shown;
-  for (const auto* v : {&S.M, &S.c, &S.g, &S.Q, &S.zdot, &S.phi, &S.phid, &S.A, &S.gamma})
+  for (const auto* v : {&S.M, &S.c, &S.g, &S.Q, &S.zdot, &S.phi, &S.phid, &S.A, &S.gamma, &S.R, &S.Rdot, &S.Gdot, &S.psi, &S.b})
     shown.insert(shown.end(), v->begin(), v->end());
   LatexWriter w(S, shown);
   std::ostringstream o;
@@ -159,6 +159,25 @@ std::string SymbolicReferenceDynamics::latex() const {
       o << "$" << S.params[k].get_TeX_name() << "$ & " << double_text(S.param_values[k], 17) << " \\\\\n";
     o << "\\hline\n\\end{tabular}\n\\end{center}\n\n";
   }
+  if (S.jerk) {
+    o << "\\section*{Equations}\nA problem with jerk rows: the state is $x = (q, \\dot q, \\ddot q, z)$ and "
+      << "$\\dot x = (\\dot q, \\ddot q, \\dddot q, \\dot z)$. With the dynamics residual\n"
+      << "\\begin{align*}\n  R &= M(q)\\,\\ddot q + c(q,\\dot q) + g(q) - Q(t,q,\\dot q,z),\n\\end{align*}\n"
+      << "every jerk row $B(t,q,\\dot q)\\,\\dddot q + s(t,q,\\dot q,\\ddot q) = 0$ is imposed as $B\\dddot q = -s$, and "
+      << "every row of order $\\le 2$ in its stabilized acceleration form\n"
+      << "\\begin{align*}\n  \\psi &= A\\ddot q + \\gamma + 2\\alpha\\dot\\Phi + \\beta^2\\Phi \\quad\\text{(position rows)}, "
+      << "\\qquad \\psi = A\\ddot q + \\gamma + \\beta_1 c \\quad\\text{(velocity rows)}, \\qquad "
+      << "\\psi = A\\ddot q + \\gamma \\quad\\text{(acceleration rows)}\n\\end{align*}\n"
+      << "as $\\dot\\psi + \\kappa\\psi = 0$, i.e.\\ $A\\dddot q = -\\dot\\psi|_{\\dddot q = 0} - \\kappa\\psi$. "
+      << "Stacked: $G\\dddot q = b$ ($G$: the rows $A$ and $B$). The jerk of the motion solves\n"
+      << "\\begin{align*}\n  \\begin{pmatrix} M & -G^{\\mathsf T} \\\\ G & 0 \\end{pmatrix}"
+      << "\\begin{pmatrix} \\dddot q \\\\ \\nu \\end{pmatrix} &= "
+      << "\\begin{pmatrix} \\dot G^{\\mathsf T}\\lambda - \\dot R|_{\\dddot q = 0} - \\kappa R \\\\ b \\end{pmatrix}, "
+      << "\\qquad \\lambda = \\bigl(G M^{-1} G^{\\mathsf T}\\bigr)^{-1} G M^{-1} R,\n\\end{align*}\n"
+      << "where the rates are total time derivatives along the motion with $\\dddot q = 0$; "
+      << "$\\alpha = " << double_text(S.alpha, 6) << "$, $\\beta = " << double_text(S.beta, 6) << "$, $\\beta_1 = "
+      << double_text(S.beta1, 6) << "$, $\\kappa = " << double_text(S.kappa, 6) << "$.\n\n";
+  } else {
   o << "\\section*{Equations}\nThe unconstrained dynamics and the constraints,\n"
     << "\\begin{align*}\n  M(q)\\,\\ddot q + c(q,\\dot q) + g(q) &= Q(t,q,\\dot q,z) + A^{\\mathsf T}\\lambda, \\\\\n"
     << "  A\\,\\ddot q &= -\\gamma - 2\\alpha\\dot\\Phi - \\beta^2\\Phi \\quad\\text{(position rows)}, \\qquad "
@@ -181,6 +200,7 @@ std::string SymbolicReferenceDynamics::latex() const {
   } else {
     o << "$M\\ddot q + c + g = Q$ (no constraints).\n\n";
   }
+  }
   const std::size_t equations_at = static_cast<std::size_t>(o.tellp());
   o << "\\section*{Mass matrix $M(q)$ (symmetric; upper triangle)}\n\\begin{align*}\n";
   for (int i = 0; i < n; ++i)
@@ -198,7 +218,8 @@ std::string SymbolicReferenceDynamics::latex() const {
     for (int r = 0; r < m; ++r) {
       const std::string R = std::to_string(r + 1);
       o << "\\paragraph{Row " << R << ": \\texttt{" << latex_text(S.row_names[r]) << "}} (" << S.row_origin[r] << ", "
-        << (S.row_order[r] == 2 ? "acceleration level: $A\\ddot q + \\gamma = 0$, imposed exactly"
+        << (S.row_order[r] == 3 ? "jerk level: $B\\dddot q + s = 0$, imposed exactly; $B$ and $s$ shown as $A$ and $\\gamma$"
+            : S.row_order[r] == 2 ? "acceleration level: $A\\ddot q + \\gamma = 0$, imposed exactly"
                                 : S.row_order[r] == 1 ? "velocity level" : "position level")
         << ")\n\\begin{align*}\n";
       if (S.row_order[r] < 2) o << w.equation(S.row_order[r] ? "c_{" + R + "}" : "\\Phi_{" + R + "}", S.phi[r]);
@@ -206,6 +227,23 @@ std::string SymbolicReferenceDynamics::latex() const {
       for (int i = 0; i < n; ++i)
         if (!S.A[r * n + i].is_zero()) o << w.equation("A_{" + R + "," + std::to_string(i + 1) + "}", S.A[r * n + i]);
       o << w.equation("\\gamma_{" + R + "}", S.gamma[r]) << "\\end{align*}\n";
+    }
+  }
+  if (S.jerk) {
+    o << "\\section*{Jerk level}\nThe dynamics residual $R$ and its rate at $\\dddot q = 0$,\n\\begin{align*}\n";
+    for (int i = 0; i < n; ++i) o << w.equation("R_{" + std::to_string(i + 1) + "}", S.R[i]);
+    for (int i = 0; i < n; ++i) o << w.equation("\\dot R_{" + std::to_string(i + 1) + "}", S.Rdot[i]);
+    o << "\\end{align*}\n";
+    for (int r = 0; r < m; ++r) {
+      const std::string R = std::to_string(r + 1);
+      o << "\\paragraph{Row " << R << " at jerk level} ($G_{" << R << "} = A_{" << R << "}$; $\\dot G$, "
+        << (S.row_order[r] == 3 ? "$b = -s$" : "$\\psi$ and $b = -\\dot\\psi|_{\\dddot q = 0} - \\kappa\\psi$")
+        << ")\n\\begin{align*}\n";
+      for (int i = 0; i < n; ++i)
+        if (!S.Gdot[r * n + i].is_zero())
+          o << w.equation("\\dot G_{" + R + "," + std::to_string(i + 1) + "}", S.Gdot[r * n + i]);
+      if (S.row_order[r] < 3) o << w.equation("\\psi_{" + R + "}", S.psi[r]);
+      o << w.equation("b_{" + R + "}", S.b[r]) << "\\end{align*}\n";
     }
   }
   o << "\\end{document}\n";
@@ -260,13 +298,28 @@ std::string SymbolicReferenceDynamics::json() const {
   o << "],\n  \"constraints\": [";
   for (int r = 0; r < m; ++r) {
     o << (r ? ",\n" : "\n") << "    {\"name\": " << json_quote(S.row_names[r]) << ", \"origin\": " << json_quote(S.row_origin[r])
-      << ", \"order\": " << (S.row_order[r] == 2 ? "\"acceleration\"" : S.row_order[r] ? "\"velocity\"" : "\"position\"")
+      << ", \"order\": " << (S.row_order[r] == 3 ? "\"jerk\"" : S.row_order[r] == 2 ? "\"acceleration\"" : S.row_order[r] ? "\"velocity\"" : "\"position\"")
       << ",\n     \"phi\": " << str(S.phi[r])
       << ",\n     \"phid\": " << str(S.phid[r]) << ",\n     \"A\": [";
     for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.A[r * n + i]);
     o << "],\n     \"gamma\": " << str(S.gamma[r]) << "}";
   }
-  o << (m ? "\n  " : "") << "]\n}\n";
+  o << (m ? "\n  " : "") << "]";
+  if (S.jerk) {
+    // the gains appear as rd_alpha, rd_beta, rd_beta1, rd_kappa (fields of the C parameters)
+    auto list = [&](const std::vector<ex>& v, int from, int count) {
+      std::string t = "[";
+      for (int i = 0; i < count; ++i) t += (i ? ", " : "") + str(v[from + i]);
+      return t + "]";
+    };
+    o << ",\n  \"jerk\": {\"kappa\": " << double_text(S.kappa, 17) << ",\n    \"R\": " << list(S.R, 0, n)
+      << ",\n    \"Rdot\": " << list(S.Rdot, 0, n) << ",\n    \"rows\": [";
+    for (int r = 0; r < m; ++r)
+      o << (r ? ",\n" : "\n") << "      {\"Gdot\": " << list(S.Gdot, r * n, n) << ",\n       \"psi\": " << str(S.psi[r])
+        << ",\n       \"b\": " << str(S.b[r]) << "}";
+    o << (m ? "\n    " : "") << "]}";
+  }
+  o << "\n}\n";
   return o.str();
 }
 

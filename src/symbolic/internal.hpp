@@ -69,18 +69,28 @@ struct SymbolicReferenceDynamics::Impl {
   int n = 0, nz = 0, m = 0;
   std::vector<std::string> joints, states;
   std::vector<std::string> row_names, row_origin;
-  std::vector<char> row_order;  ///< per row its order: 0 position, 1 velocity, 2 acceleration
+  std::vector<char> row_order;  ///< per row its order: 0 position, 1 velocity, 2 acceleration, 3 jerk
   std::vector<int> independent, dependent;
   std::vector<std::string> param_names;
   std::vector<double> param_values;
-  double alpha = 0, beta = 0, beta1 = 0;
+  double alpha = 0, beta = 0, beta1 = 0, kappa = 50;
   bool cse = true;
+  /// A jerk problem (a row of order 3): state x = [q, q̇, q̈, z], ẋ = [q̇, q̈, q⃛, ż].
+  bool jerk = false;
 
   GiNaC::realsymbol t;
-  std::vector<GiNaC::realsymbol> q, qd, qdd, z, params;  ///< qdd: only inside acceleration rows
+  std::vector<GiNaC::realsymbol> q, qd, qdd, z, params;  ///< qdd: state in jerk problems, else only inside acceleration rows
+  std::vector<GiNaC::realsymbol> qddd;                  ///< only inside jerk rows
+  /// The gains as symbols (fields rd_alpha, rd_beta, rd_beta1, rd_kappa of PREFIX_params) where
+  /// they enter expressions: the stabilized rows ψ of a jerk problem.
+  GiNaC::realsymbol alpha_s, beta_s, beta1_s, kappa_s;
   std::vector<GiNaC::ex> M;                 ///< n×n row-major
   std::vector<GiNaC::ex> c, g, Q, zdot;     ///< n, n, n, nz
   std::vector<GiNaC::ex> phi, phid, A, gamma;  ///< m, m, m×n, m
+  /// Jerk problems: R = M q̈ + c + g − Q and Ṙ at q⃛ = 0 (n); G (m×n, A of the rows of order ≤ 2,
+  /// B of the jerk rows) and Ġ; per row ψ (stabilized acceleration-level row; 0 for jerk rows)
+  /// and the jerk-level right-hand side b: G q⃛ = b, b = −ψ̇|q⃛=0 − κψ, or −s for a jerk row.
+  std::vector<GiNaC::ex> R, Rdot, G, Gdot, psi, b;
   SymbolicSummary summary;
 };
 
