@@ -2,12 +2,14 @@
 // reference_dynamics.h and reference_dynamics.c. The LaTeX and JSON writers are in emit.cpp.
 #include "internal.hpp"
 #include "printer.hpp"
+#include "trace.hpp"
 
 #include "refdyn/common/text.hpp"
 
 #include <cmath>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <sstream>
 
 namespace refdyn {
@@ -25,45 +27,6 @@ namespace {
 // ----------------------------------------------------------------------------------------------
 // C with common-subexpression elimination
 // ----------------------------------------------------------------------------------------------
-/// One C block: `double tK = …;` temporaries, then `out[i] = …;` lines.
-struct CBlock {
-  std::string code;
-  long temporaries = 0;
-  long operations = 0;
-};
-
-CBlock c_block(const std::vector<std::pair<std::string, ex>>& outputs,
-               const std::function<std::string(const GiNaC::symbol&)>& leaf, bool cse, const std::string& indent) {
-  CBlock b;
-  ExCount count;
-  if (cse)
-    for (const auto& [name, e] : outputs) count_uses(e, count);
-  std::map<ex, std::string, GiNaC::ex_is_less> temp;
-  Printer p(Dialect::C, leaf);
-  std::function<std::string(const ex&)> shared_fn = [&](const ex& e) -> std::string {
-    const auto it = temp.find(e);
-    if (it != temp.end()) return it->second;
-    const auto c = count.find(e);
-    if (c == count.end() || c->second < 2) return "";
-    // a shared node: print it once (its own children may be shared too)
-    Printer inner(Dialect::C, leaf);
-    inner.shared = shared_fn;
-    const std::string text = inner.print_node(e);
-    p.operations += inner.operations;
-    const std::string name = "t" + std::to_string(b.temporaries++);
-    b.code += indent + "const double " + name + " = " + text + ";\n";
-    temp.emplace(e, name);
-    return name;
-  };
-  if (cse) p.shared = shared_fn;
-  for (const auto& [name, e] : outputs) {
-    const std::string text = p.print(e);
-    b.code += indent + name + " = " + text + ";\n";
-  }
-  b.operations = p.operations;
-  return b;
-}
-
 std::string upper(std::string s) {
   for (char& ch : s) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
   return s;
@@ -167,17 +130,58 @@ std::string SymbolicReferenceDynamics::c_header() const {
 
 namespace {
 
-/// The CSE'd C blocks of one source file; counts the temporaries and operations written.
+/// The C blocks of one source file, on one Tape: the expressions (GiNaC, converted) and the
+/// dynamics traced through the generic multibody core (M by the composite-rigid-body algorithm,
+/// c, g and c + g by Newton–Euler, with the model's numbers folded); counts the temporaries and
+/// operations written.
 struct CBlocks {
-  std::function<std::string(const GiNaC::symbol&)> leaf;
-  bool cse;
-  long temporaries = 0, operations = 0;
-  std::string operator()(const std::vector<std::pair<std::string, ex>>& outs) {
-    CBlock b = c_block(outs, leaf, cse, "  ");
-    temporaries += b.temporaries;
-    operations += b.operations;
-    return b.code;
+  CBlocks(const SymbolicReferenceDynamics::Impl& S, symbolic_detail::Tape& tape)
+      : tape(tape), conv(tape, c_leaf(S)), cse(S.cse) {
+    using namespace multibody;
+    using symbolic_detail::TS;
+    const int n = S.n;
+    Bodies<TS> bodies;
+    Poses<TS> poses;
+    auto v3 = [&](const Vec3T<ex>& v) { return Vec3T<TS>{conv.ts(v[0]), conv.ts(v[1]), conv.ts(v[2])}; };
+    auto m3 = [&](const Mat3T<ex>& A) {
+      Mat3T<TS> r;
+      for (int k = 0; k < 9; ++k) r[k] = conv.ts(A[k]);
+      return r;
+    };
+    for (int i = 0; i < n; ++i) {
+      const Body<ex>& b = S.model.bodies.bodies[i];
+      Body<TS> t;
+      t.parent = b.parent;
+      t.type = b.type;
+      t.axis = v3(b.axis);
+      t.m = conv.ts(b.m);
+      t.h = v3(b.h);
+      t.I = m3(b.I);
+      bodies.bodies.push_back(t);
+      poses.local_R.push_back(m3(S.model.poses.local_R[i]));
+      poses.local_p.push_back(v3(S.model.poses.local_p[i]));
+    }
+    std::vector<TS> qd;
+    for (int i = 0; i < n; ++i) qd.push_back(conv.ts(S.qd[i]));
+    auto ids = [](const std::vector<TS>& v) {
+      std::vector<int> r;
+      for (const TS& x : v) r.push_back(x.id);
+      return r;
+    };
+    M = ids(symbolic_detail::crba(bodies, poses));
+    c = ids(inverse_dynamics(bodies, poses, S.model.gravity, n ? qd.data() : nullptr, static_cast<const TS*>(nullptr), false));
+    g = ids(inverse_dynamics(bodies, poses, S.model.gravity, static_cast<const TS*>(nullptr), static_cast<const TS*>(nullptr), true));
+    cg = ids(inverse_dynamics(bodies, poses, S.model.gravity, n ? qd.data() : nullptr, static_cast<const TS*>(nullptr), true));
   }
+  int id(const ex& e) { return conv(e); }
+  std::string operator()(const std::vector<std::pair<std::string, int>>& outs) {
+    return symbolic_detail::emit(tape, outs, cse, "  ", temporaries, operations);
+  }
+  symbolic_detail::Tape& tape;
+  symbolic_detail::FromGinac conv;
+  bool cse;
+  std::vector<int> M, c, g, cg;  ///< traced dynamics (nodes): M row-major, c, g, c + g
+  long temporaries = 0, operations = 0;
 };
 
 /// PREFIX_default_params, PREFIX_mass, PREFIX_bias, PREFIX_forces and PREFIX_constraints.
@@ -197,50 +201,76 @@ void c_model_functions(std::ostringstream& o, const SymbolicReferenceDynamics::I
   if (S.jerk) o << "  p->rd_kappa = " << double_text(S.kappa, 17) << ";\n";
   o << "}\n\n";
   {
-    std::vector<std::pair<std::string, ex>> outs;
+    std::vector<std::pair<std::string, int>> outs;
     for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j) outs.emplace_back("M[" + std::to_string(i * n + j) + "]", S.M[i * n + j]);
+      for (int j = 0; j < n; ++j) outs.emplace_back("M[" + std::to_string(i * n + j) + "]", block.M[i * n + j]);
     o << "void " << P << "mass(const double* x, const " << P << "params* p, double* M) {\n" << unpack << block(outs) << "}\n\n";
   }
   {
-    std::vector<std::pair<std::string, ex>> outs;
-    for (int i = 0; i < n; ++i) outs.emplace_back("c[" + std::to_string(i) + "]", S.c[i]);
-    for (int i = 0; i < n; ++i) outs.emplace_back("g[" + std::to_string(i) + "]", S.g[i]);
+    std::vector<std::pair<std::string, int>> outs;
+    for (int i = 0; i < n; ++i) outs.emplace_back("c[" + std::to_string(i) + "]", block.c[i]);
+    for (int i = 0; i < n; ++i) outs.emplace_back("g[" + std::to_string(i) + "]", block.g[i]);
     o << "void " << P << "bias(const double* x, const " << P << "params* p, double* c, double* g) {\n" << unpack
       << block(outs) << "}\n\n";
   }
   {
-    std::vector<std::pair<std::string, ex>> outs;
-    for (int i = 0; i < n; ++i) outs.emplace_back("Q[" + std::to_string(i) + "]", S.Q[i]);
-    for (int k = 0; k < S.nz; ++k) outs.emplace_back("zdot[" + std::to_string(k) + "]", S.zdot[k]);
+    std::vector<std::pair<std::string, int>> outs;
+    for (int i = 0; i < n; ++i) outs.emplace_back("Q[" + std::to_string(i) + "]", block.id(S.Q[i]));
+    for (int k = 0; k < S.nz; ++k) outs.emplace_back("zdot[" + std::to_string(k) + "]", block.id(S.zdot[k]));
     o << "void " << P << "forces(double t, const double* x, const " << P << "params* p, double* Q, double* zdot) {\n"
       << unpack << "  (void)t;\n  (void)Q;\n  (void)zdot;\n" << block(outs) << "}\n\n";
   }
   {
-    std::vector<std::pair<std::string, ex>> outs;
+    std::vector<std::pair<std::string, int>> outs;
     for (int r = 0; r < m; ++r) {
-      outs.emplace_back("phi[" + std::to_string(r) + "]", S.phi[r]);
-      outs.emplace_back("phid[" + std::to_string(r) + "]", S.phid[r]);
-      for (int i = 0; i < n; ++i) outs.emplace_back("A[" + std::to_string(r * n + i) + "]", S.A[r * n + i]);
-      outs.emplace_back("gamma[" + std::to_string(r) + "]", S.gamma[r]);
+      outs.emplace_back("phi[" + std::to_string(r) + "]", block.id(S.phi[r]));
+      outs.emplace_back("phid[" + std::to_string(r) + "]", block.id(S.phid[r]));
+      for (int i = 0; i < n; ++i) outs.emplace_back("A[" + std::to_string(r * n + i) + "]", block.id(S.A[r * n + i]));
+      outs.emplace_back("gamma[" + std::to_string(r) + "]", block.id(S.gamma[r]));
     }
     o << "void " << P << "constraints(double t, const double* x, const " << P
       << "params* p, double* phi, double* phid, double* A, double* gamma) {\n"
       << unpack << "  (void)t;\n  (void)phi;\n  (void)phid;\n  (void)A;\n  (void)gamma;\n" << block(outs) << "}\n\n";
   }
   if (S.jerk) {
-    std::vector<std::pair<std::string, ex>> outs;
-    for (int i = 0; i < n; ++i) outs.emplace_back("R[" + std::to_string(i) + "]", S.R[i]);
-    for (int i = 0; i < n; ++i) outs.emplace_back("Rdot[" + std::to_string(i) + "]", S.Rdot[i]);
+    std::vector<std::pair<std::string, int>> outs;
+    for (int i = 0; i < n; ++i) outs.emplace_back("R[" + std::to_string(i) + "]", block.id(S.R[i]));
+    for (int i = 0; i < n; ++i) outs.emplace_back("Rdot[" + std::to_string(i) + "]", block.id(S.Rdot[i]));
     for (int r = 0; r < m; ++r) {
-      for (int i = 0; i < n; ++i) outs.emplace_back("G[" + std::to_string(r * n + i) + "]", S.G[r * n + i]);
-      for (int i = 0; i < n; ++i) outs.emplace_back("Gdot[" + std::to_string(r * n + i) + "]", S.Gdot[r * n + i]);
-      outs.emplace_back("b[" + std::to_string(r) + "]", S.b[r]);
+      for (int i = 0; i < n; ++i) outs.emplace_back("G[" + std::to_string(r * n + i) + "]", block.id(S.G[r * n + i]));
+      for (int i = 0; i < n; ++i) outs.emplace_back("Gdot[" + std::to_string(r * n + i) + "]", block.id(S.Gdot[r * n + i]));
+      outs.emplace_back("b[" + std::to_string(r) + "]", block.id(S.b[r]));
     }
     o << "void " << P << "jerk(double t, const double* x, const " << P
       << "params* p, double* R, double* Rdot, double* G, double* Gdot, double* b) {\n"
       << unpack << "  (void)t;\n  (void)G;\n  (void)Gdot;\n  (void)b;\n" << block(outs) << "}\n\n";
   }
+}
+
+/// rd_terms (static): everything PREFIX_rhs needs from the expressions, in one block (one CSE
+/// over M's upper triangle, F = Q − (c + g), ż, A and the rows' right-hand sides: the kinematics,
+/// sines and cosines shared by all).
+void c_rhs_terms(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S, CBlocks& block) {
+  const std::string P = S.prefix;
+  const int n = S.n, m = S.m;
+  std::vector<std::pair<std::string, int>> outs;
+  for (int i = 0; i < n; ++i)
+    for (int j = i; j < n; ++j) outs.emplace_back("M[" + std::to_string(i * n + j) + "]", block.M[i * n + j]);
+  for (int i = 0; i < n; ++i) outs.emplace_back("F[" + std::to_string(i) + "]", block.tape.sub(block.id(S.Q[i]), block.cg[i]));
+  for (int k = 0; k < S.nz; ++k) outs.emplace_back("zdot[" + std::to_string(k) + "]", block.id(S.zdot[k]));
+  for (int r = 0; r < m; ++r) {
+    for (int i = 0; i < n; ++i) outs.emplace_back("A[" + std::to_string(r * n + i) + "]", block.id(S.A[r * n + i]));
+    outs.emplace_back("rhs[" + std::to_string(r) + "]", block.id(S.rhs[r]));
+  }
+  o << "/* M (upper triangle, mirrored), F = Q - c - g, zdot, A and the rows' right-hand sides A qdd = rhs. */\n"
+    << "static void rd_terms(double t, const double* x, const " << P
+    << "params* p, double* M, double* F, double* zdot, double* A, double* rhs) {\n"
+    << "  const double* q = x;\n  const double* qd = x + " << n << ";\n  const double* z = x + " << 2 * n
+    << ";\n  (void)t;\n  (void)q;\n  (void)qd;\n  (void)z;\n  (void)p;\n  (void)zdot;\n  (void)A;\n  (void)rhs;\n"
+    << block(outs);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < i; ++j) o << "  M[" << i * n + j << "] = M[" << j * n + i << "];\n";
+  o << "}\n\n";
 }
 
 /// rd_solve: a small dense LU with partial pivoting.
@@ -302,9 +332,8 @@ void c_rhs_head(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S)
     << "  double Nm[" << n * std::max(k, 1) << "], qddp[" << N << "], NMN[" << std::max(k, 1) * std::max(k, 1)
     << "], u[" << K << "], MN[" << n * std::max(k, 1) << "], r[" << N << "];\n"
     << "  (void)ind; (void)dep; (void)order; (void)Kdc; (void)G; (void)rhs; (void)phi; (void)phid; (void)A;\n"
-    << "  (void)gamma;\n"
-    << "  " << P << "mass(x, p, M);\n  " << P << "bias(x, p, c, g);\n  " << P << "forces(t, x, p, Q, zdot);\n"
-    << "  for (int i = 0; i < n; ++i) F[i] = Q[i] - c[i] - g[i];\n";
+    << "  (void)gamma; (void)c; (void)g; (void)Q;\n"
+    << "  rd_terms(t, x, p, M, F, zdot, A, rhs);\n";
 }
 
 /// PREFIX_rhs, second part: the particular solution and null space from the constraint rows, then
@@ -314,12 +343,7 @@ void c_rhs_solve(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S
   const int n = S.n, m = S.m;
   const int k = n - m;
   if (m > 0) {
-    o << "  " << P << "constraints(t, x, p, phi, phid, A, gamma);\n"
-      << "  for (int i = 0; i < m; ++i)\n"
-      << "    rhs[i] = order[i] == 2   ? -gamma[i]\n"
-      << "             : order[i] == 1 ? -gamma[i] - p->rd_beta1 * phi[i]\n"
-      << "                             : -gamma[i] - 2.0 * p->rd_alpha * phid[i] - p->rd_beta * p->rd_beta * phi[i];\n"
-      << "  /* G = K_dc^-1 [K_ic, rhs] */\n"
+    o << "  /* G = K_dc^-1 [K_ic, rhs] */\n"
       << "  double KR[" << std::max(m, 1) * (std::max(k, 0) + 1) << "];\n"
       << "  for (int i = 0; i < m; ++i) {\n"
       << "    for (int j = 0; j < m; ++j) Kdc[i * m + j] = A[i * n + dep[j]];\n"
@@ -450,7 +474,10 @@ std::string with_piecewise_helpers(std::string text, std::size_t helpers_at) {
 
 std::string SymbolicReferenceDynamics::c_source() const {
   const Impl& S = *impl_;
-  CBlocks block{c_leaf(S), S.cse};
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+  symbolic_detail::Tape tape;
+  symbolic_detail::TapeScope scope(tape);
+  CBlocks block(S, tape);
   std::ostringstream o;
   o << "/* Reference dynamics of '" << S.name << "', generated by refdyn. See reference_dynamics.h. */\n"
     << "#include \"reference_dynamics.h\"\n\n#include <math.h>\n\n";
@@ -462,6 +489,7 @@ std::string SymbolicReferenceDynamics::c_source() const {
   if (S.jerk) {
     c_rhs_jerk(o, S);
   } else {
+    c_rhs_terms(o, S, block);
     c_rhs_head(o, S);
     c_rhs_solve(o, S);
   }

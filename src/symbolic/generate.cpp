@@ -465,12 +465,23 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   generate_constraints(problem, S, B);
   generate_forces(problem, S, B);
 
+  S.model = sm;
   // --- dynamics: Newton–Euler ---
   S.c = sm.inverse_dynamics(qd, {}, false);
   S.g = sm.inverse_dynamics({}, {}, true);
   S.M = multibody::mass_matrix(sm.bodies, sm.poses);
 
-  if (S.jerk) generate_jerk_level(S, sm);
+  if (S.jerk) {
+    generate_jerk_level(S, sm);
+  } else {
+    S.cg = sm.inverse_dynamics(qd, {}, true);
+    S.rhs.resize(S.m);
+    for (int r = 0; r < S.m; ++r)
+      S.rhs[r] = S.row_order[r] == 2 ? -S.gamma[r]
+                 : S.row_order[r] == 1
+                     ? -S.gamma[r] - S.beta1_s * S.phi[r]
+                     : -S.gamma[r] - 2 * S.alpha_s * S.phid[r] - S.beta_s * S.beta_s * S.phi[r];
+  }
 
   // --- partition (jerk problems: none, the jerk level is solved as a KKT system) ---
   std::vector<char> is_ind(n, 0);

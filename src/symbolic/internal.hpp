@@ -78,6 +78,7 @@ struct SymbolicReferenceDynamics::Impl {
   /// A jerk problem (a row of order 3): state x = [q, q̇, q̈, z], ẋ = [q̇, q̈, q⃛, ż].
   bool jerk = false;
 
+  symbolic_detail::SymbolicModel model;  ///< bodies and poses (the C writer traces M, c, g from them)
   GiNaC::realsymbol t;
   std::vector<GiNaC::realsymbol> q, qd, qdd, z, params;  ///< qdd: state in jerk problems, else only inside acceleration rows
   std::vector<GiNaC::realsymbol> qddd;                  ///< only inside jerk rows
@@ -91,6 +92,10 @@ struct SymbolicReferenceDynamics::Impl {
   /// B of the jerk rows) and Ġ; per row ψ (stabilized acceleration-level row; 0 for jerk rows)
   /// and the jerk-level right-hand side b: G q⃛ = b, b = −ψ̇|q⃛=0 − κψ, or −s for a jerk row.
   std::vector<GiNaC::ex> R, Rdot, G, Gdot, psi, b;
+  /// c + g in one Newton–Euler pass (n) and, per row, the stabilized right-hand side of the
+  /// acceleration level, A q̈ = rhs (−γ − 2αΦ̇ − β²Φ, −γ − β₁c, −γ; gains as symbols): what
+  /// PREFIX_rhs evaluates in one block with M, Q, ż and A (shared kinematics, one CSE).
+  std::vector<GiNaC::ex> cg, rhs;
   SymbolicSummary summary;
 };
 

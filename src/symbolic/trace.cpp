@@ -1,0 +1,424 @@
+// The generated C as a graph of double operations (see trace.hpp).
+#include "trace.hpp"
+
+#include "printer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+namespace refdyn::symbolic_detail {
+
+Tape*& current_tape() {
+  static thread_local Tape* tape = nullptr;
+  return tape;
+}
+
+// ---- the Tape --------------------------------------------------------------------------------
+
+int Tape::intern(Node n) {
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &n.value, sizeof bits);
+  auto k = std::make_tuple(static_cast<int>(n.op), n.args, bits, n.text);
+  const auto it = index_.find(k);
+  if (it != index_.end()) return it->second;
+  const int id = static_cast<int>(nodes_.size());
+  nodes_.push_back(std::move(n));
+  index_.emplace(std::move(k), id);
+  return id;
+}
+
+int Tape::constant(double v) {
+  Node n;
+  n.op = Op::Const;
+  n.value = v == 0 ? 0.0 : v;  // one zero
+  return intern(std::move(n));
+}
+
+int Tape::leaf(const std::string& text) {
+  Node n;
+  n.op = Op::Leaf;
+  n.text = text;
+  return intern(std::move(n));
+}
+
+namespace {
+Tape::Node binary(Tape::Op op, int a, int b) {
+  Tape::Node n;
+  n.op = op;
+  n.args = {a, b};
+  return n;
+}
+}  // namespace
+
+int Tape::add(int a, int b) {
+  if (is_const(a, 0)) return b;
+  if (is_const(b, 0)) return a;
+  if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value + node(b).value);
+  if (node(b).op == Op::Neg) return sub(a, node(b).args[0]);
+  if (node(a).op == Op::Neg) return sub(b, node(a).args[0]);
+  if (a > b) std::swap(a, b);
+  return intern(binary(Op::Add, a, b));
+}
+
+int Tape::sub(int a, int b) {
+  if (is_const(b, 0)) return a;
+  if (is_const(a, 0)) return neg(b);
+  if (a == b) return constant(0.0);
+  if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value - node(b).value);
+  if (node(b).op == Op::Neg) return add(a, node(b).args[0]);
+  return intern(binary(Op::Sub, a, b));
+}
+
+int Tape::mul(int a, int b) {
+  if (is_const(a, 0) || is_const(b, 0)) return constant(0.0);
+  if (is_const(a, 1)) return b;
+  if (is_const(b, 1)) return a;
+  if (is_const(a, -1)) return neg(b);
+  if (is_const(b, -1)) return neg(a);
+  if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value * node(b).value);
+  if (node(a).op == Op::Neg) return neg(mul(node(a).args[0], b));
+  if (node(b).op == Op::Neg) return neg(mul(a, node(b).args[0]));
+  if (node(a).op == Op::Const && node(a).value < 0) return neg(mul(constant(-node(a).value), b));
+  if (node(b).op == Op::Const && node(b).value < 0) return neg(mul(a, constant(-node(b).value)));
+  // constants first (c*x), then by node order
+  const bool ca = node(a).op == Op::Const, cb = node(b).op == Op::Const;
+  if (cb && !ca) std::swap(a, b);
+  else if (ca == cb && a > b) std::swap(a, b);
+  return intern(binary(Op::Mul, a, b));
+}
+
+int Tape::div(int a, int b) {
+  if (is_const(a, 0)) return constant(0.0);
+  if (is_const(b, 1)) return a;
+  if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value / node(b).value);
+  if (node(a).op == Op::Neg) return neg(div(node(a).args[0], b));
+  if (node(b).op == Op::Neg) return neg(div(a, node(b).args[0]));
+  return intern(binary(Op::Div, a, b));
+}
+
+int Tape::neg(int a) {
+  if (node(a).op == Op::Const) return constant(-node(a).value);
+  if (node(a).op == Op::Neg) return node(a).args[0];
+  if (node(a).op == Op::Sub) return intern(binary(Op::Sub, node(a).args[1], node(a).args[0]));
+  Node n;
+  n.op = Op::Neg;
+  n.args = {a};
+  return intern(std::move(n));
+}
+
+int Tape::call(const std::string& name, std::vector<int> args) {
+  Node n;
+  n.op = Op::Call;
+  n.text = name;
+  n.args = std::move(args);
+  return intern(std::move(n));
+}
+
+int Tape::cond(bool strict, int a, int b, int c, int d) {
+  Node n;
+  n.op = Op::Cond;
+  n.value = strict ? 1 : 0;
+  n.args = {a, b, c, d};
+  return intern(std::move(n));
+}
+
+// ---- GiNaC onto the Tape ---------------------------------------------------------------------
+
+namespace {
+std::uint64_t fnv(std::uint64_t h, const std::string& s) {
+  for (unsigned char ch : s) {
+    h ^= ch;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+std::uint64_t fnv(std::uint64_t h, std::uint64_t v) {
+  for (int k = 0; k < 8; ++k) {
+    h ^= (v >> (8 * k)) & 0xff;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+constexpr std::uint64_t kSeed = 14695981039346656037ull;
+
+std::string numeric_text(const GiNaC::numeric& x) {
+  if (x.is_rational()) {
+    std::ostringstream o;
+    o << "r" << x.numer() << "/" << x.denom();
+    return o.str();
+  }
+  return "f" + double_text(x.to_double(), 17);
+}
+}  // namespace
+
+std::uint64_t FromGinac::key(const ex& e) {
+  if (is_a<GiNaC::symbol>(e)) return fnv(kSeed, "s" + GiNaC::ex_to<GiNaC::symbol>(e).get_name());
+  if (is_a<GiNaC::numeric>(e)) return fnv(kSeed, numeric_text(GiNaC::ex_to<GiNaC::numeric>(e)));
+  if (is_a<GiNaC::constant>(e)) return fnv(kSeed, "c" + double_text(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double(), 17));
+  const auto hit = keys_.find(e);
+  if (hit != keys_.end()) return hit->second;
+  std::uint64_t h = kSeed;
+  std::vector<std::uint64_t> ks;
+  for (size_t i = 0; i < e.nops(); ++i) ks.push_back(key(e.op(i)));
+  if (is_a<GiNaC::add>(e) || is_a<GiNaC::mul>(e)) {
+    std::sort(ks.begin(), ks.end());
+    h = fnv(h, is_a<GiNaC::add>(e) ? "+" : "*");
+  } else if (is_a<GiNaC::power>(e)) {
+    h = fnv(h, "^");
+  } else if (is_a<GiNaC::function>(e)) {
+    h = fnv(h, "f" + GiNaC::ex_to<GiNaC::function>(e).get_name());
+  } else {
+    h = fnv(h, "?" + expr_detail::to_text(e));
+  }
+  for (std::uint64_t k : ks) h = fnv(h, k);
+  keys_.emplace(e, h);
+  return h;
+}
+
+std::vector<ex> FromGinac::sorted_ops(const ex& e) {
+  std::vector<std::pair<std::uint64_t, ex>> v;
+  for (size_t i = 0; i < e.nops(); ++i) v.emplace_back(key(e.op(i)), e.op(i));
+  std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<ex> out;
+  for (auto& [k, x] : v) out.push_back(x);
+  return out;
+}
+
+int FromGinac::operator()(const ex& e) {
+  if (is_a<GiNaC::symbol>(e)) return tape_.leaf(leaf_(GiNaC::ex_to<GiNaC::symbol>(e)));
+  if (is_a<GiNaC::numeric>(e)) {
+    const GiNaC::numeric& x = GiNaC::ex_to<GiNaC::numeric>(e);
+    if (x.is_rational() && !x.is_integer())
+      return tape_.div(tape_.constant(x.numer().to_double()), tape_.constant(x.denom().to_double()));
+    return tape_.constant(x.to_double());
+  }
+  if (is_a<GiNaC::constant>(e)) return tape_.constant(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double());
+  const auto hit = memo_.find(e);
+  if (hit != memo_.end()) return hit->second;
+  const int id = convert(e);
+  memo_.emplace(e, id);
+  return id;
+}
+
+int FromGinac::power(int base, const GiNaC::numeric& p) {
+  if (p.is_integer() && p.is_positive() && p <= 4) {
+    int r = base;
+    for (long k = 1; k < p.to_long(); ++k) r = tape_.mul(r, base);
+    return r;
+  }
+  if (p.is_equal(GiNaC::numeric(1, 2))) return tape_.call("sqrt", {base});
+  return tape_.call("pow", {base, tape_.constant(p.to_double())});
+}
+
+int FromGinac::convert(const ex& e) {
+  if (is_a<GiNaC::add>(e)) {
+    int acc = -1;
+    for (const ex& t : sorted_ops(e)) {
+      const bool negative = Printer::negative_term(t);
+      const int v = (*this)(negative ? ex(-t) : t);
+      if (acc < 0) acc = negative ? tape_.neg(v) : v;
+      else acc = negative ? tape_.sub(acc, v) : tape_.add(acc, v);
+    }
+    return acc < 0 ? tape_.constant(0.0) : acc;
+  }
+  if (is_a<GiNaC::mul>(e)) {
+    GiNaC::numeric c = 1;
+    int num = -1, den = -1;
+    auto times = [&](int& acc, int v) { acc = acc < 0 ? v : tape_.mul(acc, v); };
+    for (const ex& f : sorted_ops(e)) {
+      if (is_a<GiNaC::numeric>(f)) {
+        c *= GiNaC::ex_to<GiNaC::numeric>(f);
+        continue;
+      }
+      if (is_a<GiNaC::power>(f) && is_a<GiNaC::numeric>(f.op(1)) && GiNaC::ex_to<GiNaC::numeric>(f.op(1)).is_negative()) {
+        times(den, power((*this)(f.op(0)), -GiNaC::ex_to<GiNaC::numeric>(f.op(1))));
+        continue;
+      }
+      times(num, (*this)(f));
+    }
+    const bool negative = c.is_negative();
+    if (negative) c = -c;
+    if (c.is_rational() && !c.is_integer()) {
+      if (!c.numer().is_equal(1)) num = num < 0 ? tape_.constant(c.numer().to_double()) : tape_.mul(tape_.constant(c.numer().to_double()), num);
+      den = den < 0 ? tape_.constant(c.denom().to_double()) : tape_.mul(den, tape_.constant(c.denom().to_double()));
+    } else if (!c.is_equal(1)) {
+      num = num < 0 ? tape_.constant(c.to_double()) : tape_.mul(tape_.constant(c.to_double()), num);
+    }
+    if (num < 0) num = tape_.constant(1.0);
+    int r = den < 0 ? num : tape_.div(num, den);
+    return negative ? tape_.neg(r) : r;
+  }
+  if (is_a<GiNaC::power>(e)) {
+    const int b = (*this)(e.op(0));
+    if (is_a<GiNaC::numeric>(e.op(1))) {
+      const GiNaC::numeric p = GiNaC::ex_to<GiNaC::numeric>(e.op(1));
+      if (p.is_negative()) return tape_.div(tape_.constant(1.0), power(b, -p));
+      return power(b, p);
+    }
+    return tape_.call("pow", {b, (*this)(e.op(1))});
+  }
+  if (is_a<GiNaC::function>(e)) {
+    const unsigned s = GiNaC::ex_to<GiNaC::function>(e).get_serial();
+    std::vector<int> a;
+    for (size_t i = 0; i < e.nops(); ++i) a.push_back((*this)(e.op(i)));
+    using namespace expr_detail;
+    if (s == serial_if_lt() || s == serial_if_le()) return tape_.cond(s == serial_if_lt(), a[0], a[1], a[2], a[3]);
+    const std::pair<unsigned, const char*> piecewise[] = {{serial_abs(), "fabs"},       {serial_sgn(), "rd_sgn"},
+                                                          {serial_min(), "rd_min"},     {serial_max(), "rd_max"},
+                                                          {serial_step(), "rd_step"},   {serial_clamp(), "rd_clamp"}};
+    for (const auto& [serial, name] : piecewise)
+      if (s == serial) return tape_.call(name, a);
+    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
+    return tape_.call(name == "abs" ? "fabs" : name, a);
+  }
+  throw Error("generate: cannot write the expression " + expr_detail::to_text(e) + " as C");
+}
+
+// ---- C text ----------------------------------------------------------------------------------
+
+namespace {
+class Emitter {
+ public:
+  Emitter(const Tape& t, bool cse) : t_(t), cse_(cse), uses_(t.size(), 0), name_(t.size()) {}
+  void count(int id) {
+    if (uses_[id]++ > 0) return;
+    for (int a : t_.node(id).args) count(a);
+  }
+  bool temporary(int id) const {
+    const auto op = t_.node(id).op;
+    return cse_ && uses_[id] >= 2 && op != Tape::Op::Const && op != Tape::Op::Leaf;
+  }
+  /// The text of a node (its temporary's name, or the operation with its operands inlined).
+  std::string text(int id) {
+    if (!name_[id].empty()) return name_[id];
+    const Tape::Node& n = t_.node(id);
+    switch (n.op) {
+      case Tape::Op::Const: {
+        std::string s = double_text(std::fabs(n.value), 17);
+        if (n.value == std::trunc(n.value) && std::fabs(n.value) < 4503599627370496.0) s += ".0";
+        return n.value < 0 ? "(-" + s + ")" : s;
+      }
+      case Tape::Op::Leaf: return n.text;
+      case Tape::Op::Add: ++operations; return text(n.args[0]) + " + " + text(n.args[1]);
+      case Tape::Op::Sub: ++operations; return text(n.args[0]) + " - " + operand(n.args[1], 1);
+      case Tape::Op::Mul: ++operations; return operand(n.args[0], 2) + "*" + operand(n.args[1], 2);
+      case Tape::Op::Div: ++operations; return operand(n.args[0], 2) + "/" + operand(n.args[1], 3);
+      case Tape::Op::Neg: return "-" + operand(n.args[0], 2);
+      case Tape::Op::Call: {
+        ++operations;
+        std::string s = n.text + "(";
+        for (size_t i = 0; i < n.args.size(); ++i) s += (i ? ", " : "") + text(n.args[i]);
+        return s + ")";
+      }
+      case Tape::Op::Cond:
+        return "(" + text(n.args[0]) + (n.value != 0 ? " < " : " <= ") + text(n.args[1]) + " ? " + text(n.args[2]) +
+               " : " + text(n.args[3]) + ")";
+    }
+    return "";
+  }
+  /// An operand of an operation of the given level (1: right of −, 2: factor, 3: divisor),
+  /// parenthesised where C's precedence needs it.
+  std::string operand(int id, int level) {
+    const std::string s = text(id);
+    if (!name_[id].empty()) return s;
+    const auto op = t_.node(id).op;
+    const bool low = op == Tape::Op::Add || op == Tape::Op::Sub || (level >= 2 && op == Tape::Op::Neg) ||
+                     (level == 3 && (op == Tape::Op::Mul || op == Tape::Op::Div));
+    return low ? "(" + s + ")" : s;
+  }
+  std::string define(int id, const std::string& indent, long& temporaries) {
+    const std::string s = text(id);
+    name_[id] = "t" + std::to_string(temporaries++);
+    return indent + "const double " + name_[id] + " = " + s + ";\n";
+  }
+  long operations = 0;
+
+ private:
+  const Tape& t_;
+  bool cse_;
+  std::vector<int> uses_;
+  std::vector<std::string> name_;
+};
+}  // namespace
+
+std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>>& outputs, bool cse,
+                 const std::string& indent, long& temporaries, long& operations) {
+  Emitter em(tape, cse);
+  for (const auto& [lhs, id] : outputs) em.count(id);
+  std::string code;
+  long temps = 0;
+  // temporaries in Tape order (operands before their uses), each just before the first output
+  // that needs it
+  std::vector<char> done(tape.size(), 0);
+  std::function<void(int)> define = [&](int id) {
+    if (done[id]) return;
+    done[id] = 1;
+    for (int a : tape.node(id).args) define(a);
+    if (em.temporary(id)) code += em.define(id, indent, temps);
+  };
+  for (const auto& [lhs, id] : outputs) {
+    define(id);
+    code += indent + lhs + " = " + em.text(id) + ";\n";
+  }
+  temporaries += temps;
+  operations += em.operations;
+  return code;
+}
+
+// ---- the composite-rigid-body algorithm ------------------------------------------------------
+
+std::vector<TS> crba(const multibody::Bodies<TS>& bodies, const multibody::Poses<TS>& poses) {
+  using namespace multibody;
+  const int n = bodies.size();
+  std::vector<TS> mc(n), M(static_cast<std::size_t>(n) * n);
+  std::vector<Vec3T<TS>> hc(n);
+  std::vector<Mat3T<TS>> Ic(n);
+  for (int i = 0; i < n; ++i) {
+    mc[i] = bodies.bodies[i].m;
+    hc[i] = bodies.bodies[i].h;
+    Ic[i] = bodies.bodies[i].I;
+  }
+  // composite inertias, leaves to root, each in its body's frame
+  for (int i = n; i-- > 0;) {
+    const int par = bodies.bodies[i].parent;
+    if (par < 0) continue;
+    PoseT<TS> X;
+    X.R = poses.local_R[i];
+    X.p = poses.local_p[i];
+    Vec3T<TS> h = hc[i];
+    Mat3T<TS> I = Ic[i];
+    transform_inertia(X, mc[i], h, I);
+    mc[par] = mc[par] + mc[i];
+    hc[par] = add(hc[par], h);
+    Ic[par] = add(Ic[par], I);
+  }
+  // column j: the force on the composite body j under a unit joint-j acceleration (at rest),
+  // carried to the root
+  for (int j = 0; j < n; ++j) {
+    const Body<TS>& B = bodies.bodies[j];
+    const Vec3T<TS>& u = B.axis;
+    Vec3T<TS> f, nn;
+    if (B.type == JointType::Revolute) {
+      f = cross(u, hc[j]);
+      nn = mul(Ic[j], u);
+    } else {
+      f = scale(u, mc[j]);
+      nn = cross(hc[j], u);
+    }
+    M[static_cast<std::size_t>(j) * n + j] = B.type == JointType::Revolute ? dot(u, nn) : dot(u, f);
+    for (int i = j; bodies.bodies[i].parent >= 0;) {
+      const Vec3T<TS> fp = mul(poses.local_R[i], f);
+      nn = add(mul(poses.local_R[i], nn), cross(poses.local_p[i], fp));
+      f = fp;
+      i = bodies.bodies[i].parent;
+      const Body<TS>& A = bodies.bodies[i];
+      M[static_cast<std::size_t>(i) * n + j] = M[static_cast<std::size_t>(j) * n + i] =
+          A.type == JointType::Revolute ? dot(A.axis, nn) : dot(A.axis, f);
+    }
+  }
+  return M;
+}
+
+}  // namespace refdyn::symbolic_detail
