@@ -307,92 +307,108 @@ std::string c_int_list(const std::vector<int>& v) {
   return s.empty() ? std::string("0") : s;
 }
 
-/// PREFIX_rhs, first part: the partition, the work arrays, the model functions and F = Q − c − g.
-void c_rhs_head(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S) {
+/// PREFIX_rhs of a problem of order ≤ 2, written out for its sizes and partition (no loops):
+/// K_dc [K; y] = [K_ic, rhs] by LU with partial pivoting (m × m), q̈ = q̈_p + N u with
+/// N = [I; −K] (rows ind; dep), q̈_p = [0; y], (NᵀMN) u = Nᵀ(F − M q̈_p) by LDLᵀ (NᵀMN is
+/// symmetric positive definite when M is and K_dc is regular).
+void c_rhs_fixed(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S) {
   const std::string P = S.prefix;
-  const int n = S.n, m = S.m;
-  const int k = n - m;
-  const std::string N = std::to_string(n), Mr = std::to_string(std::max(m, 1)), K = std::to_string(std::max(k, 1));
-  o << "int " << P << "rhs(double t, const double* x, const " << P << "params* p, double* xdot) {\n"
-    << "  enum { n = " << n << ", m = " << m << ", k = " << k << ", nz = " << S.nz << " };\n"
-    << "  static const int ind[" << K << "] = {" << c_int_list(S.independent) << "};\n"
-    << "  static const int dep[" << Mr << "] = {" << c_int_list(S.dependent) << "};\n"
-    << "  static const int order[" << Mr << "] = {";
-  {
-    std::string s;
-    for (int r = 0; r < m; ++r) s += (r ? ", " : "") + std::to_string(static_cast<int>(S.row_order[r]));
-    o << (s.empty() ? "0" : s);
-  }
-  o << "};  /* per row: 0 position, 1 velocity, 2 acceleration */\n"
-    << "  double M[" << n * n << "], c[" << N << "], g[" << N << "], Q[" << N << "], zdot[" << std::max(S.nz, 1)
-    << "], F[" << N << "];\n"
-    << "  double phi[" << Mr << "], phid[" << Mr << "], A[" << std::max(m, 1) * n << "], gamma[" << Mr << "];\n"
-    << "  double Kdc[" << std::max(m, 1) * std::max(m, 1) << "], G[" << std::max(m, 1) * std::max(k, 1) << "], rhs["
-    << Mr << "];\n"
-    << "  double Nm[" << n * std::max(k, 1) << "], qddp[" << N << "], NMN[" << std::max(k, 1) * std::max(k, 1)
-    << "], u[" << K << "], MN[" << n * std::max(k, 1) << "], r[" << N << "];\n"
-    << "  (void)ind; (void)dep; (void)order; (void)Kdc; (void)G; (void)rhs; (void)phi; (void)phid; (void)A;\n"
-    << "  (void)gamma; (void)c; (void)g; (void)Q;\n"
+  const int n = S.n, m = S.m, k = n - m, w = k + 1;
+  const std::vector<int>& ind = S.independent;
+  const std::vector<int>& dep = S.dependent;
+  auto I = [](int v) { return std::to_string(v); };
+  auto at = [&](const std::string& a, int i, int j, int cols) { return a + "[" + I(i * cols + j) + "]"; };
+  o << "/* The partition: independent q[" << c_int_list(ind) << "], dependent q[" << (m ? c_int_list(dep) : "") << "]. */\n"
+    << "int " << P << "rhs(double t, const double* x, const " << P << "params* p, double* xdot) {\n"
+    << "  double M[" << n * n << "], F[" << n << "], zdot[" << std::max(S.nz, 1) << "], A[" << std::max(m, 1) * n
+    << "], rhs[" << std::max(m, 1) << "];\n"
     << "  rd_terms(t, x, p, M, F, zdot, A, rhs);\n";
-}
-
-/// PREFIX_rhs, second part: the particular solution and null space from the constraint rows, then
-/// (NᵀMN) u = Nᵀ(F − M q̈_p) and ẋ.
-void c_rhs_solve(std::ostringstream& o, const SymbolicReferenceDynamics::Impl& S) {
-  const std::string P = S.prefix;
-  const int n = S.n, m = S.m;
-  const int k = n - m;
   if (m > 0) {
-    o << "  /* G = K_dc^-1 [K_ic, rhs] */\n"
-      << "  double KR[" << std::max(m, 1) * (std::max(k, 0) + 1) << "];\n"
-      << "  for (int i = 0; i < m; ++i) {\n"
-      << "    for (int j = 0; j < m; ++j) Kdc[i * m + j] = A[i * n + dep[j]];\n"
-      << "    for (int j = 0; j < k; ++j) KR[i * (k + 1) + j] = A[i * n + ind[j]];\n"
-      << "    KR[i * (k + 1) + k] = rhs[i];\n"
-      << "  }\n"
-      << "  if (rd_solve(m, k + 1, Kdc, KR)) return 1;\n"
-      << "  for (int i = 0; i < n * k; ++i) Nm[i] = 0.0;\n"
-      << "  for (int i = 0; i < n; ++i) qddp[i] = 0.0;\n"
-      << "  for (int j = 0; j < k; ++j) Nm[ind[j] * k + j] = 1.0;\n"
-      << "  for (int i = 0; i < m; ++i) {\n"
-      << "    for (int j = 0; j < k; ++j) Nm[dep[i] * k + j] = -KR[i * (k + 1) + j];\n"
-      << "    qddp[dep[i]] = KR[i * (k + 1) + k];\n"
-      << "  }\n";
-  } else {
-    o << "  for (int i = 0; i < n * k; ++i) Nm[i] = 0.0;\n"
-      << "  for (int j = 0; j < k; ++j) Nm[ind[j] * k + j] = 1.0;\n"
-      << "  for (int i = 0; i < n; ++i) qddp[i] = 0.0;\n";
+    // K_dc (Kd, m×m) and [K_ic, rhs] (B, m×w); LU with partial pivoting, row swaps written out
+    o << "  double Kd[" << m * m << "], B[" << m * w << "], f;\n  int piv;\n";
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j < m; ++j) o << "  " << at("Kd", i, j, m) << " = " << at("A", i, dep[j], n) << ";\n";
+      for (int j = 0; j < k; ++j) o << "  " << at("B", i, j, w) << " = " << at("A", i, ind[j], n) << ";\n";
+      o << "  " << at("B", i, k, w) << " = rhs[" << i << "];\n";
+    }
+    o << "  (void)f;\n  (void)piv;\n";
+    for (int j = 0; j < m; ++j) {
+      o << "  piv = " << j << ";\n";
+      for (int i = j + 1; i < m; ++i)
+        o << "  if (fabs(" << at("Kd", i, j, m) << ") > fabs(Kd[piv * " << m << " + " << j << "])) piv = " << i << ";\n";
+      o << "  if (!(fabs(Kd[piv * " << m << " + " << j << "]) > 0.0)) return 1;\n";
+      for (int i = j + 1; i < m; ++i) {
+        o << "  if (piv == " << i << ") {\n";
+        for (int l = j; l < m; ++l)
+          o << "    f = " << at("Kd", j, l, m) << "; " << at("Kd", j, l, m) << " = " << at("Kd", i, l, m) << "; "
+            << at("Kd", i, l, m) << " = f;\n";
+        for (int l = 0; l < w; ++l)
+          o << "    f = " << at("B", j, l, w) << "; " << at("B", j, l, w) << " = " << at("B", i, l, w) << "; "
+            << at("B", i, l, w) << " = f;\n";
+        o << "  }\n";
+      }
+      for (int i = j + 1; i < m; ++i) {
+        o << "  f = " << at("Kd", i, j, m) << " / " << at("Kd", j, j, m) << ";\n";
+        for (int l = j + 1; l < m; ++l) o << "  " << at("Kd", i, l, m) << " -= f * " << at("Kd", j, l, m) << ";\n";
+        for (int l = 0; l < w; ++l) o << "  " << at("B", i, l, w) << " -= f * " << at("B", j, l, w) << ";\n";
+      }
+    }
+    for (int j = m - 1; j >= 0; --j)
+      for (int l = 0; l < w; ++l) {
+        o << "  " << at("B", j, l, w) << " = (" << at("B", j, l, w);
+        for (int i = j + 1; i < m; ++i) o << " - " << at("Kd", j, i, m) << " * " << at("B", i, l, w);
+        o << ") / " << at("Kd", j, j, m) << ";\n";
+      }
   }
-  o << "  /* (N^T M N) u = N^T (F - M qddp) */\n"
-    << "  for (int i = 0; i < n; ++i) {\n"
-    << "    double s = F[i];\n"
-    << "    for (int j = 0; j < n; ++j) s -= M[i * n + j] * qddp[j];\n"
-    << "    r[i] = s;\n"
-    << "    for (int j = 0; j < k; ++j) {\n"
-    << "      double v = 0.0;\n"
-    << "      for (int l = 0; l < n; ++l) v += M[i * n + l] * Nm[l * k + j];\n"
-    << "      MN[i * k + j] = v;\n"
-    << "    }\n"
-    << "  }\n"
-    << "  for (int a = 0; a < k; ++a) {\n"
-    << "    double s = 0.0;\n"
-    << "    for (int l = 0; l < n; ++l) s += Nm[l * k + a] * r[l];\n"
-    << "    u[a] = s;\n"
-    << "    for (int b = 0; b < k; ++b) {\n"
-    << "      double v = 0.0;\n"
-    << "      for (int l = 0; l < n; ++l) v += Nm[l * k + a] * MN[l * k + b];\n"
-    << "      NMN[a * k + b] = v;\n"
-    << "    }\n"
-    << "  }\n"
-    << "  if (k > 0 && rd_solve(k, 1, NMN, u)) return 1;\n"
-    << "  for (int i = 0; i < n; ++i) {\n"
-    << "    double s = qddp[i];\n"
-    << "    for (int j = 0; j < k; ++j) s += Nm[i * k + j] * u[j];\n"
-    << "    xdot[i] = x[n + i];\n"
-    << "    xdot[n + i] = s;\n"
-    << "  }\n"
-    << "  for (int i = 0; i < nz; ++i) xdot[2 * n + i] = zdot[i];\n"
-    << "  return 0;\n}\n";
+  // B[c][a] = K[c][a] (a < k), B[c][k] = y_c. r = F − M q̈_p; MN = M N; NMN; Nᵀr.
+  auto Kc = [&](int c, int a) { return at("B", c, a, w); };
+  o << "  double r[" << n << "], MN[" << n * std::max(k, 1) << "], L[" << std::max(k, 1) * std::max(k, 1) << "], u["
+    << std::max(k, 1) << "], d[" << std::max(k, 1) << "];\n  (void)r;\n  (void)MN;\n  (void)L;\n  (void)u;\n  (void)d;\n";
+  for (int i = 0; i < n; ++i) {
+    o << "  r[" << i << "] = F[" << i << "]";
+    for (int c = 0; c < m; ++c) o << " - " << at("M", i, dep[c], n) << " * " << Kc(c, k);
+    o << ";\n";
+    for (int j = 0; j < k; ++j) {
+      o << "  " << at("MN", i, j, k) << " = " << at("M", i, ind[j], n);
+      for (int c = 0; c < m; ++c) o << " - " << at("M", i, dep[c], n) << " * " << Kc(c, j);
+      o << ";\n";
+    }
+  }
+  for (int a = 0; a < k; ++a) {
+    for (int b = 0; b <= a; ++b) {
+      o << "  " << at("L", a, b, k) << " = " << at("MN", ind[a], b, k);
+      for (int c = 0; c < m; ++c) o << " - " << Kc(c, a) << " * " << at("MN", dep[c], b, k);
+      o << ";\n";
+    }
+    o << "  u[" << a << "] = r[" << ind[a] << "]";
+    for (int c = 0; c < m; ++c) o << " - " << Kc(c, a) << " * r[" << dep[c] << "]";
+    o << ";\n";
+  }
+  // LDLᵀ of the lower triangle of L in place (unit lower factor, diagonal d), then the solves
+  for (int j = 0; j < k; ++j) {
+    o << "  d[" << j << "] = " << at("L", j, j, k);
+    for (int l = 0; l < j; ++l) o << " - " << at("L", j, l, k) << " * " << at("L", j, l, k) << " * d[" << l << "]";
+    o << ";\n  if (!(d[" << j << "] > 0.0)) return 1;\n";
+    for (int i = j + 1; i < k; ++i) {
+      o << "  " << at("L", i, j, k) << " = (" << at("L", i, j, k);
+      for (int l = 0; l < j; ++l) o << " - " << at("L", i, l, k) << " * " << at("L", j, l, k) << " * d[" << l << "]";
+      o << ") / d[" << j << "];\n";
+    }
+  }
+  for (int i = 0; i < k; ++i)
+    for (int l = 0; l < i; ++l) o << "  u[" << i << "] -= " << at("L", i, l, k) << " * u[" << l << "];\n";
+  for (int i = 0; i < k; ++i) o << "  u[" << i << "] /= d[" << i << "];\n";
+  for (int i = k - 1; i >= 0; --i)
+    for (int l = i + 1; l < k; ++l) o << "  u[" << i << "] -= " << at("L", l, i, k) << " * u[" << l << "];\n";
+  for (int i = 0; i < n; ++i) o << "  xdot[" << i << "] = x[" << n + i << "];\n";
+  for (int a = 0; a < k; ++a) o << "  xdot[" << n + ind[a] << "] = u[" << a << "];\n";
+  for (int c = 0; c < m; ++c) {
+    o << "  xdot[" << n + dep[c] << "] = " << Kc(c, k);
+    for (int a = 0; a < k; ++a) o << " - " << Kc(c, a) << " * u[" << a << "]";
+    o << ";\n";
+  }
+  for (int z = 0; z < S.nz; ++z) o << "  xdot[" << 2 * n + z << "] = zdot[" << z << "];\n";
+  o << "  (void)zdot;\n  return 0;\n}\n";
 }
 
 /// PREFIX_rhs of a jerk problem: λ = (G M⁻¹ Gᵀ)⁻¹ G M⁻¹ R, then the KKT system
@@ -484,14 +500,13 @@ std::string SymbolicReferenceDynamics::c_source() const {
   const std::size_t helpers_at = static_cast<std::size_t>(o.tellp());
   c_model_functions(o, S, block);
   // The solve: q̈ = q̈_p + N u, K_dc q̈_p,dep = rhs (q̈_p,ind = 0), (NᵀMN) u = Nᵀ(F − M q̈_p),
-  // N = [I; −K_dc⁻¹ K_ic] in (independent; dependent) order. Small dense LU with partial pivoting.
-  c_solver(o);
+  // N = [I; −K_dc⁻¹ K_ic] in (independent; dependent) order, written out for the sizes (c_rhs_fixed).
   if (S.jerk) {
+    c_solver(o);
     c_rhs_jerk(o, S);
   } else {
     c_rhs_terms(o, S, block);
-    c_rhs_head(o, S);
-    c_rhs_solve(o, S);
+    c_rhs_fixed(o, S);
   }
   impl_->summary.c_temporaries = block.temporaries;
   impl_->summary.c_operations = block.operations;
