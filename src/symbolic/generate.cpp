@@ -91,6 +91,7 @@ class Binder {
       sub[syms[i]] = i < vals.size() ? vals[i]
                                      : parameter(params[i - vals.size()]->first, params[i - vals.size()]->second, where);
     }
+    e = symbolic_detail::exact(e);  // exact numbers: results independent of GiNaC's order
     return sub.empty() ? e : e.subs(sub, GiNaC::subs_options::no_pattern);
   }
 

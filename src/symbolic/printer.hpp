@@ -80,7 +80,7 @@ class Printer {
     if (x.is_integer() && GiNaC::abs(x) < GiNaC::numeric(1L << 52)) {
       s = std::to_string(x.to_long());
       if (d_ == Dialect::C) s += ".0";
-    } else if (x.is_rational() && d_ == Dialect::Latex) {
+    } else if (x.is_rational() && d_ == Dialect::Latex && GiNaC::abs(x.numer()) < 100000 && x.denom() < 100000) {
       const GiNaC::numeric a = GiNaC::abs(x);
       s = "\\tfrac{" + std::to_string(a.numer().to_long()) + "}{" + std::to_string(a.denom().to_long()) + "}";
       if (x.is_negative()) s = "-" + s;
@@ -128,7 +128,8 @@ class Printer {
           c = -c;
         }
         if (c.is_equal(1)) continue;
-        if (c.is_rational() && !c.is_integer() && d_ != Dialect::Latex) {
+        if (c.is_rational() && !c.is_integer() && d_ != Dialect::Latex && GiNaC::abs(c.numer()) < 100000 &&
+            c.denom() < 100000) {
           if (!c.numer().is_equal(1)) num.push_back(number(c.numer()));
           den.push_back(number(c.denom()));
         } else {

@@ -58,6 +58,14 @@ int Tape::add(int a, int b) {
   if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value + node(b).value);
   if (node(b).op == Op::Neg) return sub(a, node(b).args[0]);
   if (node(a).op == Op::Neg) return sub(b, node(a).args[0]);
+  if (a == b) return mul(constant(2.0), a);
+  // constants gathered: (x + c1) + c2 → x + (c1 + c2)
+  if (node(a).op == Op::Const) std::swap(a, b);
+  if (node(b).op == Op::Const && node(a).op == Op::Add) {
+    const Node& s = node(a);
+    if (node(s.args[0]).op == Op::Const) return add(s.args[1], constant(node(s.args[0]).value + node(b).value));
+    if (node(s.args[1]).op == Op::Const) return add(s.args[0], constant(node(s.args[1]).value + node(b).value));
+  }
   if (a > b) std::swap(a, b);
   return intern(binary(Op::Add, a, b));
 }
@@ -68,6 +76,8 @@ int Tape::sub(int a, int b) {
   if (a == b) return constant(0.0);
   if (node(a).op == Op::Const && node(b).op == Op::Const) return constant(node(a).value - node(b).value);
   if (node(b).op == Op::Neg) return add(a, node(b).args[0]);
+  if (node(b).op == Op::Const) return add(a, constant(-node(b).value));
+  if (node(a).op == Op::Neg) return neg(add(node(a).args[0], b));
   return intern(binary(Op::Sub, a, b));
 }
 
@@ -101,9 +111,17 @@ int Tape::div(int a, int b) {
 int Tape::neg(int a) {
   if (node(a).op == Op::Const) return constant(-node(a).value);
   if (node(a).op == Op::Neg) return node(a).args[0];
-  if (node(a).op == Op::Sub) return intern(binary(Op::Sub, node(a).args[1], node(a).args[0]));
+  if (node(a).op == Op::Sub) return sub(node(a).args[1], node(a).args[0]);
   Node n;
   n.op = Op::Neg;
+  n.args = {a};
+  return intern(std::move(n));
+}
+
+int Tape::pow(int a, long p) {
+  Node n;
+  n.op = Op::Pow;
+  n.value = static_cast<double>(p);
   n.args = {a};
   return intern(std::move(n));
 }
@@ -153,127 +171,180 @@ std::string numeric_text(const GiNaC::numeric& x) {
 }
 }  // namespace
 
-std::uint64_t FromGinac::key(const ex& e) {
-  if (is_a<GiNaC::symbol>(e)) return fnv(kSeed, "s" + GiNaC::ex_to<GiNaC::symbol>(e).get_name());
-  if (is_a<GiNaC::numeric>(e)) return fnv(kSeed, numeric_text(GiNaC::ex_to<GiNaC::numeric>(e)));
-  if (is_a<GiNaC::constant>(e)) return fnv(kSeed, "c" + double_text(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double(), 17));
-  const auto hit = keys_.find(e);
-  if (hit != keys_.end()) return hit->second;
+namespace {
+std::string coef_text(const GiNaC::numeric& x) { return numeric_text(x); }
+std::uint64_t tag(std::uint64_t h, const GiNaC::numeric& c) { return fnv(h, coef_text(c)); }
+}  // namespace
+
+const Canon::View& Canon::operator()(const ex& e) {
+  const auto hit = memo_.find(e);
+  if (hit != memo_.end()) return hit->second;
+  View r;
   std::uint64_t h = kSeed;
-  std::vector<std::uint64_t> ks;
-  for (size_t i = 0; i < e.nops(); ++i) ks.push_back(key(e.op(i)));
-  if (is_a<GiNaC::add>(e) || is_a<GiNaC::mul>(e)) {
+  if (is_a<GiNaC::symbol>(e)) {
+    h = fnv(h, "s" + GiNaC::ex_to<GiNaC::symbol>(e).get_name());
+  } else if (is_a<GiNaC::numeric>(e)) {
+    r.coef = GiNaC::ex_to<GiNaC::numeric>(e);
+    h = fnv(h, "1");
+  } else if (is_a<GiNaC::constant>(e)) {
+    h = fnv(h, "c" + double_text(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double(), 17));
+  } else if (is_a<GiNaC::add>(e)) {
+    std::vector<std::pair<std::uint64_t, GiNaC::numeric>> ts;
+    for (size_t i = 0; i < e.nops(); ++i) {
+      const View& t = (*this)(e.op(i));
+      ts.emplace_back(t.key, t.coef);
+    }
+    std::stable_sort(ts.begin(), ts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    r.coef = ts[0].second;
+    h = fnv(h, "+");
+    for (const auto& [k, c] : ts) h = tag(fnv(h, k), c / r.coef);
+  } else if (is_a<GiNaC::mul>(e)) {
+    std::vector<std::uint64_t> ks;
+    for (size_t i = 0; i < e.nops(); ++i) {
+      const View& f = (*this)(e.op(i));
+      r.coef *= f.coef;
+      if (!is_a<GiNaC::numeric>(e.op(i))) ks.push_back(f.key);
+    }
     std::sort(ks.begin(), ks.end());
-    h = fnv(h, is_a<GiNaC::add>(e) ? "+" : "*");
+    if (ks.size() == 1) {
+      h = ks[0];
+    } else {
+      h = fnv(h, "*");
+      for (std::uint64_t k : ks) h = fnv(h, k);
+    }
   } else if (is_a<GiNaC::power>(e)) {
-    h = fnv(h, "^");
+    const View b = (*this)(e.op(0));
+    if (is_a<GiNaC::numeric>(e.op(1)) && GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_integer()) {
+      const GiNaC::numeric p = GiNaC::ex_to<GiNaC::numeric>(e.op(1));
+      r.coef = b.coef.power(p);
+      h = tag(fnv(fnv(h, "^"), b.key), p);
+    } else {
+      const View p = (*this)(e.op(1));
+      h = tag(fnv(tag(fnv(fnv(h, "^r"), b.key), b.coef), p.key), p.coef);
+    }
   } else if (is_a<GiNaC::function>(e)) {
     h = fnv(h, "f" + GiNaC::ex_to<GiNaC::function>(e).get_name());
+    for (size_t i = 0; i < e.nops(); ++i) {
+      const View a = (*this)(e.op(i));
+      h = tag(fnv(h, a.key), a.coef);
+    }
   } else {
     h = fnv(h, "?" + expr_detail::to_text(e));
   }
-  for (std::uint64_t k : ks) h = fnv(h, k);
-  keys_.emplace(e, h);
-  return h;
+  r.key = h;
+  return memo_.emplace(e, r).first->second;
 }
 
-std::vector<ex> FromGinac::sorted_ops(const ex& e) {
-  std::vector<std::pair<std::uint64_t, ex>> v;
-  for (size_t i = 0; i < e.nops(); ++i) v.emplace_back(key(e.op(i)), e.op(i));
-  std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  std::vector<ex> out;
-  for (auto& [k, x] : v) out.push_back(x);
+std::vector<std::pair<GiNaC::numeric, ex>> Canon::terms(const ex& sum) {
+  std::vector<std::tuple<std::uint64_t, GiNaC::numeric, ex>> v;
+  for (size_t i = 0; i < sum.nops(); ++i) {
+    const View& t = (*this)(sum.op(i));
+    v.emplace_back(t.key, t.coef, sum.op(i));
+  }
+  std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+  std::vector<std::pair<GiNaC::numeric, ex>> out;
+  for (auto& [k, c, t] : v) out.emplace_back(c / std::get<1>(v[0]), t);
   return out;
 }
 
-int FromGinac::operator()(const ex& e) {
-  if (is_a<GiNaC::symbol>(e)) return tape_.leaf(leaf_(GiNaC::ex_to<GiNaC::symbol>(e)));
-  if (is_a<GiNaC::numeric>(e)) {
-    const GiNaC::numeric& x = GiNaC::ex_to<GiNaC::numeric>(e);
-    if (x.is_rational() && !x.is_integer())
-      return tape_.div(tape_.constant(x.numer().to_double()), tape_.constant(x.denom().to_double()));
-    return tape_.constant(x.to_double());
-  }
-  if (is_a<GiNaC::constant>(e)) return tape_.constant(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double());
-  const auto hit = memo_.find(e);
-  if (hit != memo_.end()) return hit->second;
-  const int id = convert(e);
-  memo_.emplace(e, id);
-  return id;
+std::vector<ex> Canon::factors(const ex& product) {
+  std::vector<std::pair<std::uint64_t, ex>> v;
+  for (size_t i = 0; i < product.nops(); ++i)
+    if (!is_a<GiNaC::numeric>(product.op(i))) v.emplace_back((*this)(product.op(i)).key, product.op(i));
+  std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<ex> out;
+  for (auto& [k, f] : v) out.push_back(f);
+  return out;
 }
 
-int FromGinac::power(int base, const GiNaC::numeric& p) {
-  if (p.is_integer() && p.is_positive() && p <= 4) {
+int FromGinac::operator()(const ex& e) { return scaled(canon_(e).coef, norm(e)); }
+
+int FromGinac::scaled(const GiNaC::numeric& c0, int v) {
+  if (c0.is_equal(1)) return v;
+  const bool negative = c0.is_negative();
+  const GiNaC::numeric c = GiNaC::abs(c0);
+  int r = v;
+  if (c.is_rational() && !c.is_integer() && c.numer() < 100000 && c.denom() < 100000) {
+    if (!c.numer().is_equal(1)) r = tape_.mul(tape_.constant(c.numer().to_double()), r);
+    r = tape_.div(r, tape_.constant(c.denom().to_double()));
+  } else if (!c.is_equal(1)) {
+    r = tape_.mul(tape_.constant(c.to_double()), r);
+  }
+  return negative ? tape_.neg(r) : r;
+}
+
+int FromGinac::power(int base, long p) {
+  if (keep_powers_ && p >= 2) return tape_.pow(base, p);
+  if (p <= 4) {
     int r = base;
-    for (long k = 1; k < p.to_long(); ++k) r = tape_.mul(r, base);
+    for (long k = 1; k < p; ++k) r = tape_.mul(r, base);
     return r;
   }
-  if (p.is_equal(GiNaC::numeric(1, 2))) return tape_.call("sqrt", {base});
-  return tape_.call("pow", {base, tape_.constant(p.to_double())});
+  return tape_.call("pow", {base, tape_.constant(static_cast<double>(p))});
 }
 
-int FromGinac::convert(const ex& e) {
-  if (is_a<GiNaC::add>(e)) {
-    int acc = -1;
-    for (const ex& t : sorted_ops(e)) {
-      const bool negative = Printer::negative_term(t);
-      const int v = (*this)(negative ? ex(-t) : t);
-      if (acc < 0) acc = negative ? tape_.neg(v) : v;
-      else acc = negative ? tape_.sub(acc, v) : tape_.add(acc, v);
+int FromGinac::norm(const ex& e) {
+  const std::uint64_t key = canon_(e).key;
+  if (is_a<GiNaC::numeric>(e)) return tape_.constant(1.0);
+  const auto hit = memo_.find(key);
+  if (hit != memo_.end()) return hit->second;
+  int id = -1;
+  if (is_a<GiNaC::symbol>(e)) {
+    id = tape_.leaf(leaf_(GiNaC::ex_to<GiNaC::symbol>(e)));
+  } else if (is_a<GiNaC::constant>(e)) {
+    id = keep_powers_ ? tape_.leaf("pi") : tape_.constant(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double());
+  } else if (is_a<GiNaC::add>(e)) {
+    for (const auto& [r, t] : canon_.terms(e)) {
+      const int v = scaled(GiNaC::abs(r), norm(t));
+      id = id < 0 ? v : r.is_negative() ? tape_.sub(id, v) : tape_.add(id, v);
     }
-    return acc < 0 ? tape_.constant(0.0) : acc;
-  }
-  if (is_a<GiNaC::mul>(e)) {
-    GiNaC::numeric c = 1;
+  } else if (is_a<GiNaC::mul>(e)) {
     int num = -1, den = -1;
     auto times = [&](int& acc, int v) { acc = acc < 0 ? v : tape_.mul(acc, v); };
-    for (const ex& f : sorted_ops(e)) {
-      if (is_a<GiNaC::numeric>(f)) {
-        c *= GiNaC::ex_to<GiNaC::numeric>(f);
+    for (const ex& f : canon_.factors(e)) {
+      if (is_a<GiNaC::power>(f) && is_a<GiNaC::numeric>(f.op(1)) && GiNaC::ex_to<GiNaC::numeric>(f.op(1)).is_integer() &&
+          GiNaC::ex_to<GiNaC::numeric>(f.op(1)).is_negative()) {
+        times(den, power(norm(f.op(0)), -GiNaC::ex_to<GiNaC::numeric>(f.op(1)).to_long()));
         continue;
       }
-      if (is_a<GiNaC::power>(f) && is_a<GiNaC::numeric>(f.op(1)) && GiNaC::ex_to<GiNaC::numeric>(f.op(1)).is_negative()) {
-        times(den, power((*this)(f.op(0)), -GiNaC::ex_to<GiNaC::numeric>(f.op(1))));
-        continue;
-      }
-      times(num, (*this)(f));
-    }
-    const bool negative = c.is_negative();
-    if (negative) c = -c;
-    if (c.is_rational() && !c.is_integer()) {
-      if (!c.numer().is_equal(1)) num = num < 0 ? tape_.constant(c.numer().to_double()) : tape_.mul(tape_.constant(c.numer().to_double()), num);
-      den = den < 0 ? tape_.constant(c.denom().to_double()) : tape_.mul(den, tape_.constant(c.denom().to_double()));
-    } else if (!c.is_equal(1)) {
-      num = num < 0 ? tape_.constant(c.to_double()) : tape_.mul(tape_.constant(c.to_double()), num);
+      times(num, norm(f));
     }
     if (num < 0) num = tape_.constant(1.0);
-    int r = den < 0 ? num : tape_.div(num, den);
-    return negative ? tape_.neg(r) : r;
-  }
-  if (is_a<GiNaC::power>(e)) {
-    const int b = (*this)(e.op(0));
-    if (is_a<GiNaC::numeric>(e.op(1))) {
-      const GiNaC::numeric p = GiNaC::ex_to<GiNaC::numeric>(e.op(1));
-      if (p.is_negative()) return tape_.div(tape_.constant(1.0), power(b, -p));
-      return power(b, p);
+    id = den < 0 ? num : tape_.div(num, den);
+  } else if (is_a<GiNaC::power>(e)) {
+    if (is_a<GiNaC::numeric>(e.op(1)) && GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_integer()) {
+      const long p = GiNaC::ex_to<GiNaC::numeric>(e.op(1)).to_long();
+      const int b = norm(e.op(0));
+      id = p < 0 ? tape_.div(tape_.constant(1.0), power(b, -p)) : power(b, p);
+    } else {
+      const int b = (*this)(e.op(0));
+      const ex p = e.op(1);
+      if (p.is_equal(GiNaC::numeric(1, 2))) id = tape_.call("sqrt", {b});
+      else if (p.is_equal(GiNaC::numeric(-1, 2))) id = tape_.div(tape_.constant(1.0), tape_.call("sqrt", {b}));
+      else id = tape_.call("pow", {b, (*this)(p)});
     }
-    return tape_.call("pow", {b, (*this)(e.op(1))});
-  }
-  if (is_a<GiNaC::function>(e)) {
+  } else if (is_a<GiNaC::function>(e)) {
     const unsigned s = GiNaC::ex_to<GiNaC::function>(e).get_serial();
     std::vector<int> a;
     for (size_t i = 0; i < e.nops(); ++i) a.push_back((*this)(e.op(i)));
     using namespace expr_detail;
-    if (s == serial_if_lt() || s == serial_if_le()) return tape_.cond(s == serial_if_lt(), a[0], a[1], a[2], a[3]);
-    const std::pair<unsigned, const char*> piecewise[] = {{serial_abs(), "fabs"},       {serial_sgn(), "rd_sgn"},
-                                                          {serial_min(), "rd_min"},     {serial_max(), "rd_max"},
-                                                          {serial_step(), "rd_step"},   {serial_clamp(), "rd_clamp"}};
-    for (const auto& [serial, name] : piecewise)
-      if (s == serial) return tape_.call(name, a);
-    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-    return tape_.call(name == "abs" ? "fabs" : name, a);
+    const std::pair<unsigned, const char*> piecewise[] = {{serial_abs(), "fabs"},     {serial_sgn(), "rd_sgn"},
+                                                          {serial_min(), "rd_min"},   {serial_max(), "rd_max"},
+                                                          {serial_step(), "rd_step"}, {serial_clamp(), "rd_clamp"}};
+    if (s == serial_if_lt() || s == serial_if_le()) {
+      id = tape_.cond(s == serial_if_lt(), a[0], a[1], a[2], a[3]);
+    } else {
+      const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
+      std::string cname = name == "abs" ? "fabs" : name;
+      for (const auto& [serial, pname] : piecewise)
+        if (s == serial) cname = pname;
+      id = tape_.call(cname, a);
+    }
+  } else {
+    throw Error("generate: cannot write the expression " + expr_detail::to_text(e));
   }
-  throw Error("generate: cannot write the expression " + expr_detail::to_text(e) + " as C");
+  memo_.emplace(key, id);
+  return id;
 }
 
 // ---- C text ----------------------------------------------------------------------------------
@@ -312,6 +383,7 @@ class Emitter {
         for (size_t i = 0; i < n.args.size(); ++i) s += (i ? ", " : "") + text(n.args[i]);
         return s + ")";
       }
+      case Tape::Op::Pow: ++operations; return "pow(" + text(n.args[0]) + ", " + double_text(n.value, 17) + ".0)";
       case Tape::Op::Cond:
         return "(" + text(n.args[0]) + (n.value != 0 ? " < " : " <= ") + text(n.args[1]) + " ? " + text(n.args[2]) +
                " : " + text(n.args[3]) + ")";

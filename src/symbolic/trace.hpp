@@ -26,11 +26,11 @@ namespace refdyn::symbolic_detail {
 
 class Tape {
  public:
-  enum class Op : int { Const, Leaf, Add, Sub, Mul, Div, Neg, Call, Cond };
+  enum class Op : int { Const, Leaf, Add, Sub, Mul, Div, Neg, Call, Cond, Pow };
   struct Node {
     Op op = Op::Const;
     std::vector<int> args;
-    double value = 0;   ///< Const: the value; Cond: 1 for <, 0 for <=
+    double value = 0;   ///< Const: the value; Cond: 1 for <, 0 for <=; Pow: the integer exponent
     std::string text;   ///< Leaf: the C expression; Call: the function name
   };
   int constant(double v);
@@ -42,6 +42,7 @@ class Tape {
   int neg(int a);
   int call(const std::string& name, std::vector<int> args);
   int cond(bool strict, int a, int b, int c, int d);
+  int pow(int a, long p);  ///< a^p, integer p ≥ 2 (kept for the LaTeX and text writers)
   const Node& node(int id) const { return nodes_[static_cast<std::size_t>(id)]; }
   bool is_const(int id, double v) const { return node(id).op == Op::Const && node(id).value == v; }
   std::size_t size() const { return nodes_.size(); }
@@ -75,23 +76,51 @@ inline TS& operator+=(TS& a, TS b) { return a = a + b; }
 inline TS& operator-=(TS& a, TS b) { return a = a - b; }
 inline TS& operator*=(TS& a, TS b) { return a = a * b; }
 
-/// GiNaC expressions onto the Tape (memoized; `leaf` names the symbols in C).
-class FromGinac {
+/// Canonical views of GiNaC expressions. GiNaC orders the operands of sums and products by
+/// hashes seeded with addresses, and some of its automatic simplifications follow that order: a
+/// sum may come as x − y in one run and as −(y − x) in another, and (a/2 + b)² as ¼(a + 2b)² in
+/// one run and as is in another (power::eval takes the content of a sum out when its first
+/// term's coefficient allows it). Canon writes every expression as e = c · ê, a numeric
+/// coefficient c times a normalized ê whose key is computed from the expression itself (numbers,
+/// symbol and function names, the keys of the operands, sorted for sums and products; a sum is
+/// normalized by the coefficient of its first term in key order): both are the same in every
+/// run. The writers take operands in key order and build ê from the keys, so their texts are
+/// too.
+class Canon {
  public:
-  FromGinac(Tape& tape, std::function<std::string(const GiNaC::symbol&)> leaf) : tape_(tape), leaf_(std::move(leaf)) {}
-  int operator()(const ex& e);
-  TS ts(const ex& e) { return TS((*this)(e)); }
-  /// A structural key of e: equal for equal expressions in every run (no addresses).
-  std::uint64_t key(const ex& e);
+  struct View {
+    GiNaC::numeric coef = 1;
+    std::uint64_t key = 0;
+  };
+  const View& operator()(const ex& e);
+  /// The terms of a sum in key order with their coefficients relative to the first (r₀ = 1):
+  /// sum = c · Σ rᵢ t̂ᵢ.
+  std::vector<std::pair<GiNaC::numeric, ex>> terms(const ex& sum);
+  /// The non-numeric factors of a product in key order.
+  std::vector<ex> factors(const ex& product);
 
  private:
-  int convert(const ex& e);
-  int power(int base, const GiNaC::numeric& p);
-  std::vector<ex> sorted_ops(const ex& e);
+  std::map<ex, View, GiNaC::ex_is_less> memo_;
+};
+
+/// GiNaC expressions onto the Tape (memoized; `leaf` names the symbols), through Canon.
+/// keep_powers: integer powers as Pow nodes (LaTeX, expression text), else products (C).
+class FromGinac {
+ public:
+  FromGinac(Tape& tape, std::function<std::string(const GiNaC::symbol&)> leaf, bool keep_powers = false)
+      : tape_(tape), leaf_(std::move(leaf)), keep_powers_(keep_powers) {}
+  int operator()(const ex& e);
+  TS ts(const ex& e) { return TS((*this)(e)); }
+
+ private:
+  int norm(const ex& e);  ///< the node of ê
+  int scaled(const GiNaC::numeric& c, int v);
+  int power(int base, long p);
   Tape& tape_;
   std::function<std::string(const GiNaC::symbol&)> leaf_;
-  std::map<ex, int, GiNaC::ex_is_less> memo_;
-  std::map<ex, std::uint64_t, GiNaC::ex_is_less> keys_;
+  bool keep_powers_;
+  Canon canon_;
+  std::map<std::uint64_t, int> memo_;
 };
 
 /// C statements for the outputs (lhs text, node): temporaries (nodes used twice or more; with
