@@ -306,7 +306,8 @@ TEST(GenerateSymbolic, RejectsWhatItCannotGenerate) {
   yaml += "\npaper_literal_forces: true\n";
   const auto problem = io::parse_problem(yaml, example("planar_2r_circle"));
   test::expect_error_mentioning([&] { generate_symbolic(*problem); }, {"paper-literal"});
-  // a jerk row (p = 3): its reference dynamics has the state [q, q̇, q̈], not generated
+  // a jerk row (p = 3) is generated (state [q, q̇, q̈]; the C compared with JerkDynamics in
+  // symbolic_c_test): a prismatic joint and a row nonlinear in the velocities
   const char* jerk = R"(
 name: particle_jerk
 model:
@@ -325,7 +326,11 @@ initial:
 integrator: {method: rk4, step: 0.01, t0: 0, t1: 3}
 )";
   const auto jp = io::parse_problem(jerk, "jerk.yaml");
-  test::expect_error_mentioning([&] { generate_symbolic(*jp); }, {"tangential_jerk", "order jerk"});
+  const SymbolicReferenceDynamics jg = generate_symbolic(*jp);
+  EXPECT_NE(jg.c_header().find("#define RD_PARTICLE_JERK_NX 6\n"), std::string::npos) << jg.c_header();
+  EXPECT_NE(jg.c_header().find("rd_particle_jerk_jerk("), std::string::npos);
+  EXPECT_NE(jg.json().find("\"order\": \"jerk\""), std::string::npos);
+  EXPECT_NE(jg.latex().find("Jerk level"), std::string::npos);
   const auto ok = io::load_problem(example("planar_2r_circle"));
   SymbolicOptions o;
   o.prefix = "9bad prefix";

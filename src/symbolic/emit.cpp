@@ -2,6 +2,7 @@
 // the printer over GiNaC expressions they share is printer.hpp).
 #include "internal.hpp"
 #include "printer.hpp"
+#include "trace.hpp"
 
 #include "refdyn/common/json.hpp"
 #include "refdyn/common/text.hpp"
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <sstream>
 
 namespace refdyn {
@@ -260,8 +262,12 @@ std::string SymbolicReferenceDynamics::latex() const {
 std::string SymbolicReferenceDynamics::json() const {
   const Impl& S = *impl_;
   const int n = S.n, m = S.m;
-  Printer p(Dialect::Text, [](const GiNaC::symbol& s) { return s.get_name(); });
-  auto str = [&](const ex& e) { return json_quote(p.print(e)); };
+  // through the canonical tape (trace.hpp): the same text in every run
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+  symbolic_detail::Tape tape;
+  symbolic_detail::TapeScope scope(tape);
+  symbolic_detail::FromGinac conv(tape, [](const GiNaC::symbol& s) { return s.get_name(); }, true);
+  auto str = [&](const ex& e) { return json_quote(symbolic_detail::expression_text(tape, conv(e))); };
   auto ints = [](const std::vector<int>& v) {
     std::string s = "[";
     for (size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);

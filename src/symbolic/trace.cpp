@@ -92,6 +92,10 @@ int Tape::mul(int a, int b) {
   if (node(b).op == Op::Neg) return neg(mul(a, node(b).args[0]));
   if (node(a).op == Op::Const && node(a).value < 0) return neg(mul(constant(-node(a).value), b));
   if (node(b).op == Op::Const && node(b).value < 0) return neg(mul(a, constant(-node(b).value)));
+  // constants gathered: c1·(c2·x) → (c1·c2)·x
+  if (node(b).op == Op::Const) std::swap(a, b);
+  if (node(a).op == Op::Const && node(b).op == Op::Mul && node(node(b).args[0]).op == Op::Const)
+    return mul(constant(node(a).value * node(node(b).args[0]).value), node(b).args[1]);
   // constants first (c*x), then by node order
   const bool ca = node(a).op == Op::Const, cb = node(b).op == Op::Const;
   if (cb && !ca) std::swap(a, b);
@@ -119,6 +123,7 @@ int Tape::neg(int a) {
 }
 
 int Tape::pow(int a, long p) {
+  if (node(a).op == Op::Const) return constant(std::pow(node(a).value, static_cast<double>(p)));
   Node n;
   n.op = Op::Pow;
   n.value = static_cast<double>(p);
@@ -127,6 +132,15 @@ int Tape::pow(int a, long p) {
 }
 
 int Tape::call(const std::string& name, std::vector<int> args) {
+  if (args.size() == 1 && node(args[0]).op == Op::Const) {
+    const double v = node(args[0]).value;
+    static const std::map<std::string, double (*)(double)> f = {
+        {"sin", [](double x) { return std::sin(x); }},   {"cos", [](double x) { return std::cos(x); }},
+        {"tan", [](double x) { return std::tan(x); }},   {"exp", [](double x) { return std::exp(x); }},
+        {"sqrt", [](double x) { return std::sqrt(x); }}, {"fabs", [](double x) { return std::fabs(x); }}};
+    const auto it = f.find(name);
+    if (it != f.end() && std::isfinite(it->second(v))) return constant(it->second(v));
+  }
   Node n;
   n.op = Op::Call;
   n.text = name;
@@ -173,6 +187,7 @@ std::string numeric_text(const GiNaC::numeric& x) {
 
 namespace {
 std::string coef_text(const GiNaC::numeric& x) { return numeric_text(x); }
+const std::uint64_t kNumberKey = fnv(kSeed, "1");  // the key of every number (its ê is 1)
 std::uint64_t tag(std::uint64_t h, const GiNaC::numeric& c) { return fnv(h, coef_text(c)); }
 }  // namespace
 
@@ -185,7 +200,7 @@ const Canon::View& Canon::operator()(const ex& e) {
     h = fnv(h, "s" + GiNaC::ex_to<GiNaC::symbol>(e).get_name());
   } else if (is_a<GiNaC::numeric>(e)) {
     r.coef = GiNaC::ex_to<GiNaC::numeric>(e);
-    h = fnv(h, "1");
+    h = kNumberKey;
   } else if (is_a<GiNaC::constant>(e)) {
     h = fnv(h, "c" + double_text(GiNaC::ex_to<GiNaC::numeric>(e.evalf()).to_double(), 17));
   } else if (is_a<GiNaC::add>(e)) {
@@ -195,7 +210,13 @@ const Canon::View& Canon::operator()(const ex& e) {
       ts.emplace_back(t.key, t.coef);
     }
     std::stable_sort(ts.begin(), ts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    // normalized by the first term that is not a number (a sum has one)
     r.coef = ts[0].second;
+    for (size_t i = 0; i < e.nops(); ++i)
+      if (ts[i].first != kNumberKey) {
+        r.coef = ts[i].second;
+        break;
+      }
     h = fnv(h, "+");
     for (const auto& [k, c] : ts) h = tag(fnv(h, k), c / r.coef);
   } else if (is_a<GiNaC::mul>(e)) {
@@ -242,8 +263,9 @@ std::vector<std::pair<GiNaC::numeric, ex>> Canon::terms(const ex& sum) {
     v.emplace_back(t.key, t.coef, sum.op(i));
   }
   std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+  const GiNaC::numeric lead = (*this)(sum).coef;
   std::vector<std::pair<GiNaC::numeric, ex>> out;
-  for (auto& [k, c, t] : v) out.emplace_back(c / std::get<1>(v[0]), t);
+  for (auto& [k, c, t] : v) out.emplace_back(c / lead, t);
   return out;
 }
 
@@ -257,7 +279,21 @@ std::vector<ex> Canon::factors(const ex& product) {
   return out;
 }
 
-int FromGinac::operator()(const ex& e) { return scaled(canon_(e).coef, norm(e)); }
+int FromGinac::operator()(const ex& e) {
+  if (!is_a<GiNaC::add>(e)) return scaled(canon_(e).coef, norm(e));
+  // a sum whole: its terms with their own coefficients (c·rᵢ, exact), in key order
+  const auto hit = whole_.find(e);
+  if (hit != whole_.end()) return hit->second;
+  const GiNaC::numeric c = canon_(e).coef;
+  int id = -1;
+  for (const auto& [r, t] : canon_.terms(e)) {
+    const GiNaC::numeric ci = c * r;
+    const int v = scaled(GiNaC::abs(ci), norm(t));
+    id = id < 0 ? (ci.is_negative() ? tape_.neg(v) : v) : ci.is_negative() ? tape_.sub(id, v) : tape_.add(id, v);
+  }
+  whole_.emplace(e, id);
+  return id;
+}
 
 int FromGinac::scaled(const GiNaC::numeric& c0, int v) {
   if (c0.is_equal(1)) return v;
@@ -296,7 +332,7 @@ int FromGinac::norm(const ex& e) {
   } else if (is_a<GiNaC::add>(e)) {
     for (const auto& [r, t] : canon_.terms(e)) {
       const int v = scaled(GiNaC::abs(r), norm(t));
-      id = id < 0 ? v : r.is_negative() ? tape_.sub(id, v) : tape_.add(id, v);
+      id = id < 0 ? (r.is_negative() ? tape_.neg(v) : v) : r.is_negative() ? tape_.sub(id, v) : tape_.add(id, v);
     }
   } else if (is_a<GiNaC::mul>(e)) {
     int num = -1, den = -1;
@@ -372,7 +408,15 @@ class Emitter {
         return n.value < 0 ? "(-" + s + ")" : s;
       }
       case Tape::Op::Leaf: return n.text;
-      case Tape::Op::Add: ++operations; return text(n.args[0]) + " + " + text(n.args[1]);
+      case Tape::Op::Add: {
+        ++operations;
+        int a = n.args[0], b = n.args[1];
+        if (t_.node(a).op == Tape::Op::Const) std::swap(a, b);
+        if (t_.node(b).op == Tape::Op::Const && t_.node(b).value < 0)
+          return text(a) + " - " + double_text(-t_.node(b).value, 17) +
+                 (-t_.node(b).value == std::trunc(t_.node(b).value) && std::fabs(t_.node(b).value) < 4503599627370496.0 ? ".0" : "");
+        return text(a) + " + " + text(b);
+      }
       case Tape::Op::Sub: ++operations; return text(n.args[0]) + " - " + operand(n.args[1], 1);
       case Tape::Op::Mul: ++operations; return operand(n.args[0], 2) + "*" + operand(n.args[1], 2);
       case Tape::Op::Div: ++operations; return operand(n.args[0], 2) + "/" + operand(n.args[1], 3);
@@ -437,6 +481,75 @@ std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>
   temporaries += temps;
   operations += em.operations;
   return code;
+}
+
+namespace {
+/// The expression language's text of a node; `level` as in the C emitter (0 any, 1 right of −,
+/// 2 factor, 3 divisor, 4 base of a power).
+std::string text_of(const Tape& t, int id, int level, std::map<int, std::string>& memo) {
+  const Tape::Node& n = t.node(id);
+  std::string s;
+  bool low = false;  // needs parentheses at this level
+  const auto it = memo.find(id);
+  if (it != memo.end()) {
+    s = it->second;
+  } else {
+    auto sub = [&](int a, int l) { return text_of(t, a, l, memo); };
+    switch (n.op) {
+      case Tape::Op::Const: {
+        s = double_text(std::fabs(n.value), 17);
+        if (n.value < 0) s = "-" + s;
+        break;
+      }
+      case Tape::Op::Leaf: s = n.text; break;
+      case Tape::Op::Add: {
+        int a = n.args[0], b = n.args[1];
+        if (t.node(a).op == Tape::Op::Const) std::swap(a, b);
+        if (t.node(b).op == Tape::Op::Const && t.node(b).value < 0)
+          s = sub(a, 0) + " - " + double_text(-t.node(b).value, 17);
+        else
+          s = sub(a, 0) + " + " + sub(b, 0);
+        break;
+      }
+      case Tape::Op::Sub: s = sub(n.args[0], 0) + " - " + sub(n.args[1], 1); break;
+      case Tape::Op::Mul: s = sub(n.args[0], 2) + "*" + sub(n.args[1], 2); break;
+      case Tape::Op::Div: s = sub(n.args[0], 2) + "/" + sub(n.args[1], 3); break;
+      case Tape::Op::Neg: s = "-" + sub(n.args[0], 2); break;
+      case Tape::Op::Pow: s = sub(n.args[0], 4) + "^" + double_text(n.value, 17); break;
+      case Tape::Op::Call: {
+        static const std::map<std::string, std::string> names = {
+            {"fabs", "abs"}, {"rd_min", "min"}, {"rd_max", "max"}, {"rd_step", "step"}, {"rd_clamp", "clamp"}};
+        if (n.text == "rd_sgn") {
+          s = "if(" + sub(n.args[0], 0) + " >= 0, 1, -1)";
+        } else if (n.text == "pow") {
+          s = sub(n.args[0], 4) + "^" + sub(n.args[1], 4);
+        } else {
+          const auto nm = names.find(n.text);
+          s = (nm == names.end() ? n.text : nm->second) + "(";
+          for (size_t i = 0; i < n.args.size(); ++i) s += (i ? ", " : "") + sub(n.args[i], 0);
+          s += ")";
+        }
+        break;
+      }
+      case Tape::Op::Cond:
+        s = "if(" + sub(n.args[0], 0) + (n.value != 0 ? " < " : " <= ") + sub(n.args[1], 0) + ", " + sub(n.args[2], 0) +
+            ", " + sub(n.args[3], 0) + ")";
+        break;
+    }
+    if (s.size() < 4096) memo.emplace(id, s);
+  }
+  const auto op = n.op;
+  if (op == Tape::Op::Add || op == Tape::Op::Sub) low = level >= 1;
+  if (op == Tape::Op::Neg || (op == Tape::Op::Const && n.value < 0)) low = level >= 1;
+  if (op == Tape::Op::Mul || op == Tape::Op::Div) low = level >= 3;
+  if (op == Tape::Op::Pow || (op == Tape::Op::Call && n.text == "pow")) low = level >= 4;
+  return low ? "(" + s + ")" : s;
+}
+}  // namespace
+
+std::string expression_text(const Tape& tape, int id) {
+  std::map<int, std::string> memo;
+  return text_of(tape, id, 0, memo);
 }
 
 // ---- the composite-rigid-body algorithm ------------------------------------------------------

@@ -121,6 +121,7 @@ class FromGinac {
   bool keep_powers_;
   Canon canon_;
   std::map<std::uint64_t, int> memo_;
+  std::map<ex, int, GiNaC::ex_is_less> whole_;
 };
 
 /// C statements for the outputs (lhs text, node): temporaries (nodes used twice or more; with
@@ -128,6 +129,10 @@ class FromGinac {
 /// temporaries and the operations (+ − × ÷ and calls) written.
 std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>>& outputs, bool cse,
                  const std::string& indent, long& temporaries, long& operations);
+
+/// A node as a text of refdyn's expression language (the JSON writer): whole, no temporaries;
+/// `^` for powers, abs, min, max, step, clamp and if() for the piecewise functions.
+std::string expression_text(const Tape& tape, int id);
 
 /// M (row-major n×n) by the composite-rigid-body algorithm in body frames on TS.
 std::vector<TS> crba(const multibody::Bodies<TS>& bodies, const multibody::Poses<TS>& poses);
