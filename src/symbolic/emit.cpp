@@ -34,87 +34,6 @@ const SymbolicSummary& SymbolicReferenceDynamics::summary() const { return impl_
 namespace {
 
 
-class LatexWriter {
- public:
-  /// `shown`: every expression the document displays (for counting shared sub-expressions).
-  LatexWriter(const SymbolicReferenceDynamics::Impl& S, const std::vector<ex>& shown)
-      : p_(Dialect::Latex, [](const GiNaC::symbol& s) { return s.get_TeX_name(); }) {
-    for (int i = 0; i < S.n; ++i) qindex_[S.q[i].get_name()] = i + 1;
-    for (const ex& e : shown) count_uses(e, count_);
-    p_.memo = &memo_;
-    p_.shared = [this](const ex& e) { return shared(e); };
-  }
-  /// "lhs &= rhs \\" with a line break every ~140 characters of a long top-level sum.
-  std::string equation(const std::string& lhs, const ex& e) {
-    std::string body;
-    if (is_a<GiNaC::add>(e) && e.nops() > 3) {
-      std::size_t width = 0;
-      for (size_t i = 0; i < e.nops(); ++i) {
-        const ex t = e.op(i);
-        const bool neg = Printer::negative_term(t);
-        const std::string term = p_.print(neg ? ex(-t) : t);
-        if (i > 0 && width + term.size() > 140) {
-          body += " \\\\\n  &\\quad";
-          width = 0;
-        }
-        body += (i == 0 ? (neg ? "-" : "") : (neg ? " - " : " + ")) + term;
-        width += term.size() + 3;
-      }
-    } else {
-      const std::string abbreviation = trig(e);
-      body = !abbreviation.empty() ? abbreviation
-             : (is_a<GiNaC::symbol>(e) || is_a<GiNaC::numeric>(e)) ? p_.print(e)
-                                                                  : p_.print_node(e);
-    }
-    return "  " + lhs + " &= " + body + " \\\\\n";
-  }
-  /// The auxiliary quantities u_k the printed equations use, defined in order.
-  std::string definitions() {
-    std::string out;
-    for (std::size_t k = 0; k < defs_.size(); ++k) out += equation("u_{" + std::to_string(k + 1) + "}", defs_[k]);
-    return out;
-  }
-  std::size_t size() const { return defs_.size(); }
-
- private:
-  /// sin(q_i), cos(q_i) → s_i, c_i
-  std::string trig(const ex& e) const {
-    if (!is_a<GiNaC::function>(e) || e.nops() != 1 || !is_a<GiNaC::symbol>(e.op(0))) return "";
-    const auto it = qindex_.find(GiNaC::ex_to<GiNaC::symbol>(e.op(0)).get_name());
-    if (it == qindex_.end()) return "";
-    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-    if (name == "sin") return "s_{" + std::to_string(it->second) + "}";
-    if (name == "cos") return "c_{" + std::to_string(it->second) + "}";
-    return "";
-  }
-  /// A sub-expression becomes an auxiliary u_k when it is shared and not short, or long.
-  std::string shared(const ex& e) {
-    const std::string abbreviation = trig(e);
-    if (!abbreviation.empty()) return abbreviation;
-    if (is_a<GiNaC::symbol>(e) || is_a<GiNaC::numeric>(e) || is_a<GiNaC::constant>(e)) return "";
-    const auto t = temp_.find(e);
-    if (t != temp_.end()) return t->second;
-    if (memo_.count(e)) return "";  // decided: printed inline
-    const std::string text = p_.print_node(e);
-    const auto c = count_.find(e);
-    const int uses = c == count_.end() ? 1 : c->second;
-    if ((uses >= 2 && text.size() >= 40) || text.size() >= 300) {
-      defs_.push_back(e);
-      const std::string name = "u_{" + std::to_string(defs_.size()) + "}";
-      temp_.emplace(e, name);
-      return name;
-    }
-    memo_.emplace(e, text);
-    return "";
-  }
-
-  Printer p_;
-  std::map<std::string, int> qindex_;
-  ExCount count_;
-  std::map<ex, std::string, GiNaC::ex_is_less> memo_, temp_;
-  std::vector<ex> defs_;
-};
-
 std::string latex_text(const std::string& s) {
   std::string r;
   for (char ch : s) {
@@ -127,6 +46,188 @@ std::string latex_text(const std::string& s) {
   return r;
 }
 
+
+/// The LaTeX of the displayed expressions, through the canonical tape (trace.hpp): the same
+/// text in every run. Shared sub-expressions that are not short, and long ones, become
+/// auxiliary quantities u_k, numbered in the order they are first printed; sin q_i, cos q_i are
+/// written s_i, c_i.
+class LatexWriter {
+ public:
+  /// `shown`: every expression the document displays (for counting shared sub-expressions).
+  LatexWriter(const SymbolicReferenceDynamics::Impl& S, const std::vector<ex>& shown)
+      : scope_(tape_), conv_(tape_, [](const GiNaC::symbol& s) { return s.get_TeX_name(); }, true) {
+    for (int i = 0; i < S.n; ++i) qindex_[S.q[i].get_TeX_name()] = i + 1;
+    std::vector<int> roots;
+    for (const ex& e : shown) roots.push_back(conv_(e));
+    uses_.assign(tape_.size(), 0);
+    for (int r : roots) count(r);
+  }
+  /// "lhs &= rhs \\" with a line break every ~140 characters of a long top-level sum.
+  std::string equation(const std::string& lhs, const ex& e) {
+    const int id = conv_(e);
+    grow();
+    std::vector<std::pair<bool, int>> terms;  // (negative, term) of the top-level sum
+    flatten(id, false, terms);
+    std::string body;
+    if (terms.size() > 3) {
+      std::size_t width = 0;
+      for (size_t i = 0; i < terms.size(); ++i) {
+        const auto [neg, t] = terms[i];
+        const std::string term = operand(t, 1);
+        if (i > 0 && width + term.size() > 140) {
+          body += " \\\\\n  &\\quad";
+          width = 0;
+        }
+        body += (i == 0 ? (neg ? "-" : "") : (neg ? " - " : " + ")) + term;
+        width += term.size() + 3;
+      }
+    } else {
+      body = node_text(id);
+    }
+    return "  " + lhs + " &= " + body + " \\\\\n";
+  }
+  /// The auxiliary quantities u_k the printed equations use, defined in order.
+  std::string definitions() {
+    std::string out;
+    for (std::size_t k = 0; k < defs_.size(); ++k) out += "  u_{" + std::to_string(k + 1) + "} &= " + defs_[k] + " \\\\\n";
+    return out;
+  }
+  std::size_t size() const { return defs_.size(); }
+
+ private:
+  using Op = symbolic_detail::Tape::Op;
+  const symbolic_detail::Tape::Node& N(int id) const { return tape_.node(id); }
+  void grow() {
+    if (uses_.size() < tape_.size()) uses_.resize(tape_.size(), 1);
+  }
+  void count(int id) {
+    if (uses_[id]++ > 0) return;
+    for (int a : N(id).args) count(a);
+  }
+  void flatten(int id, bool neg, std::vector<std::pair<bool, int>>& out) {
+    const auto& n = N(id);
+    if (n.op == Op::Add && !(N(n.args[1]).op == Op::Const && N(n.args[1]).value < 0) &&
+        !(N(n.args[0]).op == Op::Const && N(n.args[0]).value < 0)) {
+      flatten(n.args[0], neg, out);
+      flatten(n.args[1], neg, out);
+    } else if (n.op == Op::Sub) {
+      flatten(n.args[0], neg, out);
+      flatten(n.args[1], !neg, out);
+    } else if (n.op == Op::Neg) {
+      flatten(n.args[0], !neg, out);
+    } else {
+      out.emplace_back(neg, id);
+    }
+  }
+  static std::string number(double v) {
+    std::string s = double_text(std::fabs(v), 6);
+    const auto e = s.find('e');
+    if (e != std::string::npos) s = s.substr(0, e) + " \\cdot 10^{" + std::to_string(std::stoi(s.substr(e + 1))) + "}";
+    return v < 0 ? "-" + s : s;
+  }
+  /// sin(q_i), cos(q_i) → s_i, c_i
+  std::string trig(int id) const {
+    const auto& n = N(id);
+    if (n.op != Op::Call || n.args.size() != 1 || N(n.args[0]).op != Op::Leaf) return "";
+    const auto it = qindex_.find(N(n.args[0]).text);
+    if (it == qindex_.end()) return "";
+    if (n.text == "sin") return "s_{" + std::to_string(it->second) + "}";
+    if (n.text == "cos") return "c_{" + std::to_string(it->second) + "}";
+    return "";
+  }
+  /// A node where it is used: its auxiliary name, or its text (which may make it one).
+  std::string print(int id) {
+    const auto a = aux_.find(id);
+    if (a != aux_.end()) return a->second;
+    const auto& n = N(id);
+    if (n.op == Op::Const || n.op == Op::Leaf) return node_text(id);
+    const std::string abbreviation = trig(id);
+    if (!abbreviation.empty()) return abbreviation;
+    const std::string text = node_text(id);
+    grow();
+    if ((uses_[id] >= 2 && text.size() >= 40) || text.size() >= 300) {
+      defs_.push_back(text);
+      const std::string name = "u_{" + std::to_string(defs_.size()) + "}";
+      aux_.emplace(id, name);
+      return name;
+    }
+    return text;
+  }
+  /// print(id) as an operand: level 1 right of −, 2 factor, 4 base of a power.
+  std::string operand(int id, int level) {
+    const std::string s = print(id);
+    if (aux_.count(id) || !trig(id).empty()) return s;
+    const auto& n = N(id);
+    const bool low = ((n.op == Op::Add || n.op == Op::Sub) && level >= 1) ||
+                     ((n.op == Op::Neg || (n.op == Op::Const && n.value < 0)) && level >= 2) ||
+                     ((n.op == Op::Mul || n.op == Op::Div || n.op == Op::Pow) && level >= 4);
+    return low ? "\\left(" + s + "\\right)" : s;
+  }
+  std::string node_text(int id) {
+    const auto m = memo_.find(id);
+    if (m != memo_.end()) return m->second;
+    const auto& n = N(id);
+    std::string s;
+    switch (n.op) {
+      case Op::Const: s = number(n.value); break;
+      case Op::Leaf: s = n.text == "pi" ? "\\pi" : n.text; break;
+      case Op::Add: {
+        int a = n.args[0], b = n.args[1];
+        if (N(a).op == Op::Const) std::swap(a, b);
+        if (N(b).op == Op::Const && N(b).value < 0) s = print(a) + " - " + number(-N(b).value);
+        else s = print(a) + " + " + operand(b, 0);
+        break;
+      }
+      case Op::Sub: s = print(n.args[0]) + " - " + operand(n.args[1], 1); break;
+      case Op::Mul: s = operand(n.args[0], 2) + " " + operand(n.args[1], 2); break;
+      case Op::Div: s = "\\frac{" + print(n.args[0]) + "}{" + print(n.args[1]) + "}"; break;
+      case Op::Neg: s = "-" + operand(n.args[0], 2); break;
+      case Op::Pow: s = "{" + operand(n.args[0], 4) + "}^{" + number(n.value) + "}"; break;
+      case Op::Cond:
+        s = "\\begin{cases}" + print(n.args[2]) + " & " + print(n.args[0]) + (n.value != 0 ? " < " : " \\le ") +
+            print(n.args[1]) + "\\\\ " + print(n.args[3]) + " & \\text{otherwise}\\end{cases}";
+        break;
+      case Op::Call: {
+        const std::string abbreviation = trig(id);
+        if (!abbreviation.empty()) {
+          s = abbreviation;
+          break;
+        }
+        std::vector<std::string> a;
+        for (int x : n.args) a.push_back(print(x));
+        auto call = [&](const std::string& name) {
+          std::string r = name + "\\left(";
+          for (size_t i = 0; i < a.size(); ++i) r += (i ? ", " : "") + a[i];
+          return r + "\\right)";
+        };
+        const std::string& f = n.text;
+        static const std::map<std::string, std::string> names = {
+            {"sin", "\\sin"},     {"cos", "\\cos"},       {"tan", "\\tan"},       {"sinh", "\\sinh"},
+            {"cosh", "\\cosh"},   {"tanh", "\\tanh"},     {"exp", "\\exp"},       {"log", "\\log"},
+            {"asin", "\\arcsin"}, {"acos", "\\arccos"},   {"atan", "\\arctan"},   {"rd_min", "\\min"},
+            {"rd_max", "\\max"},  {"rd_sgn", "\\operatorname{sgn}"}, {"rd_step", "\\operatorname{step}"},
+            {"rd_clamp", "\\operatorname{clamp}"}};
+        if (f == "sqrt") s = "\\sqrt{" + a[0] + "}";
+        else if (f == "fabs") s = "\\left|" + a[0] + "\\right|";
+        else if (f == "pow") s = "{" + operand(n.args[0], 4) + "}^{" + a[1] + "}";
+        else if (names.count(f)) s = call(names.at(f));
+        else s = call("\\operatorname{" + latex_text(f) + "}");
+        break;
+      }
+    }
+    memo_.emplace(id, s);
+    return s;
+  }
+
+  symbolic_detail::Tape tape_;
+  symbolic_detail::TapeScope scope_;
+  symbolic_detail::FromGinac conv_;
+  std::map<std::string, int> qindex_;
+  std::vector<int> uses_;
+  std::map<int, std::string> aux_, memo_;
+  std::vector<std::string> defs_;
+};
+
 }  // namespace
 
 std::string SymbolicReferenceDynamics::latex() const {
@@ -135,6 +236,7 @@ std::string SymbolicReferenceDynamics::latex() const {
   std::vector<ex> shown;
   for (const auto* v : {&S.M, &S.c, &S.g, &S.Q, &S.zdot, &S.phi, &S.phid, &S.A, &S.gamma, &S.R, &S.Rdot, &S.Gdot, &S.psi, &S.b})
     shown.insert(shown.end(), v->begin(), v->end());
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
   LatexWriter w(S, shown);
   std::ostringstream o;
   o << "% Reference dynamics of '" << S.name << "', generated by refdyn (refdyn generate).\n"
