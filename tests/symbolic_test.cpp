@@ -362,5 +362,39 @@ TEST(GenerateCommand, WritesTheRequestedFormatsAndNothingOnError) {
   EXPECT_FALSE(fs::exists(dir));
 }
 
+std::string file_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream o;
+  o << in.rdbuf();
+  return o.str();
+}
+
+// `refdyn generate` in separate processes (address-space randomization on: GiNaC's hash order
+// moves from run to run) writes byte-identical files: the writers are canonical (trace.hpp).
+TEST(GenerateCommand, WritesTheSameTextInEveryRun) {
+  {
+    std::ifstream aslr("/proc/sys/kernel/randomize_va_space");
+    int mode = -1;
+    if (aslr >> mode && mode == 0) std::printf("note: address-space randomization is off on this machine\n");
+  }
+  const fs::path base = fs::temp_directory_path() / ("refdyn_same_text_" + std::to_string(::getpid()));
+  const std::string data = std::string(REFDYN_SOURCE_DIR) + "/tests/data/symbolic/";
+  for (const std::string& file : {example("paper"), example("urdf_arm_line"), example("unicycle"),
+                                  data + "every_kind.yaml", data + "arm_jerk.yaml"}) {
+    SCOPED_TRACE(file);
+    std::vector<fs::path> dirs;
+    for (int run_index = 0; run_index < 3; ++run_index) {
+      dirs.push_back(base / std::to_string(run_index));
+      ASSERT_EQ(run("generate '" + file + "' -o '" + dirs.back().string() + "' -q"), 0);
+    }
+    for (const char* f : {"reference_dynamics.c", "reference_dynamics.h", "equations.tex", "reference_dynamics.json"}) {
+      const std::string first = file_text(dirs[0] / f);
+      ASSERT_FALSE(first.empty()) << f;
+      for (size_t k = 1; k < dirs.size(); ++k) EXPECT_TRUE(file_text(dirs[k] / f) == first) << f << " differs in run " << k;
+    }
+    fs::remove_all(base);
+  }
+}
+
 }  // namespace
 }  // namespace refdyn
