@@ -41,13 +41,21 @@ void Constraint::evaluate_dual(const ConstraintInputDual&, JS*, JS*, JS*, JS*) c
               "expression constraint)");
 }
 
-ImplicitSurface::ValueDual ImplicitSurface::eval_dual(const V3D&, double) const {
+ImplicitSurface::ValueDual ImplicitSurface::eval_dual(const V3D&, const JS&) const {
   throw Error("surface " + describe() +
               " has no exact derivatives: its kind does not implement eval_dual (hint: an implicit integrator's "
               "exact Jacobian needs it; use an explicit integrator)");
 }
 
 namespace {
+
+/// −x with derivative parts 0 − x.d (never −0): for a constant x the bits of JS(−x.v), which the
+/// double-time code wrote, so an unseeded time gives its results bit for bit.
+JS negated(const JS& x) {
+  JS r(-x.v);
+  for (int k = 0; k < kJacobianDirections; ++k) r.d[k] = 0.0 - x.d[k];
+  return r;
+}
 
 ImplicitSurface::ValueDual zero_surface_value() {
   ImplicitSurface::ValueDual v;
@@ -71,7 +79,7 @@ class EllipticCylinder final : public ImplicitSurface {
     v.hess(1, 1) = 2 * ib2_;
     return v;
   }
-  ValueDual eval_dual(const V3D& r, double) const override {
+  ValueDual eval_dual(const V3D& r, const JS&) const override {
     const JS x = r[0] - JS(cx_.value), y = r[1] - JS(cy_.value);
     ValueDual v = zero_surface_value();
     v.f = x * x * JS(ia2_) + y * y * JS(ib2_) - JS(1.0);
@@ -108,7 +116,7 @@ class Sphere final : public ImplicitSurface {
     v.hess = 2 * Mat3::Identity();
     return v;
   }
-  ValueDual eval_dual(const V3D& r, double) const override {
+  ValueDual eval_dual(const V3D& r, const JS&) const override {
     ValueDual v = zero_surface_value();
     const V3D e = multibody::sub(r, multibody::lift<JS>(c_));
     v.f = multibody::dot(e, e) - JS(R_.value * R_.value);
@@ -146,14 +154,14 @@ class Plane final : public ImplicitSurface {
     v.ftt = -h.ddf;
     return v;
   }
-  ValueDual eval_dual(const V3D& r, double t) const override {
-    const TimeValue h = h_->eval(t);
+  ValueDual eval_dual(const V3D& r, const JS& t) const override {
+    const TimeValueDual h = refdyn::eval_dual(*h_, t);
     ValueDual v = zero_surface_value();
     const V3D n = multibody::lift<JS>(n_);
-    v.f = multibody::dot(n, r) - JS(h.f);
+    v.f = multibody::dot(n, r) - h.f;
     v.grad = n;
-    v.ft = JS(-h.df);
-    v.ftt = JS(-h.ddf);
+    v.ft = negated(h.df);
+    v.ftt = negated(h.ddf);
     return v;
   }
   bool rheonomic() const override { return true; }
@@ -236,11 +244,11 @@ class PointCoordinate final : public Constraint {
   }
   void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
     const PointStateT<JS>& P = in.points[p_];
-    const TimeValue f = f_->eval(in.t);
-    phi[0] = P.r[k_] - JS(f.f);
-    phid[0] = P.v[k_] - JS(f.df);
+    const TimeValueDual f = eval_dual(*f_, in.t);
+    phi[0] = P.r[k_] - f.f;
+    phid[0] = P.v[k_] - f.df;
     for (int j = 0; j < in.n; ++j) A[j] = P.C[j][k_];
-    gamma[0] = P.d[k_] - JS(f.ddf);
+    gamma[0] = P.d[k_] - f.ddf;
   }
   std::string describe() const override {
     return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
@@ -271,12 +279,12 @@ class JointTrajectory final : public Constraint {
     gamma[0] = -f.ddf;
   }
   void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
-    const TimeValue f = f_->eval(in.t);
-    phi[0] = in.q[j_] - JS(f.f);
-    phid[0] = in.qd[j_] - JS(f.df);
+    const TimeValueDual f = eval_dual(*f_, in.t);
+    phi[0] = in.q[j_] - f.f;
+    phid[0] = in.qd[j_] - f.df;
     std::fill_n(A, in.n, JS(0.0));
     A[j_] = JS(1.0);
-    gamma[0] = JS(-f.ddf);
+    gamma[0] = negated(f.ddf);
   }
   std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
   std::optional<SymbolicForm> symbolic() const override { return with_function("q(" + jn_ + ") - (", *f_, ")"); }
@@ -436,12 +444,12 @@ class PointSpeed final : public Constraint {
   void evaluate_dual(const ConstraintInputDual& in, JS* phi, JS* phid, JS* A, JS* gamma) const override {
     using namespace multibody;
     const PointStateT<JS>& P = in.points[p_];
-    const TimeValue s = s_->eval(in.t);
+    const TimeValueDual s = refdyn::eval_dual(*s_, in.t);
     const V3D u = lift<JS>(u_);
-    phi[0] = dot(u, P.v) - JS(s.f);
+    phi[0] = dot(u, P.v) - s.f;
     phid[0] = phi[0];
     for (int j = 0; j < in.n; ++j) A[j] = dot(u, P.C[j]);
-    gamma[0] = dot(u, P.d) - JS(s.df);
+    gamma[0] = dot(u, P.d) - s.df;
   }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
   std::optional<SymbolicForm> symbolic() const override {
@@ -672,7 +680,7 @@ ConstraintEvalDual::ConstraintEvalDual(const Model& model, const ConstraintSet& 
                             motion);
 }
 
-void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev, double t,
+void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev, const JS& t,
                                const JS* q, const JS* qd) {
   using namespace multibody;
   if (ev.model_id != model.id || ev.m != set.rows() || ev.n != model.nv ||

@@ -266,7 +266,7 @@ class ExpressionConstraint final : public Constraint {
         case VarKind::JointVel: w[k] = in.qd[v.index]; break;
         case VarKind::JointAcc: w[k] = zero; break;
         case VarKind::Time:
-          w[k] = JS(in.t);
+          w[k] = in.t;  // a seeded t differentiates f's explicit time dependence
           wd[k] = JS(1.0);
           break;
       }
@@ -380,14 +380,25 @@ class ExpressionConstraint final : public Constraint {
   std::unique_ptr<Expression> expr_;
 };
 
+ExpressionOptions third_derivative() {
+  ExpressionOptions o;
+  o.derivative_order = 0;
+  o.differentiate_times = 3;
+  o.differentiate_variable = 0;
+  return o;
+}
+
+/// f, f', f'' from one tape (value, gradient, Hessian in t); f''' from a second, value-only
+/// tape of d³f/dt³, differentiated by GiNaC.
 class ExpressionTimeFunction final : public TimeFunction {
  public:
   ExpressionTimeFunction(const std::string& text, const std::map<std::string, double>& params)
-      : text_(text), params_(params), expr_(text, {"t"}, params, 2) {}
+      : text_(text), params_(params), expr_(text, {"t"}, params, 2), third_(text, {"t"}, params, third_derivative()) {}
   std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
   TimeValue eval(double t) const override {
     TimeValue v;
     expr_.evaluate(&t, v.f, &v.df, &v.ddf);
+    v.dddf = third_.value(&t);
     return v;
   }
   std::string describe() const override { return text_; }
@@ -395,6 +406,7 @@ class ExpressionTimeFunction final : public TimeFunction {
   std::string text_;
   std::map<std::string, double> params_;
   Expression expr_;
+  Expression third_;  // d³f/dt³
 };
 
 }  // namespace
@@ -414,6 +426,46 @@ NewConstraint expression_constraint(const Model& model, const std::string& name,
                                     ConstraintOrigin origin) {
   return expression_constraint(model, name, text, first_order ? ConstraintOrder::Velocity : ConstraintOrder::Position,
                                parameters, origin);
+}
+
+std::string differentiate_expression_text(const Model& model, const std::string& name, const std::string& text,
+                                          const std::map<std::string, double>& parameters) {
+  // Every variable of every order, with the name of its rate ("" for the jerks: order 4).
+  std::vector<std::string> names, rates;
+  const char* axes[] = {"x", "y", "z"};
+  const char* level[] = {"", "v", "a", "j"};
+  for (const std::string& p : model.point_name)
+    for (int l = 0; l < 4; ++l)
+      for (const char* a : axes) {
+        names.push_back(std::string(level[l]) + a + "(" + p + ")");
+        rates.push_back(l < 3 ? std::string(level[l + 1]) + a + "(" + p + ")" : std::string());
+      }
+  const char* joint_level[] = {"q", "qd", "qdd", "qddd"};
+  for (const std::string& j : model.joint_name)
+    for (int l = 0; l < 4; ++l) {
+      names.push_back(std::string(joint_level[l]) + "(" + j + ")");
+      rates.push_back(l < 3 ? std::string(joint_level[l + 1]) + "(" + j + ")" : std::string());
+    }
+  names.push_back("t");
+  rates.push_back("1");
+  std::unique_ptr<Expression> f;
+  try {
+    f = std::make_unique<Expression>(text, names, parameters, 1);
+  } catch (const Error& e) {
+    throw Error("constraint '" + name + "': " + e.what());
+  }
+  std::string out;
+  for (int k : f->used_variables()) {
+    const std::string d = f->derivative_text(k);
+    if (d == "0") continue;
+    if (rates[k].empty())
+      throw Error("constraint '" + name + "': differentiate: the expression involves the jerk " + names[k] +
+                  ", whose time derivative (order 4) refdyn does not take (hint: differentiate a row of order "
+                  "position, velocity or acceleration)");
+    if (!out.empty()) out += " + ";
+    out += rates[k] == "1" ? "(" + d + ")" : "(" + d + ")*" + rates[k];
+  }
+  return out.empty() ? "0" : out;
 }
 
 TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters) {

@@ -39,6 +39,13 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
     throw Error(expected_got("Expression derivative_order", "0, 1 or 2",
                              std::to_string(derivative_order)));
   impl->order = derivative_order;
+  if (options.differentiate_times < 0)
+    throw Error(expected_got("Expression differentiate_times", ">= 0", std::to_string(options.differentiate_times)));
+  if (options.differentiate_times > 0 &&
+      (options.differentiate_variable < 0 || options.differentiate_variable >= static_cast<int>(variables.size())))
+    throw Error(expected_got("Expression differentiate_variable", variables.empty() ? std::string("a variable's index (there are none)")
+                                               : "0.." + std::to_string(variables.size() - 1),
+                             std::to_string(options.differentiate_variable)));
 
   // Variable names: stripped, well-formed, unique, not parameters.
   for (const std::string& raw : variables) {

@@ -18,7 +18,7 @@ void need_finite(double x, const char* what, const char* fn) {
 class Constant final : public TimeFunction {
  public:
   explicit Constant(double c) : c_(c) {}
-  TimeValue eval(double) const override { return {c_, 0, 0}; }
+  TimeValue eval(double) const override { return {c_, 0, 0, 0}; }
   std::string describe() const override { return fmt(c_); }
   std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({symbolic_number(c_)}); }
  private:
@@ -29,8 +29,9 @@ class Polynomial final : public TimeFunction {
  public:
   explicit Polynomial(std::vector<double> c) : c_(std::move(c)) {}
   TimeValue eval(double t) const override {
-    TimeValue v;  // Horner for f, f', f''
+    TimeValue v;  // Horner for f, f', f'', f'''
     for (size_t k = c_.size(); k-- > 0;) {
+      v.dddf = v.dddf * t + 3 * v.ddf;
       v.ddf = v.ddf * t + 2 * v.df;
       v.df = v.df * t + v.f;
       v.f = v.f * t + c_[k];
@@ -57,7 +58,7 @@ class Sinusoid final : public TimeFunction {
   Sinusoid(double a, double w, double p, double o) : a_(a), w_(w), p_(p), o_(o) {}
   TimeValue eval(double t) const override {
     const double s = std::sin(w_ * t + p_), c = std::cos(w_ * t + p_);
-    return {o_ + a_ * s, a_ * w_ * c, -a_ * w_ * w_ * s};
+    return {o_ + a_ * s, a_ * w_ * c, -a_ * w_ * w_ * s, -a_ * w_ * w_ * w_ * c};
   }
   std::string describe() const override {
     return fmt(o_) + " + " + fmt(a_) + "*sin(" + fmt(w_) + "*t + " + fmt(p_) + ")";
@@ -75,7 +76,7 @@ class RaisedCosine final : public TimeFunction {
   RaisedCosine(Number f0, Number df, Number T) : f0_(std::move(f0)), df_(std::move(df)), w_(kTwoPi / T), T_(std::move(T)) {}
   TimeValue eval(double t) const override {
     const double c = std::cos(w_ * t), s = std::sin(w_ * t);
-    return {f0_ + df_ * (1 - c) / 2, df_ * w_ * s / 2, df_ * w_ * w_ * c / 2};
+    return {f0_ + df_ * (1 - c) / 2, df_ * w_ * s / 2, df_ * w_ * w_ * c / 2, -df_ * w_ * w_ * w_ * s / 2};
   }
   std::string describe() const override {
     return fmt(f0_) + " + " + fmt(df_) + "*(1 - cos(2*pi*t/" + fmt(T_) + "))/2";
@@ -98,10 +99,13 @@ class Cycloidal final : public TimeFunction {
       : r_(std::move(rise)), d_(std::move(dur)), f0_(std::move(f0)), t0_(std::move(t0)) {}
   TimeValue eval(double t) const override {
     const double tau = (t - t0_) / d_;
-    if (tau <= 0) return {f0_, 0, 0};
-    if (tau >= 1) return {f0_ + r_, 0, 0};
+    // f''' jumps at both ends (0 outside, 4π² rise/duration³ cos 2πτ inside): at τ = 0 and
+    // τ = 1 themselves it is the constant branch's 0 (f, f', f'' are continuous there).
+    if (tau <= 0) return {f0_, 0, 0, 0};
+    if (tau >= 1) return {f0_ + r_, 0, 0, 0};
     const double s = std::sin(kTwoPi * tau), c = std::cos(kTwoPi * tau);
-    return {f0_ + r_ * (tau - s / kTwoPi), r_ / d_ * (1 - c), r_ / (d_ * d_) * kTwoPi * s};
+    return {f0_ + r_ * (tau - s / kTwoPi), r_ / d_ * (1 - c), r_ / (d_ * d_) * kTwoPi * s,
+            r_ / (d_ * d_ * d_) * kTwoPi * kTwoPi * c};
   }
   std::string describe() const override {
     return "cycloidal rise " + fmt(r_) + " over " + fmt(d_) + " s from t = " + fmt(t0_);
@@ -119,6 +123,14 @@ class Cycloidal final : public TimeFunction {
   Number r_, d_, f0_, t0_;  // with the scenario's texts, for the symbolic form
 };
 }  // namespace
+
+TimeValueDual eval_dual(const TimeFunction& f, const JacobianScalar& t) {
+  const TimeValue v = f.eval(t.v);
+  bool seeded = false;
+  for (double d : t.d) seeded = seeded || d != 0.0;
+  if (!seeded) return {JacobianScalar(v.f), JacobianScalar(v.df), JacobianScalar(v.ddf)};
+  return {ad::chain(v.f, v.df, t), ad::chain(v.df, v.ddf, t), ad::chain(v.ddf, v.dddf, t)};
+}
 
 TimeFunctionPtr constant(double c) {
   need_finite(c, "value", "constant");

@@ -236,6 +236,24 @@ void LuGreFriction::apply_dual(double, const JacobianScalar*, const JacobianScal
   Q[j_] -= p_.sigma0.value * z[0] + p_.sigma1.value * zd + p_.sigma2.value * v;
 }
 
+bool LuGreFriction::add_rate_with_states(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                         const Eigen::VectorXd& qdd, const double* z, const double* zdot,
+                                         Eigen::VectorXd& Qdot) const {
+  // The force depends on (q̇, z) only (no explicit time): its rate is the derivative of
+  // apply_dual along the seeds q̇ → q̈, z → ż (one direction).
+  const int n = static_cast<int>(q.size());
+  std::vector<JacobianScalar> qv(n), qdv(n), Q(n, JacobianScalar(0.0));
+  for (int i = 0; i < n; ++i) {
+    qv[i] = JacobianScalar::variable(q[i], 0, 0.0);
+    qdv[i] = JacobianScalar::variable(qd[i], 0, qdd[i]);
+  }
+  const JacobianScalar zv = JacobianScalar::variable(z[0], 0, zdot[0]);
+  JacobianScalar zd;
+  apply_dual(t, qv.data(), qdv.data(), &zv, Q.data(), &zd);
+  for (int i = 0; i < n; ++i) Qdot[i] += Q[i].d[0];
+  return true;
+}
+
 void ForceSet::evaluate_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
                              int nq, JacobianScalar* Q, JacobianScalar* zdot) const {
   for (int i = 0; i < nq; ++i) Q[i] = JacobianScalar(0.0);

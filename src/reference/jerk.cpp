@@ -9,6 +9,7 @@
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/constraints/constraints.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -121,15 +122,15 @@ bool is_acc(JVar k) { return k == JVar::A || k == JVar::QDD; }
 }  // namespace
 
 struct JerkConstraint::Impl {
-  std::vector<JerkVar> vars;
-  std::unique_ptr<Expression> expr;
+  std::vector<JerkVar> vars, source_vars;
+  std::unique_ptr<Expression> expr, source;
 };
 
 JerkConstraint::~JerkConstraint() = default;
 
 JerkConstraint::JerkConstraint(const Model& m, const std::string& name, const std::string& text,
-                               const std::map<std::string, double>& params)
-    : name_(name), text_(text), impl_(std::make_unique<Impl>()) {
+                               const std::map<std::string, double>& params, const std::string& source_text)
+    : name_(name), text_(text), source_text_(source_text), impl_(std::make_unique<Impl>()) {
   std::vector<std::string> names;
   std::vector<JerkVar> all;
   const char* ax[] = {"x", "y", "z"};
@@ -170,6 +171,26 @@ JerkConstraint::JerkConstraint(const Model& m, const std::string& name, const st
       points_.push_back(all[k].index);
   }
   impl_->expr = std::make_unique<Expression>(text, used, params, 2);
+  if (!source_text.empty()) {
+    std::unique_ptr<Expression> src;
+    try {
+      src = std::make_unique<Expression>(source_text, names, params, 0);
+    } catch (const Error& e) {
+      throw Error("constraint '" + name + "': " + e.what());
+    }
+    std::vector<std::string> src_used;
+    for (int k : src->referenced_variables()) {
+      if (is_jerk(all[k].kind))
+        throw Error("constraint '" + name + "': its source expression (differentiate: true) involves the jerk " +
+                    names[k] + ": write the source at the acceleration level");
+      src_used.push_back(names[k]);
+      impl_->source_vars.push_back(all[k]);
+      if (is_point_var(all[k].kind) &&
+          std::find(points_.begin(), points_.end(), all[k].index) == points_.end())
+        points_.push_back(all[k].index);
+    }
+    impl_->source = std::make_unique<Expression>(source_text, src_used, params, 0);
+  }
   const auto& v = impl_->vars;
   for (size_t i = 0; i < v.size(); ++i)
     for (size_t j = 0; j < v.size(); ++j) {
@@ -222,37 +243,119 @@ void JerkConstraint::evaluate(double t, const Eigen::VectorXd& q, const Eigen::V
   }
 }
 
+double JerkConstraint::source_value(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                   const std::vector<PointMotion>& pts) const {
+  if (!impl_->source) throw Error("constraint '" + name_ + "' has no source expression (differentiate: true)");
+  const auto& vars = impl_->source_vars;
+  std::vector<double> w(vars.size());
+  for (size_t k = 0; k < vars.size(); ++k) {
+    const JerkVar& v = vars[k];
+    switch (v.kind) {
+      case JVar::X: w[k] = pts[v.index].r[v.axis]; break;
+      case JVar::V: w[k] = pts[v.index].v[v.axis]; break;
+      case JVar::A: w[k] = pts[v.index].a[v.axis]; break;  // the drift (q̈ = 0)
+      case JVar::Q: w[k] = q[v.index]; break;
+      case JVar::QD: w[k] = qd[v.index]; break;
+      case JVar::T: w[k] = t; break;
+      default: w[k] = 0; break;  // qdd(j) = 0 (jerks were rejected)
+    }
+  }
+  return impl_->source->value(w.data());
+}
+
+NewConstraint differentiated_jerk_constraint(const Model& model, const std::string& name,
+                                             const std::string& acceleration_text,
+                                             const std::map<std::string, double>& parameters, ConstraintOrigin origin) {
+  const std::string text = differentiate_expression_text(model, name, acceleration_text, parameters);
+  return jerk_expression_constraint(model, name, text, parameters, origin, acceleration_text);
+}
+
 // ---- the reference dynamics of jerk constraints ----------------------------------------------
+
+/// The rows of order ≤ 2 over dual numbers along the motion (one direction: t → 1, q → q̇, q̇ → q̈).
+struct JerkDynamics::DualRows {
+  DualRows(const Model& model, const ConstraintSet& set) : ev(model, set), q(model.nv), qd(model.nv) {}
+  ConstraintEvalDual ev;
+  std::vector<JacobianScalar> q, qd;
+};
+
+JerkDynamics::~JerkDynamics() = default;
 
 JerkDynamics::JerkDynamics(const Model& model, std::vector<JerkConstraintPtr> constraints, JerkDynamicsOptions options,
                            const ForceSet* forces)
-    : model_(model), forces_(forces), constraints_(std::move(constraints)), opt_(options), n_(model.nv),
+    : model_(model), forces_(forces), constraints_(std::move(constraints)), opt_(std::move(options)), n_(model.nv),
       m_(static_cast<int>(constraints_.size())), data_(model) {
+  for (int r = 0; r < m_; ++r) jerk_row_.push_back(r);
+  setup();
+}
+
+JerkDynamics::JerkDynamics(const Model& model, const ConstraintSet& rows, JerkDynamicsOptions options,
+                           const ForceSet* forces)
+    : model_(model), forces_(forces), opt_(std::move(options)), n_(model.nv), m_(rows.rows()), data_(model) {
+  all_ = rows;
+  for (const ConstraintPtr& c : rows.constraints()) {
+    if (JerkConstraintPtr j = jerk_constraint_of(*c)) {
+      jerk_row_.push_back(rows.row_offset(static_cast<int>(&c - rows.constraints().data())));
+      constraints_.push_back(std::move(j));
+      continue;
+    }
+    if (c->order() > 2)
+      throw Error("constraint '" + c->name + "' is of order " + std::to_string(c->order()) +
+                  " but not a jerk expression row: the jerk-level reference dynamics takes rows of order <= 3");
+    const int off = rows.row_offset(static_cast<int>(&c - rows.constraints().data()));
+    for (int i = 0; i < c->rows(); ++i) {
+      lower_row_.push_back(off + i);
+      lower_order_.push_back(static_cast<char>(c->order()));
+    }
+    lower_.add(c);
+  }
+  setup();
+}
+
+void JerkDynamics::setup() {
   if (forces_) {
+    nz_ = forces_->num_states();
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n_);
     Eigen::VectorXd rate = Eigen::VectorXd::Zero(n_);
-    for (const auto& e : forces_->elements())
-      if (e->num_states() > 0 || !e->add_rate(0.0, zero, zero, zero, rate))
-        throw Error("force element '" + e->name() + "' cannot be used with jerk constraints (order: jerk): " +
-                    (e->num_states() > 0 ? std::string("it has states")
-                                         : std::string("it does not provide the time derivative of its force")) +
-                    " (damping, spring, effort and flexible_drive do)");
+    std::vector<double> z(std::max(1, nz_), 0.0);
+    for (size_t k = 0; k < forces_->elements().size(); ++k) {
+      const auto& e = forces_->elements()[k];
+      const double* zk = z.data() + forces_->state_offset(static_cast<int>(k));
+      if (!e->add_rate_with_states(0.0, zero, zero, zero, zk, zk, rate))
+        throw Error("force element '" + e->name() + "' cannot be used with jerk constraints (order: jerk): it does not "
+                    "provide the time derivative of its force (damping, spring, effort, flexible_drive and lugre do)");
+    }
   }
   if (!(std::isfinite(opt_.kappa) && opt_.kappa >= 0))
     throw Error(expected_got("jerk dynamics option kappa", "a finite value >= 0 [1/s]", fmt(opt_.kappa)));
+  for (double g : {opt_.alpha, opt_.beta, opt_.beta_first_order})
+    if (!(std::isfinite(g) && g >= 0))
+      throw Error(expected_got("jerk dynamics Baumgarte gain", "a finite value >= 0 [1/s]", fmt(g)));
   if (m_ > n_)
-    throw Error(expected_got("number of jerk constraint rows", "at most the number of coordinates (" +
-                                                                    std::to_string(n_) + ")",
-                             std::to_string(m_)));
+    throw Error(expected_got("number of constraint rows of a jerk-level problem",
+                             "at most the number of coordinates (" + std::to_string(n_) + ")", std::to_string(m_)));
+  for (const std::string& name : opt_.consistent_with) {
+    const auto it = std::find_if(constraints_.begin(), constraints_.end(),
+                                 [&](const JerkConstraintPtr& c) { return c->name() == name; });
+    if (it == constraints_.end())
+      throw Error("consistent_with: '" + name + "' is not a jerk constraint row of this problem");
+    if ((*it)->source_text().empty())
+      throw Error("consistent_with: jerk row '" + name + "' was not differentiated from an acceleration row "
+                  "(differentiate: true), so there is no acceleration row to be consistent with");
+  }
   for (const auto& c : constraints_)
     for (int p : c->points())
       if (std::find(points_.begin(), points_.end(), p) == points_.end()) points_.push_back(p);
-  motion_.resize(model.point_name.size());
+  motion_.resize(model_.point_name.size());
+  if (lower_.rows() > 0) dual_ = std::make_unique<DualRows>(model_, lower_);
   B_.setZero(m_, n_);
   Bdot_.setZero(m_, n_);
   s_.setZero(m_);
+  psi_.setZero(m_);
   row_res_.setZero(m_);
+  row_rate_.setZero(m_);
   lambda_.setZero(m_);
+  zdot_.setZero(nz_);
 }
 
 namespace {
@@ -270,60 +373,140 @@ bool multipliers(const Eigen::MatrixXd& M, const Eigen::MatrixXd& B, const Eigen
 }
 }  // namespace
 
-void JerkDynamics::forces_and_rates(double t) {
+void JerkDynamics::forces_and_rates(double t, const double* z) {
   Q_.setZero(n_);
   Qdot_.setZero(n_);
+  zdot_.setZero(nz_);
   if (!forces_ || forces_->elements().empty()) return;
-  double z = 0, zdot = 0;  // the elements have no states (checked by the constructor)
-  forces_->evaluate(t, q_, qd_, &z, Q_, &zdot);
-  for (const auto& e : forces_->elements()) e->add_rate(t, q_, qd_, qdd_, Qdot_);
+  double none = 0;
+  forces_->evaluate(t, q_, qd_, nz_ ? z : &none, Q_, nz_ ? zdot_.data() : &none);
+  for (size_t k = 0; k < forces_->elements().size(); ++k) {
+    const int off = forces_->state_offset(static_cast<int>(k));
+    forces_->elements()[k]->add_rate_with_states(t, q_, qd_, qdd_, nz_ ? z + off : nullptr,
+                                                 nz_ ? zdot_.data() + off : nullptr, Qdot_);
+  }
+}
+
+void JerkDynamics::evaluate_rows(double t) {
+  // Jerk rows: s, B, Ḃ from the point motions.
+  for (int p : points_) point_motion(model_, q_, qd_, qdd_, p, motion_[p]);
+  for (size_t k = 0; k < constraints_.size(); ++k) {
+    const int r = jerk_row_[k];
+    constraints_[k]->evaluate(t, q_, qd_, qdd_, motion_, s_[r], B_.row(r), Bdot_.row(r));
+  }
+  if (!dual_) return;
+  // Rows of order ≤ 2: their stabilized acceleration level ψ(t, q, q̇, q̈) = A q̈ + γ + (Baumgarte)
+  // and its rate along the motion at q⃛ = 0, from one dual evaluation seeded t → 1, q → q̇, q̇ → q̈.
+  DualRows& d = *dual_;
+  for (int i = 0; i < n_; ++i) {
+    d.q[i] = JacobianScalar::variable(q_[i], 0, qd_[i]);
+    d.qd[i] = JacobianScalar::variable(qd_[i], 0, qdd_[i]);
+  }
+  evaluate_constraints_dual(model_, lower_, d.ev, t /*DUALTIME*/, d.q.data(), d.qd.data());
+  const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
+  for (size_t i = 0; i < lower_row_.size(); ++i) {
+    const int r = lower_row_[i];
+    const JacobianScalar* A = d.ev.A.data() + i * static_cast<size_t>(n_);
+    double psi = d.ev.gamma[i].v, psid = d.ev.gamma[i].d[0];
+    for (int j = 0; j < n_; ++j) {
+      B_(r, j) = A[j].v;
+      Bdot_(r, j) = A[j].d[0];
+      psi += A[j].v * qdd_[j];
+      psid += A[j].d[0] * qdd_[j];
+    }
+    const JacobianScalar& phi = d.ev.phi[i];
+    const JacobianScalar& phid = d.ev.phid[i];
+    switch (lower_order_[i]) {
+      case 0:  // Φ̈ + 2αΦ̇ + β²Φ
+        psi += kd * phid.v + kp * phi.v;
+        psid += kd * phid.d[0] + kp * phi.d[0];
+        row_res_[r] = phi.v;
+        row_rate_[r] = phid.v;
+        break;
+      case 1:  // ċ + β₁c (c is stored in phi)
+        psi += k1 * phi.v;
+        psid += k1 * phi.d[0];
+        row_res_[r] = row_rate_[r] = phi.v;
+        break;
+      default:  // B q̈ + s
+        row_res_[r] = row_rate_[r] = psi;
+        break;
+    }
+    psi_[r] = psi;
+    s_[r] = psid + opt_.kappa * psi;  // A q⃛ = −(ψ̇ + κψ)
+  }
 }
 
 Eigen::VectorXd JerkDynamics::initial_state(double t0, const Eigen::VectorXd& q0, const Eigen::VectorXd& qd0,
-                                            const Eigen::VectorXd* qdd_hint) {
+                                            const Eigen::VectorXd* qdd_hint, const Eigen::VectorXd* z0) {
   model_.check_q(q0);
   check_vector("qd", qd0, n_);
+  if (qdd_hint) check_vector("qdd", *qdd_hint, n_);
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(nz_);
+  if (z0) {
+    check_vector("z0", *z0, nz_);
+    z = *z0;
+  }
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n_);
   Eigen::VectorXd tau, taud;
   inverse_dynamics_rate(model_, q0, qd0, zero, tau, taud);  // τ(q̈ = 0) = c + g
   q_ = q0;
   qd_ = qd0;
   qdd_ = zero;
-  forces_and_rates(t0);  // Q does not depend on q̈
+  forces_and_rates(t0, z.data());  // Q does not depend on q̈
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q0);
   Eigen::LLT<Eigen::MatrixXd> llt(M);
   if (llt.info() != Eigen::Success)
     throw NumericalFailure(t0, "at t0 = " + fmt(t0) + " s the mass matrix is not positive definite (a joint that "
                                "moves no mass or inertia?)");
-  Eigen::VectorXd qdd0 = llt.solve(Q_ - tau);  // the free acceleration M⁻¹F, F = Q − c − g
-  if (qdd_hint && m_ > 0) {
-    check_vector("qdd", *qdd_hint, n_);
-    for (int p : points_) point_motion(model_, q0, qd0, qdd0, p, motion_[p]);
-    for (int r = 0; r < m_; ++r) {
-      double s;
-      constraints_[r]->evaluate(t0, q0, qd0, qdd0, motion_, s, B_.row(r), Bdot_.row(r));
+  Eigen::VectorXd qdd0 = llt.solve(Q_ - tau);  // the free acceleration a0 = M⁻¹F, F = Q − c − g
+  if (m_ > 0) {
+    // q̈0 = a0 + Y λ0, Y = M⁻¹Gᵀ; one linear condition per row (see the header). G and the rows'
+    // acceleration levels do not depend on q̈ (ψ is affine in q̈: evaluated at q̈ = 0 it is its constant part).
+    evaluate_rows(t0);
+    const Eigen::MatrixXd Y = llt.solve(B_.transpose());
+    Eigen::MatrixXd S = Eigen::MatrixXd::Zero(m_, m_);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(m_);
+    for (size_t i = 0; i < lower_row_.size(); ++i) {  // ψ(q̈0) = ψ(0) + A q̈0 = 0
+      const int r = lower_row_[i];
+      S.row(r) = B_.row(r) * Y;
+      b[r] = -psi_[r] - B_.row(r).dot(qdd0);
     }
-    Eigen::VectorXd lambda0;
-    Eigen::LLT<Eigen::MatrixXd> l2;
-    if (!multipliers(M, B_, M * (*qdd_hint - qdd0), lambda0, l2))
-      throw NumericalFailure(t0, "at t0 = " + fmt(t0) + " s the jerk constraint rows are linearly dependent");
-    qdd0 += llt.solve(B_.transpose() * lambda0);
+    for (size_t k = 0; k < constraints_.size(); ++k) {
+      const int r = jerk_row_[k];
+      const JerkConstraint& c = *constraints_[k];
+      if (std::find(opt_.consistent_with.begin(), opt_.consistent_with.end(), c.name()) != opt_.consistent_with.end()) {
+        // the source row B q̈ + s_acc = 0 (its B is the jerk row's: ∂ḟ/∂q⃛ = ∂f/∂q̈)
+        const double s_acc = c.source_value(t0, q0, qd0, motion_);
+        S.row(r) = B_.row(r) * Y;
+        b[r] = -s_acc - B_.row(r).dot(qdd0);
+      } else if (qdd_hint) {
+        S.row(r) = B_.row(r) * Y;
+        b[r] = B_.row(r).dot(*qdd_hint - qdd0);
+      } else {
+        S(r, r) = 1.0;  // λ0 = 0
+      }
+    }
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(S);
+    if (!lu.isInvertible())
+      throw NumericalFailure(t0, "at t0 = " + fmt(t0) + " s the constraint rows are linearly dependent (G M⁻¹ Gᵀ is "
+                                 "singular): no consistent initial acceleration");
+    qdd0 += Y * lu.solve(b);
   }
-  Eigen::VectorXd x(3 * n_);
-  x << q0, qd0, qdd0;
+  Eigen::VectorXd x(state_size());
+  x << q0, qd0, qdd0, z;
   return x;
 }
 
 void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
-  check_size("x", state_size(), x.size(), "x = [q; qd; qdd]");
+  check_size("x", state_size(), x.size(), "x = [q; qd; qdd; z]");
   if (!x.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
   q_ = x.head(n_);
   qd_ = x.segment(n_, n_);
   qdd_ = x.segment(2 * n_, n_);
-  for (int p : points_) point_motion(model_, q_, qd_, qdd_, p, motion_[p]);
-  for (int r = 0; r < m_; ++r) constraints_[r]->evaluate(t, q_, qd_, qdd_, motion_, s_[r], B_.row(r), Bdot_.row(r));
+  evaluate_rows(t);
   inverse_dynamics_rate(model_, q_, qd_, qdd_, tau_, taud_);
-  forces_and_rates(t);
+  forces_and_rates(t, x.data() + 3 * n_);
   R_ = tau_ - Q_;       // M q̈ − F, F = Q − c − g
   taud_ -= Qdot_;       // Ṙ at q⃛ = 0
   const Eigen::MatrixXd M = mass_matrix(model_, data_, q_);
@@ -332,14 +515,14 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
     throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite (a joint that moves "
                               "no mass or inertia?)");
   if (m_ > 0) {
-    if (!multipliers(M, B_, R_, lambda_, llt))  // R = Bᵀλ + ρ here; stored below with the sign of
-      throw NumericalFailure(t, "at t = " + fmt(t) + " s the jerk constraint rows are linearly dependent (B M⁻¹ Bᵀ is "
-                                "singular)");
+    if (!multipliers(M, B_, R_, lambda_, llt))  // R = Gᵀλ + ρ here; stored below with the sign of
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the constraint rows are linearly dependent (G M⁻¹ Gᵀ is "
+                                "singular: redundant rows or a singular configuration)");
   } else {
     llt.compute(M);
   }
   dyn_res_ = m_ ? (R_ - B_.transpose() * lambda_).cwiseAbs().maxCoeff() : R_.cwiseAbs().maxCoeff();
-  // KKT: [M, −Bᵀ; B, 0] [q⃛; ν] = [Ḃᵀλ − τ̇ − κR; −s]  (λ with R = Bᵀλ + ρ)
+  // KKT: [M, −Gᵀ; G, 0] [q⃛; ν] = [Ġᵀλ − Ṙ − κR; −s]  (λ with R = Gᵀλ + ρ)
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n_ + m_, n_ + m_);
   K.topLeftCorner(n_, n_) = M;
   K.topRightCorner(n_, m_) = -B_.transpose();
@@ -351,10 +534,10 @@ void JerkDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorX
   const Eigen::VectorXd sol = lu.solve(rhs);
   if (!sol.allFinite()) throw NumericalFailure(t, "at t = " + fmt(t) + " s the jerk-level system is singular");
   qddd_ = sol.head(n_);
-  row_res_ = B_ * qddd_ + s_;
-  lambda_ = -lambda_;  // ReferenceDynamics' sign: Q_c = M q̈ − F = −Bᵀλ
-  xdot.resize(3 * n_);
-  xdot << qd_, qdd_, qddd_;
+  for (int r : jerk_row_) row_res_[r] = row_rate_[r] = B_.row(r).dot(qddd_) + s_[r];
+  lambda_ = -lambda_;  // ReferenceDynamics' sign: Q_c = M q̈ − F = −Gᵀλ
+  xdot.resize(state_size());
+  xdot << qd_, qdd_, qddd_, zdot_;
 }
 
 namespace {
@@ -380,9 +563,10 @@ class JerkRow final : public Constraint {
 }  // namespace
 
 NewConstraint jerk_expression_constraint(const Model& model, const std::string& name, const std::string& text,
-                                         const std::map<std::string, double>& parameters, ConstraintOrigin origin) {
+                                         const std::map<std::string, double>& parameters, ConstraintOrigin origin,
+                                         const std::string& source_text) {
   if (name.empty()) throw Error("jerk_expression_constraint: expected a name, got an empty one");
-  auto c = std::make_shared<JerkRow>(std::make_shared<JerkConstraint>(model, name, text, parameters));
+  auto c = std::make_shared<JerkRow>(std::make_shared<JerkConstraint>(model, name, text, parameters, source_text));
   c->name = name;
   c->origin = origin;
   return c;

@@ -229,9 +229,19 @@ std::unique_ptr<ReferenceDynamics> Problem::make_reference_dynamics() const {
 std::unique_ptr<Planner> Problem::make_planner(ReferenceDynamics* rd) const {
   if (is_jerk_problem())
     return std::make_unique<JerkPlanner>(
-        std::make_unique<JerkDynamics>(model, jerk_constraints, JerkDynamicsOptions{kappa}, &forces));
+        std::make_unique<JerkDynamics>(model, constraints, jerk_options(), &forces));
   if (rd) return std::make_unique<ReferencePlanner>(*rd);
   return std::make_unique<ReferencePlanner>(make_reference_dynamics());
+}
+
+JerkDynamicsOptions Problem::jerk_options() const {
+  JerkDynamicsOptions o;
+  o.kappa = kappa;
+  o.alpha = options.alpha;
+  o.beta = options.beta;
+  o.beta_first_order = options.beta_first_order;
+  o.consistent_with = qdd_consistent_with;
+  return o;
 }
 
 Eigen::VectorXd Problem::initial_state(Planner& planner) const {
@@ -313,43 +323,30 @@ void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec,
   read_forces(c, spec.forces, m, s.forces);
 }
 
-/// Jerk-level problems: only jerk rows, force elements with a rate, no experiments.
+/// Jerk-level problems (a row of order 3): rows of every order ≤ 3 beside the jerk rows, force
+/// elements with a rate (every built-in kind), experiments; docs/higher_order.md.
 void check_jerk_scope(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   const Model& m = s.model;
-  // Jerk-level constraints (order: jerk, p = 3): planned by JerkDynamics, which supports only
-  // jerk rows and no force elements (their time derivatives are not provided).
-  {
-    const int nmimic = s.constraints.size() - static_cast<int>(spec.constraints.size());
-    for (int k = 0; k < s.constraints.size(); ++k)
-      if (JerkConstraintPtr j = jerk_constraint_of(*s.constraints.constraints()[k])) s.jerk_constraints.push_back(j);
-    if (s.is_jerk_problem()) {
-      for (int k = 0; k < s.constraints.size(); ++k) {
-        if (s.constraints.constraints()[k]->order() == 3) continue;
-        const SpecValue& at = k < nmimic ? spec.model.value : spec.constraints[k - nmimic].fields;
-        c.fail(at, k < nmimic ? "model.urdf" : spec.constraints[k - nmimic].key,
-               "constraint '" + s.constraints.constraints()[k]->name +
-                   "' is not of order jerk, but the problem has jerk constraints: jerk-level problems (p = 3) may "
-                   "contain only jerk rows (docs/higher_order.md)");
-      }
-      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
-      Eigen::VectorXd rate = zero;
-      for (size_t k = 0; k < spec.forces.size(); ++k) {
-        const ForceElement& f = *s.forces.elements()[k];
-        if (f.num_states() > 0 || !f.add_rate(0.0, zero, zero, zero, rate))
-          c.fail(spec.forces[k].fields, spec.forces[k].key,
-                 "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
-                 "reference dynamics needs the time derivative of every force, which this element " +
-                     (f.num_states() > 0 ? std::string("(it has states) ") : std::string()) +
-                     "does not provide (damping, spring, effort and flexible_drive do); remove it or state the task "
-                     "at the acceleration level");
-      }
-      if (!spec.experiments.empty())
-        c.fail(spec.experiments_value, "experiments",
-               "closed-loop experiments are not available for problems with jerk constraints (order: jerk): plan only");
-      // The jerk plan reports the dynamics residual and is not cut at a tolerance (JerkPlanner).
-      s.residual_tolerance = std::numeric_limits<double>::infinity();
-    }
+  for (int k = 0; k < s.constraints.size(); ++k)
+    if (JerkConstraintPtr j = jerk_constraint_of(*s.constraints.constraints()[k])) s.jerk_constraints.push_back(j);
+  if (!s.is_jerk_problem()) return;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
+  Eigen::VectorXd rate = zero;
+  const std::vector<double> z(std::max(1, s.forces.num_states()), 0.0);
+  for (size_t k = 0; k < spec.forces.size(); ++k) {
+    const ForceElement& f = *s.forces.elements()[k];
+    const double* zk = z.data() + s.forces.state_offset(static_cast<int>(k));
+    if (!f.add_rate_with_states(0.0, zero, zero, zero, zk, zk, rate))
+      c.fail(spec.forces[k].fields, spec.forces[k].key,
+             "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
+             "reference dynamics needs the time derivative of every force, which this element does not provide "
+             "(damping, spring, effort, flexible_drive and lugre do); remove it or state the task at the "
+             "acceleration level");
   }
+  // A plan of jerk rows alone reports the dynamics residual and is not cut at a tolerance; rows
+  // of order ≤ 2 beside them are (plan_jerk_motion).
+  if (static_cast<int>(s.jerk_constraints.size()) == s.constraints.size())
+    s.residual_tolerance = std::numeric_limits<double>::infinity();
 }
 
 /// baumgarte, solver and partition: the reference-dynamics options.
@@ -447,7 +444,32 @@ void build_initial(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
       c.fail(ini.qdd, "initial.qdd",
              "an initial acceleration is part of the state only in problems with jerk constraints (order: jerk); "
              "elsewhere q̈0 follows from the dynamics (remove it)");
-    s.qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+    if (const SpecValue& cw = ini.qdd["consistent_with"]) {
+      // initial.qdd: {consistent_with: ROW or [ROWS]}: jerk rows made with differentiate: true.
+      if (ini.qdd.size() != 1)
+        c.fail(ini.qdd, "initial.qdd",
+               "write either the accelerations per joint or {consistent_with: [rows]}, not both");
+      const std::vector<SpecValue> rows = cw.is_list() ? cw.items : std::vector<SpecValue>{cw};
+      for (const SpecValue& r : rows) {
+        if (!r.is_scalar()) c.fail(r, "initial.qdd.consistent_with", "expected a constraint name, got " + r.describe());
+        const auto it = std::find_if(s.jerk_constraints.begin(), s.jerk_constraints.end(),
+                                     [&](const JerkConstraintPtr& j) { return j->name() == r.text; });
+        if (it == s.jerk_constraints.end()) {
+          std::vector<std::string> names;
+          for (const auto& j : s.jerk_constraints) names.push_back(j->name());
+          c.fail(r, "initial.qdd.consistent_with",
+                 "'" + r.text + "' is not a jerk constraint (order: jerk) of this scenario" + did_you_mean(r.text, names));
+        }
+        if ((*it)->source_text().empty())
+          c.fail(r, "initial.qdd.consistent_with",
+                 "jerk row '" + r.text + "' was written at the jerk level, so there is no acceleration row to be "
+                 "consistent with (hint: write it at the acceleration level with differentiate: true, or give "
+                 "initial.qdd per joint)");
+        s.qdd_consistent_with.push_back(r.text);
+      }
+    } else {
+      s.qdd0 = c.joint_vector(ini.qdd, "initial.qdd", m, true, 0.0);
+    }
   }
   if (const SpecValue& k = spec.baumgarte.kappa) {
     if (!s.is_jerk_problem())
@@ -491,10 +513,11 @@ void build_integrator(const SpecReader& c, const ScenarioSpec& spec, Problem& s)
     if (in.residual_from) s.residual_from = c.number(in.residual_from, "integrator.residual_from");
     if (in.residual_tolerance) {
       const SpecValue& rt = in.residual_tolerance;
-      if (s.is_jerk_problem())
+      if (s.is_jerk_problem() && static_cast<int>(s.jerk_constraints.size()) == s.constraints.size())
         c.fail(rt, "integrator.residual_tolerance",
-               "not for problems with jerk constraints (order: jerk): their plan's residual is that of the dynamics "
-               "and is not checked against a tolerance (docs/higher_order.md); remove it");
+               "not for problems with only jerk constraints (order: jerk): their plan's residual is that of the "
+               "dynamics and is not checked against a tolerance (docs/higher_order.md; the tolerance applies to "
+               "rows of order position, velocity or acceleration beside them); remove it");
       if (rt.is_scalar() && (rt.text == "none" || rt.text == "off")) {
         s.residual_tolerance = std::numeric_limits<double>::infinity();
       } else {
@@ -590,21 +613,69 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
   s.initial_dq = Eigen::VectorXd::Zero(m.nq);
   s.initial_dqd = Eigen::VectorXd::Zero(m.nq);
   if (s.is_jerk_problem()) {
-    // Jerk rows restrict neither q0 nor q̇0; q̈0 is made consistent with the dynamics. Evaluate
-    // the jerk-level system once at t0: every row regular and finite.
+    // Jerk rows restrict neither q0 nor q̇0; the rows of order ≤ 1 do (checked, or projected, as
+    // in any problem); q̈0 is made consistent with the dynamics and every row of order ≤ 2.
+    // Then the jerk-level system is evaluated once at t0: every row regular and finite.
     const double t0 = s.integrator.t0;
-    JerkDynamics jd(m, s.jerk_constraints, JerkDynamicsOptions{s.kappa}, &s.forces);
+    const int nmimic = s.constraints.size() - static_cast<int>(spec.constraints.size());
+    auto entry_of = [&](int row) -> std::pair<const SpecValue*, std::string> {
+      const int k = s.constraints.row_owner(row);
+      if (k < nmimic) return {&spec.model.value, "model.urdf"};
+      const EntrySpec& e = spec.constraints[k - nmimic];
+      return {&e.fields, e.key};
+    };
+    ConstraintSet lower;
+    std::vector<int> lower_rows;
+    for (int k = 0; k < s.constraints.size(); ++k) {
+      const ConstraintPtr& con = s.constraints.constraints()[k];
+      if (con->order() == 3) continue;
+      lower.add(con);
+      for (int i = 0; i < con->rows(); ++i) lower_rows.push_back(s.constraints.row_offset(k) + i);
+    }
+    if (lower.rows() > 0) {
+      ReferenceDynamicsOptions lo = s.options;
+      lo.independent.clear();
+      ReferenceDynamics rd(m, s.forces, lower, lo);
+      if (s.project_initial) {
+        const auto cons = rd.make_consistent(t0, s.q0, s.qd0, 1e-12);
+        if (!cons.converged)
+          c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
+                                           fmt(cons.residual_after) + "); start closer to a consistent configuration");
+        s.q0 = cons.q;
+        s.qd0 = cons.qd;
+        s.initial_dq = cons.dq;
+        s.initial_dqd = cons.dqd;
+      }
+      Data data(m);
+      ConstraintEval ev(m, lower);
+      try {
+        evaluate_constraints(m, data, lower, ev, t0, s.q0, s.qd0);
+      } catch (const Error& e) {
+        c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
+      }
+      for (int row = 0; row < lower.rows(); ++row) {
+        if (lower.row_order(row) == 2) continue;  // acceleration rows restrict q̈0 only
+        const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
+        if (!(v <= s.initial_tolerance))
+          c.fail(ini.value, "initial",
+                 "the initial state violates constraint '" + lower.row_name(row) + "' by " + fmt(v) +
+                     " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s.initial_tolerance) +
+                     " (hint: set initial.consistency: project, or correct q/qd)");
+      }
+    }
     try {
+      JerkDynamics jd(m, s.constraints, s.jerk_options(), &s.forces);
       const Eigen::VectorXd x0 = jd.initial_state(t0, s.q0, s.qd0, s.qdd0.size() ? &s.qdd0 : nullptr);
       Eigen::VectorXd dx(x0.size());
       jd.derivative(t0, x0, dx);
       if (!dx.allFinite()) throw NumericalFailure(t0, "the jerk-level equations are not finite at t0 = " + fmt(t0) + " s");
       for (int r = 0; r < nrows; ++r)
         if (jd.B().row(r).norm() == 0) {
-          const EntrySpec& e = spec.constraints[r];
-          c.fail(e.fields, e.key,
-                 "jerk constraint row '" + s.constraints.row_name(r) + "' does not act on the jerks at t0 = " + fmt(t0) +
-                     " s (B = d/dqddd of the expression is zero there)");
+          const auto [at, key] = entry_of(r);
+          c.fail(*at, key,
+                 "constraint row '" + s.constraints.row_name(r) + "' does not act on its highest derivative at t0 = " +
+                     fmt(t0) + " s (" + (s.constraints.row_order(r) == 3 ? "B = d/dqddd" : "its Jacobian") +
+                     " is zero there)");
         }
     } catch (const NumericalFailure& e) {
       c.fail(spec.constraints_value, "constraints", e.what());

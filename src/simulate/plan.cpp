@@ -315,57 +315,164 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
 }
 
 Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                      const RecordOptions& record, const std::function<void(double)>& progress) {
+                      const RecordOptions& record, const std::function<void(double)>& progress,
+                      double residual_from) {
   options.validate();
-  check_vector("x0", x0, jd.state_size(), "x0 = [q; qd; qdd], see JerkDynamics::initial_state");
+  check_vector("x0", x0, jd.state_size(), "x0 = [q; qd; qdd; z], see JerkDynamics::initial_state");
   const Model& model = jd.model();
   const ForceSet* forces = jd.forces();
+  const ConstraintSet& cs = jd.constraint_set();
   const int n = jd.nq(), m = jd.num_constraints();
   Plan plan;
   plan.joints = model.joint_name;
   for (int j = 0; j < n; ++j) plan.state_names.push_back("acc_" + model.joint_name[j]);
-  for (int p : record.points) plan.points.push_back(model.point_name[p]);
-  for (const auto& c : jd.constraints()) {
-    plan.constraint_rows.push_back(c->name());
-    plan.material_row.push_back(0);
+  std::vector<int> signal_elements, actuators;
+  if (forces) {
+    for (const std::string& z : forces->state_names()) plan.state_names.push_back(z);
+    for (size_t k = 0; k < forces->elements().size(); ++k) {
+      const auto& e = forces->elements()[k];
+      const auto names = e->signal_names();
+      if (!names.empty()) signal_elements.push_back(static_cast<int>(k));
+      plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
+      if (e->actuator()) actuators.push_back(static_cast<int>(k));
+    }
   }
+  for (int p : record.points) {
+    if (p < 0 || p >= static_cast<int>(model.point_name.size()))
+      throw Error(expected_got("recorded point index", "0.." + std::to_string(model.point_name.size()) + " (exclusive)",
+                               std::to_string(p)));
+    plan.points.push_back(model.point_name[p]);
+  }
+  bool any_material = false;
+  if (cs.rows() == m) {
+    for (int r = 0; r < m; ++r) {
+      plan.constraint_rows.push_back(cs.row_name(r));
+      const bool mat = cs.constraints()[cs.row_owner(r)]->origin == ConstraintOrigin::Material;
+      plan.material_row.push_back(mat ? 1 : 0);
+      any_material = any_material || mat;
+    }
+  } else {  // made from jerk rows alone
+    for (const auto& c : jd.constraints()) {
+      plan.constraint_rows.push_back(c->name());
+      plan.material_row.push_back(0);
+    }
+  }
+  std::vector<const TimeFunction*> targets;
+  for (const auto& c : cs.constraints())
+    if (!c->record_as.empty() && c->target()) {
+      plan.target_signals.push_back(c->record_as);
+      targets.push_back(c->target());
+    }
+  const bool rk4 = options.method == IntegratorMethod::RK4;
+  ReferenceStages& st = plan.stages;
+  if (rk4) {  // [q̂, q̂̇, q̂̈] at every RK4 stage, for tracking on the same grid
+    const long nsteps = std::lround(std::ceil((options.t1 - options.t0) / options.step - 1e-9));
+    st.t0 = options.t0;
+    st.h = (options.t1 - options.t0) / nsteps;
+    st.n = n;
+  }
+  const size_t per_stage = 3 * static_cast<size_t>(n);
   Data data(model);
   Eigen::VectorXd dx(jd.state_size());
   double worst = 0;
-  auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) { jd.derivative(t, x, xdot); };
+  auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
+    jd.derivative(t, x, xdot);
+    if (rk4) {
+      const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage;
+      if (st.data.size() < at + per_stage) st.data.resize(std::max(at + per_stage, 2 * st.data.size()));
+      std::copy(x.data(), x.data() + 3 * n, st.data.data() + at);
+    }
+  };
+  // Rows of order ≤ 2 (their |Phi|, |c| or |B q̈ + s|) are checked against the tolerance as in
+  // plan_motion: the first sample beyond it is not recorded and the plan ends before it.
+  std::vector<int> lower_rows;
+  if (cs.rows() == m)
+    for (int r = 0; r < m; ++r)
+      if (cs.row_order(r) <= 2) lower_rows.push_back(r);
+  const double tol = record.residual_tolerance;
+  bool cut = false;
+  double cut_t = 0, cut_residual = 0;
   auto obs = [&](double t, const Eigen::VectorXd& x) {
     const double nan = std::nan("");
     bool ok = true;
+    std::string failure;
     try {
       jd.derivative(t, x, dx);
-    } catch (const NumericalFailure&) {
+    } catch (const NumericalFailure& e) {
       ok = false;
+      failure = e.what();
+    }
+    if (!lower_rows.empty() && t >= residual_from - 1e-12 && std::isfinite(tol) && !plan.t.empty()) {
+      double r = ok ? 0.0 : nan;
+      if (ok)
+        for (int row : lower_rows) r = std::max(r, std::abs(jd.row_residual()[row]));
+      if (!(r <= tol)) {
+        cut = true, cut_t = t, cut_residual = r;
+        return false;
+      }
     }
     plan.t.push_back(t);
     plan.x.push_back(x);
     plan.qdd.push_back(x.segment(2 * n, n));
-    const Eigen::VectorXd q = x.head(n);
+    const Eigen::VectorXd q = x.head(n), qd = x.segment(n, n);
+    const double* z = forces && forces->num_states() ? x.data() + 3 * n : nullptr;
     forward_kinematics(model, data, q);
     Eigen::VectorXd pts(3 * record.points.size());
     for (size_t k = 0; k < record.points.size(); ++k) pts.segment<3>(3 * k) = point_position(model, data, record.points[k]);
     plan.point_positions.push_back(std::move(pts));
-    plan.targets.emplace_back();
-    plan.forces.emplace_back();
+    Eigen::VectorXd tg(targets.size());
+    for (size_t k = 0; k < targets.size(); ++k) tg[k] = targets[k]->eval(t).f;
+    plan.targets.push_back(std::move(tg));
+    Eigen::VectorXd sig(plan.force_signals.size());
+    for (size_t k = 0, o = 0; k < signal_elements.size(); ++k) {
+      const int e = signal_elements[k];
+      forces->elements()[e]->signals(t, q, qd, z ? z + forces->state_offset(e) : nullptr, sig.data() + o);
+      o += forces->elements()[e]->signal_names().size();
+    }
+    plan.forces.push_back(std::move(sig));
     plan.phi.push_back(ok ? jd.row_residual() : Eigen::VectorXd::Constant(m, nan));
-    plan.phid.push_back(plan.phi.back());
+    plan.phid.push_back(ok ? jd.row_rate_residual() : Eigen::VectorXd::Constant(m, nan));
     plan.lambda.push_back(ok ? jd.lambda() : Eigen::VectorXd::Constant(m, nan));
     plan.Qc.push_back(ok ? jd.constraint_force() : Eigen::VectorXd::Constant(n, nan));
+    // Actuator effort: actuator elements + programmed-constraint forces; reaction: material rows.
     Eigen::VectorXd act = plan.Qc.back();
-    if (forces)
-      for (int k = 0; k < static_cast<int>(forces->elements().size()); ++k)
-        if (forces->elements()[k]->actuator()) act += forces->element_force(k, t, q, x.segment(n, n), nullptr);
+    if (any_material) {
+      Eigen::VectorXd reaction = Eigen::VectorXd::Zero(n);
+      if (ok)
+        for (int r = 0; r < m; ++r)
+          if (plan.material_row[r]) reaction -= jd.B().row(r).transpose() * jd.lambda()[r];
+      if (!ok) reaction.setConstant(nan);
+      act -= reaction;
+      plan.reaction_effort.push_back(std::move(reaction));
+    }
+    for (int k : actuators) act += forces->element_force(k, t, q, qd, z);
     plan.actuator_effort.push_back(std::move(act));
-    if (ok) worst = std::max(worst, jd.dynamics_residual());
+    if (ok) {
+      worst = std::max(worst, jd.dynamics_residual());
+      for (int r = 0; r < m; ++r) worst = std::max(worst, std::abs(jd.row_residual()[r]));
+    }
     if (progress) progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
-  plan.summary = integrate(rhs, x, options, obs);
+  plan.summary = integrate_staged(rhs, x, options, obs);
+  if (cut) {
+    IntegrationSummary& s = plan.summary;
+    s.status = IntegrationStatus::ResidualExceeded;
+    s.t_end = plan.t.back();
+    s.message = "at t = " + fmt(cut_t) + " s the constraint residual max |Phi| = " + fmt(cut_residual) +
+                " of the rows of order <= 2 exceeds integrator.residual_tolerance = " + fmt(tol) +
+                ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
+                fmt(s.t_end) + " s (hint: a smaller step — at the jerk level these rows are stabilized by "
+                "d/dt psi + kappa psi = 0 and the Baumgarte gains, whose fastest mode RK4 must resolve — weaker "
+                "gains, or a task that stays in the workspace)";
+    if (rk4) s.steps = std::lround((s.t_end - options.t0) / st.h);
+  }
+  if (rk4) {
+    st.steps = plan.summary.steps;
+    st.data.resize(static_cast<size_t>(st.steps) * 4 * per_stage);
+    st.data.shrink_to_fit();
+  }
   plan.summary.max_constraint_residual = worst;
   return plan;
 }

@@ -43,20 +43,30 @@ JerkPlanner::JerkPlanner(JerkDynamics& jd) : jd_(&jd) {}
 std::vector<std::string> JerkPlanner::state_names() const {
   std::vector<std::string> names;
   for (const std::string& j : jd_->model().joint_name) names.push_back("acc_" + j);
+  if (jd_->forces())
+    for (const std::string& z : jd_->forces()->state_names()) names.push_back(z);
   return names;
 }
 
 Plan JerkPlanner::plan(const Eigen::VectorXd& x0, const PlanSettings& s) {
-  return plan_jerk_motion(*jd_, x0, s.integrator, s.record, s.progress);
+  return plan_jerk_motion(*jd_, x0, s.integrator, s.record, s.progress, s.residual_from);
 }
 
 std::vector<RowResidual> JerkPlanner::row_residuals() const {
-  return {{"|B qddd + s|", jd_->row_residual().cwiseAbs()}};
+  if (static_cast<int>(jd_->constraints().size()) == jd_->num_constraints())  // jerk rows only
+    return {{"|B qddd + s|", jd_->row_residual().cwiseAbs()}};
+  return {{"|Phi| (jerk rows: |B qddd + s|)", jd_->row_residual().cwiseAbs()},
+          {"|dPhi/dt|", jd_->row_rate_residual().cwiseAbs()}};
 }
 
 std::string JerkPlanner::description() const {
   std::ostringstream o;
-  o << "jerk-level problem (p = 3): state [q; qd; qdd], kappa = " << jd_->options().kappa << " 1/s";
+  o << "jerk-level problem (p = 3): state [q; qd; qdd" << (jd_->num_states() ? "; z" : "") << "], kappa = "
+    << jd_->options().kappa << " 1/s";
+  if (static_cast<int>(jd_->constraints().size()) < jd_->num_constraints())
+    o << "; rows of order <= 2 taken to the jerk level (d/dt psi + kappa psi = 0, psi their Baumgarte-stabilized "
+         "acceleration level)";
+  o << "; no partition: a KKT system with the mass matrix (partition: is not used)";
   return o.str();
 }
 

@@ -78,11 +78,13 @@ struct PointStateT {
   std::vector<multibody::Vec3T<S>> Jw;  ///< n columns of the angular Jacobian
 };
 
-/// What evaluate_dual reads: ConstraintInput over dual numbers (q, q̇: n values each; t is a
-/// plain double, time is not differentiated) and scratch of at least scratch_size_dual() dual
-/// numbers owned by the caller's ConstraintEvalDual.
+/// What evaluate_dual reads: ConstraintInput over dual numbers (t, q, q̇; q and q̇ n values
+/// each) and scratch of at least scratch_size_dual() dual numbers owned by the caller's
+/// ConstraintEvalDual. Functions of time enter through t as dual numbers (eval_dual of
+/// time_function.hpp, the expressions' variable t), so a seeded t differentiates the rheonomic
+/// terms; with an unseeded t (derivative parts 0) they are constants.
 struct ConstraintInputDual {
-  double t;
+  JacobianScalar t;
   int n;
   const JacobianScalar* q;
   const JacobianScalar* qd;
@@ -108,7 +110,7 @@ class Constraint {
   /// Doubles of scratch memory evaluate() needs (ConstraintInput::scratch).
   virtual int scratch_size() const { return 0; }
   /// evaluate() over dual numbers (for exact Jacobians): phi, phid, gamma (rows() each) and A
-  /// (rows() × n, row-major) as functions of the dual q, q̇ of `in`; the value parts equal
+  /// (rows() × n, row-major) as functions of the dual t, q, q̇ of `in`; the value parts equal
   /// evaluate()'s results to rounding, the derivative parts are the exact directional
   /// derivatives along the seeds. The rows of A arrive zeroed (evaluate_constraints_dual).
   /// Kinds without it keep this default, which throws Error("constraint '<name>' (<describe()>)
@@ -147,15 +149,16 @@ class ImplicitSurface {
     Vec3 grad_t = Vec3::Zero();   ///< ∂²f/∂r∂t
   };
   virtual Value eval(const Vec3& r, double t) const = 0;
-  /// Value over dual numbers: every entry as a function of the dual position r (t a constant).
+  /// Value over dual numbers: every entry as a function of the dual position r and time t.
   struct ValueDual {
     JacobianScalar f, ft, ftt;
     multibody::Vec3T<JacobianScalar> grad, grad_t;
     multibody::Mat3T<JacobianScalar> hess;
   };
-  /// eval() over dual numbers (exact derivatives w.r.t. r through the dual parts). Surfaces
-  /// without it keep this default, which throws Error naming the surface.
-  virtual ValueDual eval_dual(const multibody::Vec3T<JacobianScalar>& r, double t) const;
+  /// eval() over dual numbers (exact derivatives w.r.t. r and t through the dual parts; a
+  /// rheonomic surface's ft, ftt need f''' of its functions of time). Surfaces without it keep
+  /// this default, which throws Error naming the surface.
+  virtual ValueDual eval_dual(const multibody::Vec3T<JacobianScalar>& r, const JacobianScalar& t) const;
   virtual bool rheonomic() const { return false; }
   virtual std::string describe() const = 0;
   /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
@@ -223,6 +226,15 @@ NewConstraint expression_constraint(const Model& model, const std::string& name,
                                     ConstraintOrder order, const std::map<std::string, double>& parameters = {},
                                     ConstraintOrigin origin = ConstraintOrigin::Programmed);
 
+/// The total time derivative of an expression along the motion, as a text of the same
+/// language: d/dt f = ∂f/∂t + Σ ∂f/∂w ẇ with x(P) → vx(P) → ax(P) → jx(P) (likewise y, z) and
+/// q(j) → qd(j) → qdd(j) → qddd(j); the partial derivatives exact (GiNaC), the parameters
+/// substituted. A position expression gives its velocity-level row, an acceleration expression
+/// its jerk-level row (`differentiate: true` in a scenario). Throws Error (naming `name`) for a
+/// text that does not parse or that involves jerks (their derivative is of order 4).
+std::string differentiate_expression_text(const Model& model, const std::string& name, const std::string& text,
+                                          const std::map<std::string, double>& parameters = {});
+
 /// Stacked constraints; row k of the stack belongs to constraint row_owner(k).
 class ConstraintSet {
  public:
@@ -268,15 +280,19 @@ struct ConstraintEvalDual {
   std::vector<JacobianScalar> q;                 ///< q as a vector (forward_poses reads one)
 };
 
-/// ConstraintEval's quantities at (t, q, q̇) with q, q̇ dual numbers (arrays of n = model.nv);
-/// t is a plain double (time is not differentiated; functions of time enter as constants). The
-/// value parts equal evaluate_constraints' results (to rounding); the derivative parts are the
-/// exact directional derivatives along the seeds of q and q̇ (forward kinematics, point
-/// kinematics with q̈ = 0 for the drifts, and every constraint's evaluate_dual over dual
-/// numbers). No heap allocation after the first call with a given ev. Checks that ev belongs
-/// to this model and set; throws the Error of a kind without evaluate_dual.
-void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev, double t,
-                               const JacobianScalar* q, const JacobianScalar* qd);
+/// ConstraintEval's quantities at (t, q, q̇) with t, q, q̇ dual numbers (q, q̇ arrays of
+/// n = model.nv). The value parts equal evaluate_constraints' results (to rounding); the
+/// derivative parts are the exact directional derivatives along the seeds of t, q and q̇
+/// (forward kinematics, point kinematics with q̈ = 0 for the drifts, every constraint's
+/// evaluate_dual over dual numbers, functions of time through f', f'', f'''). A plain double t
+/// converts to an unseeded time: then functions of time enter as constants, and the results
+/// are those of the earlier double-t signature bit for bit. Seeding t with 1, q with q̇ and q̇
+/// with q̈ in one direction gives the total time derivatives along the motion of Φ, Φ̇, A, γ
+/// (∂/∂t of the rheonomic rows included), for rows of every order ≤ 2
+/// (tests/constraint_time_test.cpp). No heap allocation after the first call with a given ev.
+/// Checks that ev belongs to this model and set; throws the Error of a kind without evaluate_dual.
+void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev,
+                               const JacobianScalar& t, const JacobianScalar* q, const JacobianScalar* qd);
 
 /// Fills ev with Φ (or c), Φ̇, A and γ for all rows at (t, q, q̇). Runs forward kinematics and
 /// the point kinematics of every point the set reads. No heap allocation. Checks that data and

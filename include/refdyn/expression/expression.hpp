@@ -137,6 +137,13 @@ struct ExpressionOptions {
   /// (1+1+...+1 has depth 1). 256 by default; raising it far (beyond a few thousand) can
   /// overflow the stack in GiNaC.
   int max_depth = 256;
+  /// Compile ∂ᵏf/∂x_iᵏ instead of f: the text's expression differentiated (GiNaC, exactly, after
+  /// the parameters are substituted) `differentiate_times` = k times along the variable of index
+  /// `differentiate_variable` = i, before the derivatives of derivative_order are taken. 0: f
+  /// itself. E.g. a time function's f''' is the value of its text built with {i = 0 (t), k = 3}.
+  /// text(), used_variables() and the derivative texts then describe the derivative.
+  int differentiate_times = 0;
+  int differentiate_variable = 0;
 };
 
 class Expression {

@@ -1,7 +1,9 @@
 #pragma once
-/// Scalar functions of time with exact first and second derivatives: prescribed trajectories
-/// z_a(t), drive profiles ψ_dr(t), programmed speeds s(t), joint torques τ(t).
+/// Scalar functions of time with exact first, second and third derivatives: prescribed
+/// trajectories z_a(t), drive profiles ψ_dr(t), programmed speeds s(t), joint torques τ(t).
+/// (f''' is what the time derivative of a rheonomic constraint's γ needs: eval_dual below.)
 
+#include "refdyn/common/dual.hpp"
 #include "refdyn/expression/symbolic_form.hpp"
 
 #include <map>
@@ -14,6 +16,7 @@ namespace refdyn {
 
 struct TimeValue {
   double f = 0, df = 0, ddf = 0;  ///< f(t), f'(t), f''(t)
+  double dddf = 0;                ///< f'''(t), exact as f' and f''
 };
 
 class TimeFunction {
@@ -42,10 +45,18 @@ TimeFunctionPtr raised_cosine(Number f0, Number df, Number period);
 TimeFunctionPtr cycloidal(Number rise, Number duration, Number f0 = 0.0, Number t0 = 0.0);
 
 /// f(t) given as an expression in `t` and named parameters, e.g. "z0 + dz*(1 - cos(2*pi*t/T))/2";
-/// f' and f'' are exact (GiNaC). Syntax: expression.hpp, including abs, min, max, step, clamp and
+/// f', f'' and f''' are exact (GiNaC). Syntax: expression.hpp, including abs, min, max, step, clamp and
 /// if(t < T, a, b), whose derivatives are finite one-sided values at the switching point (e.g.
 /// "(1 - cos(pi*min(t, 2)/2))/2" at t = 2). A parameter that cancels t (amp*sin(t), amp = 0)
 /// gives a constant function. Throws Error for a text that does not parse.
 TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters = {});
+
+/// f, f', f'' at a dual time t = t.v + Σ_k t.d_k ε_k (JacobianScalar): each a dual number whose
+/// derivative parts are the next derivative (f', f'', f''') times t.d_k, exact. An unseeded t
+/// (every t.d_k = 0) gives derivative parts that are exactly +0, as JacobianScalar(f.f) would.
+struct TimeValueDual {
+  JacobianScalar f, df, ddf;
+};
+TimeValueDual eval_dual(const TimeFunction& f, const JacobianScalar& t);
 
 }  // namespace refdyn

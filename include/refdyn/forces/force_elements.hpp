@@ -37,6 +37,16 @@ class ForceElement {
                         const Eigen::VectorXd& /*qdd*/, Eigen::VectorXd& /*Qdot*/) const {
     return false;
   }
+  /// The rate of the force with the element's states: Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈ + ∂Q/∂z ż
+  /// (exact) added to Qdot, with z the states and zdot their rates at the same point; returns
+  /// false if the element provides none. The default: add_rate() for an element without states.
+  /// LuGre friction (states, no explicit time) provides it through apply_dual. Needed by
+  /// jerk-level problems (state [q; q̇; q̈; z]).
+  virtual bool add_rate_with_states(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                    const Eigen::VectorXd& qdd, const double* /*z*/, const double* /*zdot*/,
+                                    Eigen::VectorXd& Qdot) const {
+    return num_states() == 0 && add_rate(t, q, qd, qdd, Qdot);
+  }
   /// Name of each state (for CSV headers).
   virtual std::vector<std::string> state_names() const { return {}; }
   /// True for actuators (drives, prescribed efforts): their force is delivered by the joint's
@@ -117,6 +127,8 @@ class LuGreFriction final : public ForceElement {
              Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
   void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
                   JacobianScalar* Q, JacobianScalar* zdot) const override;
+  bool add_rate_with_states(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                            const double* z, const double* zdot, Eigen::VectorXd& Qdot) const override;
   std::optional<SymbolicForm> symbolic() const override;
   const LuGreParams& params() const { return p_; }
   int joint() const { return j_; }

@@ -94,13 +94,17 @@ struct Problem {
   /// Problem built in C++ (then the compiled model's numbers are used).
   std::optional<ModelNumbers> model_numbers;
   Limits limits;
-  /// Jerk-level problems (constraints of `order: jerk`, docs/higher_order.md): their rows (then
-  /// every row of `constraints` is one), the gain κ and the initial-acceleration hint. They are
-  /// planned by JerkDynamics (state [q; q̇; q̈]) with `forces` (stateless elements with a rate);
-  /// `options` and the partition are not used.
+  /// Jerk-level problems (a constraint of `order: jerk`, docs/higher_order.md): their jerk rows
+  /// (`constraints` has every row, of any order), the gain κ and the initial acceleration. They
+  /// are planned by JerkDynamics (state [q; q̇; q̈; z]) with `forces` and the Baumgarte gains of
+  /// `options`; the partition is not used (a KKT system with M).
   std::vector<JerkConstraintPtr> jerk_constraints;
   double kappa = 50.0;
   Eigen::VectorXd qdd0;                     ///< the hint (initial.qdd); empty: the free acceleration
+  /// initial.qdd: {consistent_with: [rows]}: jerk rows whose q̈0 satisfies their source row.
+  std::vector<std::string> qdd_consistent_with;
+  /// The JerkDynamics options of a jerk problem (κ, the Baumgarte gains, consistent_with).
+  JerkDynamicsOptions jerk_options() const;
   bool is_jerk_problem() const { return !jerk_constraints.empty(); }
 
   std::vector<int> report_point_indices() const;

@@ -22,12 +22,18 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
                  double residual_from = 0.0, const std::function<void(double)>& progress = {},
                  const RecordOptions& record = {});
 
-/// Integrates a JerkDynamics from x0 = [q; q̇; q̈] and records it like plan_motion: x (with
-/// state_names "acc_<joint>" for the q̈ part), q̈, Φ and Φ̇ (both: the jerk rows' residual
-/// B q⃛ + s), λ, Q_c = M q̈ − F, the actuator effort (Q_c, the rows being programmed, plus the
-/// actuator force elements), points.
-/// summary.max_constraint_residual: the largest dynamics residual ‖R − Bᵀλ‖∞ over the samples.
+/// Integrates a JerkDynamics from x0 = [q; q̇; q̈; z] and records it like plan_motion: x (with
+/// state_names "acc_<joint>" for the q̈ part, then the force elements' states), q̈, per row Φ and
+/// Φ̇ (JerkDynamics::row_residual, row_rate_residual: jerk rows B q⃛ + s in both), λ,
+/// Q_c = M q̈ − F, the actuator effort (Q_c minus the material rows' reactions, plus the actuator
+/// force elements), the reactions of material rows, the force elements' signals (a drive's ψ_dr,
+/// torque), recorded targets, points, and with RK4 the stages [q̂, q̂̇, q̂̈] for tracking.
+/// Rows of order ≤ 2 are checked against record.residual_tolerance from t >= residual_from (the
+/// plan ends before the first sample beyond it, status ResidualExceeded).
+/// summary.max_constraint_residual: the largest of the dynamics residual ‖R − Gᵀλ‖∞ and the rows'
+/// residuals over the samples.
 Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                      const RecordOptions& record = {}, const std::function<void(double)>& progress = {});
+                      const RecordOptions& record = {}, const std::function<void(double)>& progress = {},
+                      double residual_from = 0.0);
 
 }  // namespace refdyn

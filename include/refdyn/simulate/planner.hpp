@@ -142,10 +142,13 @@ class JerkPlanner final : public Planner {
     return jd_->initial_state(t0, q0, qd0, qdd_hint);
   }
   void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) override { jd_->derivative(t, x, xdot); }
-  /// plan_jerk_motion (residual_from and the residual tolerance are not used).
+  /// plan_jerk_motion (the residual tolerance applies to the rows of order ≤ 2).
   Plan plan(const Eigen::VectorXd& x0, const PlanSettings& settings) override;
-  bool checks_residual_tolerance() const override { return false; }
-  /// |B qddd + s| per row.
+  /// Rows of order ≤ 2 beside the jerk rows are checked (plan_jerk_motion); jerk rows alone are not.
+  bool checks_residual_tolerance() const override {
+    return static_cast<int>(jd_->constraints().size()) < jd_->num_constraints();
+  }
+  /// |B qddd + s| per row (jerk rows alone), else |Phi| and |dPhi/dt| (jerk rows: |B qddd + s|).
   std::vector<RowResidual> row_residuals() const override;
   std::optional<PlannerPartition> partition() const override { return std::nullopt; }
   /// "jerk-level problem (p = 3): state [q; qd; qdd], kappa = … 1/s".

@@ -63,17 +63,17 @@ class Distance final : public Constraint {
     const Vec3T<JS> delta = sub(P.r, Q.r), delta_dot = sub(P.v, Q.v);
     const JS rho = sqrt(dot(delta, delta));
     if (!(rho.v > 1e-12))
-      throw NumericalFailure(in.t, "at t = " + fmt(in.t) + " s the points '" + an_ + "' and '" + bn_ +
+      throw NumericalFailure(in.t.v, "at t = " + fmt(in.t.v) + " s the points '" + an_ + "' and '" + bn_ +
                                        "' of distance constraint '" + name +
                                        "' coincide: the distance has no direction there");
     const JS inv = JS(1.0) / rho;
     const Vec3T<JS> u = scale(delta, inv);
-    const TimeValue d = d_->eval(in.t);
+    const TimeValueDual d = eval_dual(*d_, in.t);
     const JS ud = dot(u, delta_dot);
-    phi[0] = rho - JS(d.f);
-    phid[0] = ud - JS(d.df);
+    phi[0] = rho - d.f;
+    phid[0] = ud - d.df;
     for (int j = 0; j < in.n; ++j) A[j] = dot(u, sub(P.C[j], Q.C[j]));
-    gamma[0] = dot(u, sub(P.d, Q.d)) + (dot(delta_dot, delta_dot) - ud * ud) * inv - JS(d.ddf);
+    gamma[0] = dot(u, sub(P.d, Q.d)) + (dot(delta_dot, delta_dot) - ud * ud) * inv - d.ddf;
   }
 
  private:
