@@ -1,5 +1,5 @@
 // Writers of the generated reference dynamics as LaTeX and JSON (the C writer is emit_c.cpp;
-// the printer over GiNaC expressions they share is printer.hpp).
+// both print from the canonical graph of trace.hpp).
 #include "internal.hpp"
 #include "printer.hpp"
 #include "trace.hpp"
@@ -18,11 +18,7 @@ namespace refdyn {
 
 using GiNaC::ex;
 using GiNaC::is_a;
-using symbolic_detail::count_uses;
-using symbolic_detail::Dialect;
 using symbolic_detail::double_text;
-using symbolic_detail::ExCount;
-using symbolic_detail::Printer;
 
 // ----------------------------------------------------------------------------------------------
 const std::string& SymbolicReferenceDynamics::prefix() const { return impl_->prefix; }

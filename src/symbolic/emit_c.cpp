@@ -16,11 +16,7 @@ namespace refdyn {
 
 using GiNaC::ex;
 using GiNaC::is_a;
-using symbolic_detail::count_uses;
-using symbolic_detail::Dialect;
 using symbolic_detail::double_text;
-using symbolic_detail::ExCount;
-using symbolic_detail::Printer;
 
 namespace {
 
