@@ -118,7 +118,7 @@ std::string SymbolicReferenceDynamics::c_header() const {
       << " * or the system is singular (xdot is then not written). */\n";
   else
     o << "/* xdot = f(t, x) of the reference dynamics (projection, null-space method). Returns 0, or 1 if the\n"
-      << " * partition's K_dc or N^T M N is singular (xdot is then not written). */\n";
+      << " * partition's K_dc is singular or N^T M N not positive definite (xdot is then not written). */\n";
   o << "int " << P << "rhs(double t, const double* x, const " << P << "params* p, double* xdot);\n\n"
     << "#ifdef __cplusplus\n}\n#endif\n#endif\n";
   return o.str();
