@@ -5,6 +5,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/reference/jerk.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -90,6 +91,7 @@ class Binder {
       sub[syms[i]] = i < vals.size() ? vals[i]
                                      : parameter(params[i - vals.size()]->first, params[i - vals.size()]->second, where);
     }
+    e = symbolic_detail::exact(e);  // exact numbers: results independent of GiNaC's order
     return sub.empty() ? e : e.subs(sub, GiNaC::subs_options::no_pattern);
   }
 
@@ -130,6 +132,64 @@ std::string identifier(const std::string& s) {
   return r;
 }
 
+/// The total time derivative along the motion, by the chain rule over the expression graph
+/// (forward mode: each node's rate once, so shared sub-expressions stay shared; GiNaC's diff
+/// would unfold the graph into a tree). `leaf` gives the rate of each symbol (absent: 0).
+class TotalRate {
+ public:
+  explicit TotalRate(GiNaC::exmap leaf) : leaf_(std::move(leaf)) {}
+  ex operator()(const ex& e) {
+    if (GiNaC::is_a<GiNaC::numeric>(e) || GiNaC::is_a<GiNaC::constant>(e)) return 0;
+    if (GiNaC::is_a<GiNaC::symbol>(e)) {
+      const auto it = leaf_.find(e);
+      return it == leaf_.end() ? ex(0) : it->second;
+    }
+    const auto hit = memo_.find(e);
+    if (hit != memo_.end()) return hit->second;
+    ex r = 0;
+    if (GiNaC::is_a<GiNaC::add>(e)) {
+      GiNaC::exvector terms;
+      for (size_t i = 0; i < e.nops(); ++i) terms.push_back((*this)(e.op(i)));
+      r = GiNaC::add(terms);
+    } else if (GiNaC::is_a<GiNaC::mul>(e)) {
+      GiNaC::exvector terms;
+      for (size_t i = 0; i < e.nops(); ++i) {
+        const ex d = (*this)(e.op(i));
+        if (d.is_zero()) continue;
+        GiNaC::exvector f;
+        for (size_t j = 0; j < e.nops(); ++j) f.push_back(j == i ? d : e.op(j));
+        terms.push_back(GiNaC::mul(f));
+      }
+      r = GiNaC::add(terms);
+    } else if (GiNaC::is_a<GiNaC::power>(e)) {
+      const ex b = e.op(0), p = e.op(1);
+      const ex db = (*this)(b), dp = (*this)(p);
+      if (!db.is_zero()) r += p * GiNaC::pow(b, p - 1) * db;
+      if (!dp.is_zero()) r += e * GiNaC::log(b) * dp;
+    } else if (GiNaC::is_a<GiNaC::function>(e)) {
+      const unsigned serial = GiNaC::ex_to<GiNaC::function>(e).get_serial();
+      for (size_t k = 0; k < e.nops(); ++k) {
+        const ex d = (*this)(e.op(k));
+        if (d.is_zero()) continue;
+        // ∂f/∂(argument k) at the arguments: f with a fresh symbol in place k, differentiated
+        const GiNaC::realsymbol u("rd_u");
+        GiNaC::exvector args;
+        for (size_t j = 0; j < e.nops(); ++j) args.push_back(j == k ? ex(u) : e.op(j));
+        const ex partial = GiNaC::function(serial, args).diff(u);
+        r += partial.subs(GiNaC::exmap{{u, e.op(k)}}, GiNaC::subs_options::no_pattern) * d;
+      }
+    } else {
+      throw Error("generate: cannot differentiate the expression " + expr_detail::to_text(e) + " with respect to time");
+    }
+    memo_.emplace(e, r);
+    return r;
+  }
+
+ private:
+  GiNaC::exmap leaf_;
+  std::map<ex, ex, GiNaC::ex_is_less> memo_;
+};
+
 /// The constraints: Φ (or c), Φ̇, A, γ by differentiation of each constraint's symbolic form.
 void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Impl& S, Binder& B) {
   const Model& model = problem.model;
@@ -142,10 +202,13 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
   for (int k = 0; k < cs.size(); ++k) {
     const Constraint& c = *cs.constraints()[k];
     const std::string where = "generate: constraint '" + c.name + "'";
-    if (c.order() >= 3)
-      throw Error(where + " is of order jerk: the generated equations cover position, velocity and acceleration "
-                  "constraints (docs/generate.md)");
     std::optional<SymbolicForm> form = with_scenario_parameters(c.symbolic(), problem);
+    if (!form && c.order() == 3)
+      if (const JerkConstraintPtr j = jerk_constraint_of(c)) {
+        form = SymbolicForm{};
+        form->rows = {j->text()};
+        form->parameters = problem.parameters;
+      }
     if (!form)
       throw Error(where + " (" + c.describe() + ") has no symbolic form (hint: write it as an `expression` constraint)");
     if (static_cast<int>(form->rows.size()) != c.rows())
@@ -158,10 +221,31 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
       S.row_origin.push_back(to_string(c.origin));
       S.row_order.push_back(static_cast<char>(c.order()));
       S.phi[row] = f;
-      for (int i = 0; i < n; ++i)
+      for (int i = 0; i < n; ++i) {
         if (c.order() < 2 && f.has(S.qdd[i]))
           throw Error(where + ": a position or velocity constraint depends on the acceleration of " + model.joint_name[i]);
-      if (c.order() == 2) {
+        if (c.order() < 3 && f.has(S.qddd[i]))
+          throw Error(where + ": a constraint of order " + std::to_string(c.order()) + " depends on the jerk of " +
+                      model.joint_name[i] + " (hint: order: jerk)");
+      }
+      if (c.order() == 3) {
+        // B(t, q, q̇) q⃛ + s(t, q, q̇, q̈) = 0: B = ∂f/∂q⃛, s = f at q⃛ = 0; B must not depend on
+        // q̈ or q⃛ (as JerkConstraint requires). Imposed exactly at jerk level: B q⃛ = −s.
+        GiNaC::exmap zero;
+        for (int i = 0; i < n; ++i) zero[S.qddd[i]] = 0;
+        for (int i = 0; i < n; ++i) {
+          const ex Bi = f.diff(S.qddd[i]);
+          for (int l = 0; l < n; ++l)
+            if (Bi.has(S.qdd[l]) || Bi.has(S.qddd[l]))
+              throw Error(where + ": the coefficient of the jerk of " + model.joint_name[i] + " depends on the " +
+                          (Bi.has(S.qdd[l]) ? "acceleration" : "jerk") + " of " + model.joint_name[l] +
+                          " (a jerk row is B(t, q, qd) qddd + s = 0)");
+          S.A[static_cast<size_t>(row) * n + i] = Bi;
+        }
+        S.gamma[row] = f.subs(zero, GiNaC::subs_options::no_pattern);
+        S.phi[row] = 0;
+        S.phid[row] = 0;
+      } else if (c.order() == 2) {
         // B q̈ + s = 0, linear in q̈ (checked by the kind): A = B = ∂f/∂q̈, γ = s = f at q̈ = 0,
         // imposed exactly (A q̈ = −γ, no stabilisation); Φ and Φ̇ are reported as 0, as the engine does.
         GiNaC::exmap zero;
@@ -232,6 +316,51 @@ void generate_forces(const Problem& problem, SymbolicReferenceDynamics::Impl& S,
   }
 }
 
+/// The jerk level (docs/generate.md, "Jerk problems"): R = M q̈ + c + g − Q and its rate Ṙ at
+/// q⃛ = 0, G and Ġ, and per row ψ and b: every row of order ≤ 2 in its stabilized acceleration
+/// form ψ (A q̈ + γ + 2αΦ̇ + β²Φ, A q̈ + γ + β₁c, or A q̈ + γ), imposed as ψ̇ + κψ = 0, i.e.
+/// A q⃛ = −ψ̇|q⃛=0 − κψ; every jerk row as B q⃛ = −s. The rates are total time derivatives along the
+/// motion (t, q → q̇, q̇ → q̈, q̈ → q⃛ = 0, z → ż), exact.
+void generate_jerk_level(SymbolicReferenceDynamics::Impl& S, const symbolic_detail::SymbolicModel& sm) {
+  const int n = S.n, m = S.m;
+  GiNaC::exmap leaf;
+  leaf[S.t] = 1;
+  for (int i = 0; i < n; ++i) {
+    leaf[S.q[i]] = S.qd[i];
+    leaf[S.qd[i]] = S.qdd[i];
+  }
+  for (int k = 0; k < S.nz; ++k) leaf[S.z[k]] = S.zdot[k];
+  TotalRate rate(leaf);
+  const std::vector<ex> qd(S.qd.begin(), S.qd.end()), qdd(S.qdd.begin(), S.qdd.end());
+  const std::vector<ex> tau = sm.inverse_dynamics(qd, qdd, true);  // M q̈ + c + g (Newton–Euler)
+  S.R.resize(n);
+  S.Rdot.resize(n);
+  for (int i = 0; i < n; ++i) {
+    S.R[i] = tau[i] - S.Q[i];
+    S.Rdot[i] = rate(S.R[i]);
+  }
+  S.G.assign(static_cast<size_t>(m) * n, 0);
+  S.Gdot.assign(static_cast<size_t>(m) * n, 0);
+  S.psi.assign(m, 0);
+  S.b.assign(m, 0);
+  for (int r = 0; r < m; ++r) {
+    for (int i = 0; i < n; ++i) {
+      S.G[r * n + i] = S.A[r * n + i];
+      S.Gdot[r * n + i] = rate(S.A[r * n + i]);
+    }
+    if (S.row_order[r] == 3) {
+      S.b[r] = -S.gamma[r];
+      continue;
+    }
+    ex psi = S.gamma[r];
+    for (int i = 0; i < n; ++i) psi += S.A[r * n + i] * S.qdd[i];
+    if (S.row_order[r] == 0) psi += 2 * S.alpha_s * S.phid[r] + S.beta_s * S.beta_s * S.phi[r];
+    if (S.row_order[r] == 1) psi += S.beta1_s * S.phi[r];
+    S.psi[r] = psi;
+    S.b[r] = -rate(psi) - S.kappa_s * psi;
+  }
+}
+
 }  // namespace
 
 SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const SymbolicOptions& options) {
@@ -259,6 +388,8 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   S.alpha = problem.options.alpha;
   S.beta = problem.options.beta;
   S.beta1 = problem.options.beta_first_order;
+  S.kappa = problem.kappa;
+  for (const auto& c : problem.constraints.constraints()) S.jerk = S.jerk || c->order() == 3;
 
   std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
   S.t = GiNaC::realsymbol("t", "t");
@@ -269,7 +400,13 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   }
   for (int i = 0; i < n; ++i)
     S.qdd.emplace_back("qdd(" + model.joint_name[i] + ")", "\\ddot{q}_{" + std::to_string(i + 1) + "}");
+  for (int i = 0; i < n; ++i)
+    S.qddd.emplace_back("qddd(" + model.joint_name[i] + ")", "\\dddot{q}_{" + std::to_string(i + 1) + "}");
   for (int k = 0; k < S.nz; ++k) S.z.emplace_back("state(" + std::to_string(k) + ")", "z_{" + std::to_string(k + 1) + "}");
+  S.alpha_s = GiNaC::realsymbol("rd_alpha", "\\alpha");
+  S.beta_s = GiNaC::realsymbol("rd_beta", "\\beta");
+  S.beta1_s = GiNaC::realsymbol("rd_beta1", "\\beta_1");
+  S.kappa_s = GiNaC::realsymbol("rd_kappa", "\\kappa");
 
   std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
 
@@ -292,9 +429,18 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
     B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
     B.bind("qdd(" + model.joint_name[i] + ")", S.qdd[i]);
+    if (S.jerk) B.bind("qddd(" + model.joint_name[i] + ")", S.qddd[i]);
   }
   bool acceleration_rows = false;
-  for (const auto& c : problem.constraints.constraints()) acceleration_rows = acceleration_rows || c->order() == 2;
+  for (const auto& c : problem.constraints.constraints()) acceleration_rows = acceleration_rows || c->order() >= 2;
+  // the point jerk along the motion: d/dt of the acceleration with q̈ → q⃛
+  GiNaC::exmap to_jerk;
+  for (int i = 0; i < n; ++i) {
+    to_jerk[S.q[i]] = S.qd[i];
+    to_jerk[S.qd[i]] = S.qdd[i];
+    to_jerk[S.qdd[i]] = S.qddd[i];
+  }
+  TotalRate point_jerk(to_jerk);
   for (size_t p = 0; p < model.point_name.size(); ++p) {
     const int b = sm.bodies.points[p].body;
     const Vec3s r = multibody::point_position(sm.bodies.points[p], sm.poses);
@@ -310,6 +456,7 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
         ex a = 0;
         for (int i = 0; i < n; ++i) a += v.diff(S.q[i]) * S.qd[i] + r[k].diff(S.q[i]) * S.qdd[i];
         B.bind(std::string("a") + axes[k] + "(" + P + ")", a);
+        if (S.jerk) B.bind(std::string("j") + axes[k] + "(" + P + ")", point_jerk(a));
       }
     }
     for (int a = 0; a < 3; ++a)
@@ -319,18 +466,34 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   generate_constraints(problem, S, B);
   generate_forces(problem, S, B);
 
+  S.model = sm;
   // --- dynamics: Newton–Euler ---
   S.c = sm.inverse_dynamics(qd, {}, false);
   S.g = sm.inverse_dynamics({}, {}, true);
   S.M = multibody::mass_matrix(sm.bodies, sm.poses);
 
-  // --- partition ---
+  if (S.jerk) {
+    generate_jerk_level(S, sm);
+  } else {
+    S.cg = sm.inverse_dynamics(qd, {}, true);
+    S.rhs.resize(S.m);
+    for (int r = 0; r < S.m; ++r)
+      S.rhs[r] = S.row_order[r] == 2 ? -S.gamma[r]
+                 : S.row_order[r] == 1
+                     ? -S.gamma[r] - S.beta1_s * S.phi[r]
+                     : -S.gamma[r] - 2 * S.alpha_s * S.phid[r] - S.beta_s * S.beta_s * S.phi[r];
+  }
+
+  // --- partition (jerk problems: none, the jerk level is solved as a KKT system) ---
   std::vector<char> is_ind(n, 0);
   for (const std::string& name : problem.options.independent) is_ind[model.joint_index(name)] = 1;
-  if (S.m > 0 && static_cast<int>(problem.options.independent.size()) != n - S.m)
+  if (S.jerk) {
+    for (int i = 0; i < n; ++i) S.independent.push_back(i);
+  } else if (S.m > 0 && static_cast<int>(problem.options.independent.size()) != n - S.m)
     throw Error("generate: the partition names " + std::to_string(problem.options.independent.size()) +
                 " independent coordinates, expected n − m = " + std::to_string(n - S.m));
-  for (int i = 0; i < n; ++i) (is_ind[i] || S.m == 0 ? S.independent : S.dependent).push_back(i);
+  if (!S.jerk)
+    for (int i = 0; i < n; ++i) (is_ind[i] || S.m == 0 ? S.independent : S.dependent).push_back(i);
 
   S.summary.nq = n;
   S.summary.nz = S.nz;

@@ -7,8 +7,10 @@
 #include <ginac/ginac.h>
 
 namespace refdyn::symbolic_detail {
-/// A double as a GiNaC number: integers exactly, others as IEEE doubles.
+/// A double as a GiNaC number, exactly (an integer or the rational m·2^e).
 GiNaC::ex number(double v);
+/// e with its floating-point numbers replaced by their double values as exact rationals.
+GiNaC::ex exact(const GiNaC::ex& e);
 }  // namespace refdyn::symbolic_detail
 
 namespace refdyn::multibody {

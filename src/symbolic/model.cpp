@@ -31,7 +31,30 @@ Vec3s vec(const Vec3& v) { return {number(v.x()), number(v.y()), number(v.z())};
 
 ex number(double v) {
   if (v == std::trunc(v) && std::fabs(v) < 9007199254740992.0) return GiNaC::numeric(static_cast<long>(v));
-  return GiNaC::numeric(cln::cl_float(v, cln::float_format_dfloat));
+  // the double exactly, as the rational m·2^e: GiNaC's arithmetic on it is exact, so no result
+  // depends on the order in which GiNaC combines numbers (an address-seeded hash order)
+  int e = 0;
+  const double f = std::frexp(v, &e);
+  const long m = static_cast<long>(std::ldexp(f, 53));
+  return GiNaC::numeric(m) * GiNaC::numeric(2).power(e - 53);
+}
+
+namespace {
+struct Exact : GiNaC::map_function {
+  ex operator()(const ex& e) override {
+    if (is_a<GiNaC::numeric>(e)) {
+      const GiNaC::numeric& x = GiNaC::ex_to<GiNaC::numeric>(e);
+      if (x.is_real() && !x.is_rational()) return number(x.to_double());
+      return e;
+    }
+    return e.map(*this);
+  }
+};
+}  // namespace
+
+ex exact(const ex& e) {
+  Exact f;
+  return f(e);
 }
 
 Vec3s clean(const Vec3& v) {

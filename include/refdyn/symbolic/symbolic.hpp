@@ -19,10 +19,17 @@
 ///                           reference dynamics with x = [q, q̇, z], q̈ from the projected
 ///                           equations Nᵀ(M q̈ − F) = 0, A q̈ = −γ − 2αΦ̇ − β²Φ (holonomic rows),
 ///                           −γ − β₁c (first-order rows) by the null-space method (as
-///                           ReferenceDynamics); returns 1 if K_dc or NᵀMN is singular.
+///                           ReferenceDynamics); returns 1 if K_dc is singular or NᵀMN not
+///                           positive definite. M by the composite-rigid-body algorithm and
+///                           c, g by Newton–Euler traced with the numbers folded, the solve
+///                           written out for the sizes (docs/generate.md, "The C code").
+///                           Jerk problems (a row of order 3): x = [q, q̇, q̈, z], PREFIX_jerk
+///                           and the KKT system of JerkDynamics (docs/generate.md).
 ///   latex()                 a standalone LaTeX document (article class, amsmath only).
-///   json()                  the expressions as texts (GiNaC syntax: ^ for powers; the
-///                           piecewise functions print as rd_abs, rd_min, … of expression.hpp).
+///   json()                  the expressions as texts of the expression language (^ for
+///                           powers; abs, min, max, step, clamp, if for the piecewise functions).
+/// Every writer's text is the same in every run (numbers exact in GiNaC, a canonical order of
+/// operands: docs/generate.md, "The same text in every run").
 /// The paper-literal force option (ReferenceDynamicsOptions::paper_literal_forces) is not
 /// supported (Error).
 #include "refdyn/scenario/problem.hpp"
