@@ -88,12 +88,13 @@ def from_dict(d: dict, source_name: str = "<dict>") -> Problem:
     return _refdyn.parse_problem(_dict_text(d), source_name)
 
 
-def _scenario_source(source, what: str):
-    """(text or path, is_text, source name) of a path, YAML text or a dict (as load() takes them)."""
+def _scenario_source(source, what: str, source_name: Optional[str] = None):
+    """(text or path, is_text, source name) of a path, YAML text or a dict (as load() takes them);
+    source_name names a text or dict (as loads' does), default "<string>" / "<dict>"."""
     if isinstance(source, dict):
-        return _dict_text(source), True, "<dict>"
+        return _dict_text(source), True, source_name or "<dict>"
     if isinstance(source, str) and "\n" in source:
-        return source, True, "<string>"
+        return source, True, source_name or "<string>"
     if isinstance(source, (str, _os.PathLike)):
         return _os.fspath(source), False, ""
     raise TypeError(f"refdyn.{what}: expected a path, YAML text or a dict, got {type(source).__name__}")
@@ -136,16 +137,17 @@ Problem.constraint_rows = property(
     doc="The constraint rows in order, each a ConstraintRow: its name (a str) with its order, origin, kind, ...")
 
 
-def check(source: Union[str, "_os.PathLike[str]", dict]) -> Dict[str, Any]:
+def check(source: Union[str, "_os.PathLike[str]", dict], source_name: Optional[str] = None) -> Dict[str, Any]:
     """What `refdyn check` prints, as a dict: scenario, file, model (text), joints, constraints (name,
     origin, kind, order, order_label, rheonomic, rows, description), rows (total, material, programmed,
     holonomic, first_order, acceleration, jerk), force_elements, planner, t0, initial_acceleration
     (None or {values, source}), partition (None or {independent, dependent, automatic, condition}),
     projection (None or per moved joint {dq, q, dqd, qd}), residuals (per row {label: value}),
     integrator, experiments, variants (names) and text (the command's output, the same bytes).
-    source: a path, YAML text or a dict. An invalid scenario raises refdyn.Error with the
-    command's message."""
-    text, is_text, name = _scenario_source(source, "check")
+    source: a path, YAML text or a dict (source_name names a text or dict in messages and anchors
+    its relative paths, as in loads). An invalid scenario raises refdyn.Error with the command's
+    message."""
+    text, is_text, name = _scenario_source(source, "check", source_name)
     return _refdyn.check(text, is_text, name)
 
 
@@ -200,14 +202,15 @@ class VariantResults:
 
 
 def run_variants(source, track: bool = False, jobs: int = 1, directory: Union[str, "_os.PathLike[str]", None] = None,
-                 progress: Optional[Callable] = None) -> VariantResults:
+                 progress: Optional[Callable] = None, source_name: Optional[str] = None) -> VariantResults:
     """Plans (track=True: and tracks) every variant of a scenario's `variants:` section, on `jobs`
     threads (0: every core; the results do not depend on it), without the GIL. directory: also
     write what `refdyn plan/track` writes there (a folder per variant, variants.csv,
     summary.json). progress: None or callable(done, total, name) after each variant. A variant
     that is not a valid scenario or stops early is a result (its error/status), not an
-    exception; an invalid base scenario or variants section raises refdyn.Error."""
-    text, is_text, name = _scenario_source(source, "run_variants")
+    exception; an invalid base scenario or variants section raises refdyn.Error. source_name: as
+    in check."""
+    text, is_text, name = _scenario_source(source, "run_variants", source_name)
     if progress is not None and not callable(progress):
         raise TypeError("refdyn.run_variants: progress: expected None or a callable(done, total, name)")
     r = _refdyn.run_variants(text, is_text, name, track, jobs, _os.fspath(directory) if directory else "", progress)

@@ -73,6 +73,8 @@ def test_check_variants_projection_and_sources(cli):
     assert s["text"] == r["text"].replace(f"({FAMILY})", "(<string>)")
     d = refdyn.check(yaml.safe_load(text))
     assert d["text"] == r["text"].replace(f"({FAMILY})", "(<dict>)")
+    named = refdyn.check(text, source_name=str(FAMILY))  # a text named as its file: the same report
+    assert named["text"] == r["text"]
 
 
 def test_check_of_a_jerk_problem_reports_the_initial_acceleration():
