@@ -5,6 +5,7 @@
 #include "report.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/io/check.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
@@ -56,13 +57,6 @@ class Progress {
   bool tty_ = false, shown_ = false;
   long calls_ = 0;
 };
-
-std::string constraint_kind(const Constraint& c) {
-  std::string s = to_string(c.origin);
-  s += c.order() == 3 ? ", jerk-level" : c.order() == 2 ? ", acceleration-level" : c.first_order() ? ", first-order" : ", holonomic";
-  s += c.rheonomic() ? ", rheonomic" : ", scleronomic";
-  return s;
-}
 
 void print_plan(const Problem& p, const Plan& plan) {
   std::printf("scenario '%s': %d DOF, %d constraint rows; plan %s, %ld steps, t_end = %.6g s, max |Phi| = %.3g, %.3f s\n",
@@ -117,84 +111,8 @@ io::ProgressFactory terminal_progress(bool enabled) {
 
 int run_check(const std::string& file, const InputOptions& in) {
   const ScenarioSpec spec = io::load_scenario(file, in.max_input_bytes);
-  const auto sp = build_problem(spec);
-  const std::vector<io::Variant> variants = io::expand_variants(spec);  // checked before "valid"
-  const Problem& s = *sp;
-  const Model& m = s.model;
   // Everything is evaluated before anything is printed: "valid" is never followed by an error.
-  const double t0 = s.integrator.t0;
-  const auto planner = s.make_planner();
-  const Eigen::VectorXd x = s.initial_state(*planner);
-  Eigen::VectorXd dx(x.size());
-  planner->derivative(t0, x, dx);
-  std::cout << "scenario '" << s.name << "' (" << file << "): valid\n" << m.summary();
-  std::cout << "constraints: " << s.constraints.size() << " (" << s.constraints.rows() << " rows)\n";
-  int mat = 0, prog = 0, hol = 0, fo = 0, acc = 0, jerk = 0;
-  for (const auto& c : s.constraints.constraints()) {
-    std::cout << "  " << c->name << ": " << constraint_kind(*c) << ": " << c->describe() << "\n";
-    (c->origin == ConstraintOrigin::Material ? mat : prog) += c->rows();
-    (c->order() == 3 ? jerk : c->order() == 2 ? acc : c->first_order() ? fo : hol) += c->rows();
-  }
-  std::cout << "  rows by kind: " << mat << " material, " << prog << " programmed; " << hol << " holonomic, " << fo
-            << " first-order" << (acc ? ", " + std::to_string(acc) + " acceleration-level" : std::string())
-            << (jerk ? ", " + std::to_string(jerk) + " jerk-level" : std::string()) << "\n";
-  std::cout << "force elements: " << s.forces.elements().size();
-  for (const auto& e : s.forces.elements()) std::cout << "  " << e->name();
-  std::cout << "\n";
-  if (const std::string d = planner->description(); !d.empty()) std::cout << d << "\n";
-  if (planner->state_has_acceleration()) {
-    std::cout << "initial acceleration at t0 = " << t0 << " s" << (s.qdd0.size() ? " (from initial.qdd)" : " (free)") << ":";
-    for (int j = 0; j < m.nq; ++j) std::cout << " " << m.joint_name[j] << " " << x[2 * m.nq + j];
-    std::cout << "\n";
-  }
-  const std::optional<PlannerPartition> part = planner->partition();
-  if (part) {
-    std::cout << "partition: independent [";
-    for (size_t i = 0; i < part->independent.size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[part->independent[i]];
-    std::cout << "], dependent [";
-    for (size_t i = 0; i < part->dependent.size(); ++i) std::cout << (i ? ", " : "") << m.joint_name[part->dependent[i]];
-    std::cout << "]" << (s.automatic_independent ? " (chosen automatically)" : "") << "; cond(K_dc) = "
-              << part->condition << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
-  }
-  const bool projected = s.project_initial && part.has_value();  // the projection moves the dependent coordinates
-  if (projected) {
-    std::cout << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
-    for (int j = 0; j < m.nq; ++j)
-      if (s.initial_dq[j] != 0 || s.initial_dqd[j] != 0)
-        std::printf("  %-12s q %+.6g -> %.10g   qd %+.6g -> %.10g\n", m.joint_name[j].c_str(), s.initial_dq[j],
-                    s.q0[j], s.initial_dqd[j], s.qd0[j]);
-  }
-  std::cout << "initial residuals at t0 = " << t0 << " s" << (projected ? " (after projection)" : "") << ":\n";
-  const std::vector<RowResidual> residuals = planner->row_residuals();
-  for (int r = 0; r < s.constraints.rows(); ++r) {
-    std::printf("  %-20s", s.constraints.row_name(r).c_str());
-    for (size_t k = 0; k < residuals.size(); ++k)
-      std::printf("%s%s = %.3e", k ? "   " : " ", residuals[k].label.c_str(), residuals[k].values[r]);
-    std::printf("\n");
-  }
-  const IntegratorOptions& io = s.integrator;
-  std::cout << "integrator: " << to_string(io.method);
-  if (io.method == IntegratorMethod::RK4)
-    std::cout << ", step " << io.step << " s";
-  else
-    std::cout << ", rtol " << io.rtol << ", atol " << io.atol
-              << (io.method == IntegratorMethod::BDF ? ", max order " + std::to_string(io.max_order) : std::string())
-              << ", samples every " << (io.output_interval > 0 ? io.output_interval : io.step) << " s";
-  std::cout << ", t = [" << io.t0 << ", " << io.t1 << "] s";
-  if (s.options.stabilization != Stabilization::Baumgarte)
-    std::cout << "; stabilization: " << to_string(s.options.stabilization) << " (tolerance "
-              << fmt(s.options.projection_tolerance) << ")";
-  if (planner->checks_residual_tolerance())
-    std::cout << "; the plan stops where max |Phi| > "
-              << (std::isfinite(s.residual_tolerance) ? fmt(s.residual_tolerance) : std::string("(no check)"))
-              << " (integrator.residual_tolerance)";
-  std::cout << "\n";
-  std::cout << "experiments: " << s.experiments.size() << " runs\n";
-  if (!variants.empty()) {
-    std::cout << "variants: " << variants.size() << " (";
-    for (size_t i = 0; i < variants.size() && i < 3; ++i) std::cout << (i ? ", " : "") << variants[i].name;
-    std::cout << (variants.size() > 3 ? ", …" : "") << "; each is checked when it is planned)\n";
-  }
+  std::cout << io::check_text(io::check_scenario(spec, file));
   return kOk;
 }
 

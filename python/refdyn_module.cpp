@@ -5,6 +5,8 @@
 //     .plan / .runs: trajectory tables (io::trajectory_table) as (column names, float64 array)
 //     .feasibility_json / .summary_json: the JSON text the CLI writes (json.loads'ed in Python)
 //   Model: the model functions on one Data workspace (FK, point Jacobian, M, c + g, ID, FD).
+//   check (io::check_scenario) → a dict; generate (generate_symbolic) → the texts;
+//   run_variants (io::run_variants) → per-variant summaries, variants.csv, summary.json.
 //
 // Errors: refdyn::Error → refdyn.Error (a ValueError), refdyn::NumericalFailure →
 // refdyn.NumericalFailure (a refdyn.Error), message unchanged. Runs release the GIL.
@@ -14,9 +16,13 @@
 #include "refdyn/common/fields.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/simulate/feasibility.hpp"
+#include "refdyn/io/check.hpp"
+#include "refdyn/io/output.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/urdf.hpp"
+#include "refdyn/io/variants.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/scenario/problem.hpp"
@@ -29,13 +35,17 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <type_traits>
 #include <vector>
 
 namespace py = pybind11;
+using namespace pybind11::literals;
 using namespace refdyn;
 
 namespace {
@@ -197,6 +207,201 @@ std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bo
   return r;
 }
 
+// ---------------------------------------------------------------- scenario texts
+/// The scenario of a path (is_text false) or of YAML text named source_name.
+ScenarioSpec scenario_spec(const std::string& source, bool is_text, const std::string& source_name) {
+  return is_text ? io::parse_scenario(source, source_name) : io::load_scenario(source);
+}
+
+// ---------------------------------------------------------------- check
+py::dict check_dict(const io::CheckReport& r) {
+  py::dict d;
+  d["scenario"] = r.name;
+  d["file"] = r.file;
+  d["valid"] = true;
+  d["model"] = r.model_summary;
+  d["joints"] = r.joints;
+  py::list cs;
+  for (const io::CheckReport::Constraint& c : r.constraints) {
+    py::dict e;
+    e["name"] = c.name;
+    e["origin"] = c.origin;
+    e["kind"] = c.kind;
+    e["order"] = c.order;
+    e["order_label"] = order_label(c.order);
+    e["rheonomic"] = c.rheonomic;
+    e["rows"] = c.rows;
+    e["description"] = c.description;
+    cs.append(e);
+  }
+  d["constraints"] = cs;
+  py::dict rows;
+  rows["total"] = r.rows;
+  rows["material"] = r.material_rows;
+  rows["programmed"] = r.programmed_rows;
+  rows["holonomic"] = r.holonomic_rows;
+  rows["first_order"] = r.first_order_rows;
+  rows["acceleration"] = r.acceleration_rows;
+  rows["jerk"] = r.jerk_rows;
+  d["rows"] = rows;
+  d["force_elements"] = r.force_elements;
+  d["planner"] = r.planner_description;
+  d["t0"] = r.t0;
+  py::object acc = py::none();
+  if (r.has_initial_acceleration) {
+    py::dict a;
+    for (size_t j = 0; j < r.joints.size(); ++j) a[py::str(r.joints[j])] = r.initial_acceleration[j];
+    acc = py::dict("values"_a = a, "source"_a = r.initial_acceleration_given ? "initial.qdd" : "free");
+  }
+  d["initial_acceleration"] = acc;
+  py::object part = py::none();
+  if (r.has_partition)
+    part = py::dict("independent"_a = r.independent, "dependent"_a = r.dependent, "automatic"_a = r.automatic_partition,
+                    "condition"_a = r.condition);
+  d["partition"] = part;
+  py::object proj = py::none();
+  if (r.projected) {
+    py::dict p;
+    for (const io::CheckReport::Correction& c : r.corrections)
+      p[py::str(c.joint)] = py::dict("dq"_a = c.dq, "q"_a = c.q, "dqd"_a = c.dqd, "qd"_a = c.qd);
+    proj = p;
+  }
+  d["projection"] = proj;
+  py::dict res;
+  for (const io::CheckReport::RowResiduals& row : r.residuals) {
+    py::dict v;
+    for (size_t k = 0; k < row.values.size(); ++k) v[py::str(r.residual_labels[k])] = row.values[k];
+    res[py::str(row.row)] = v;
+  }
+  d["residuals"] = res;
+  py::dict integ;
+  integ["method"] = r.method;
+  if (r.method == to_string(IntegratorMethod::RK4)) {
+    integ["step"] = r.step;
+  } else {
+    integ["rtol"] = r.rtol;
+    integ["atol"] = r.atol;
+    if (r.method == to_string(IntegratorMethod::BDF)) integ["max_order"] = r.max_order;
+    integ["sample_interval"] = r.sample_interval;
+  }
+  integ["t0"] = r.t0;
+  integ["t1"] = r.t1;
+  integ["stabilization"] = r.stabilization;
+  if (r.stabilization != to_string(Stabilization::Baumgarte)) integ["projection_tolerance"] = r.projection_tolerance;
+  integ["residual_tolerance"] =
+      r.checks_residual ? py::object(py::float_(r.residual_tolerance)) : py::object(py::none());
+  d["integrator"] = integ;
+  d["experiments"] = r.experiments;
+  d["variants"] = r.variants;
+  d["text"] = io::check_text(r);
+  return d;
+}
+
+// ---------------------------------------------------------------- generate
+py::dict generate(const Problem& problem, bool c, bool latex, bool json, const std::string& prefix) {
+  SymbolicOptions opt;
+  opt.prefix = prefix;
+  std::vector<std::pair<std::string, std::string>> texts;
+  {
+    py::gil_scoped_release release;
+    const SymbolicReferenceDynamics g = generate_symbolic(problem, opt);
+    if (c) {
+      texts.emplace_back("c_header", g.c_header());
+      texts.emplace_back("c_source", g.c_source());
+    }
+    if (latex) texts.emplace_back("latex", g.latex());
+    if (json) texts.emplace_back("json", g.json());
+  }
+  py::dict d;
+  for (const auto& [k, v] : texts) d[py::str(k)] = v;
+  return d;
+}
+
+// ---------------------------------------------------------------- variants
+py::dict run_variants(const std::string& source, bool is_text, const std::string& source_name, bool track, int jobs,
+                      const std::string& dir, const py::object& progress) {
+  if (jobs < 0) throw Error("jobs: expected 0 (every core) or a number of threads >= 1, got " + std::to_string(jobs));
+  ScenarioSpec spec;
+  std::unique_ptr<Problem> base;
+  std::vector<io::Variant> variants;
+  std::vector<io::VariantSummary> summaries;
+  double wall = 0;
+  // progress(done, total, name), called with the GIL held; an exception it raises is kept
+  // (the remaining calls are skipped) and raised again after the run. Python objects are
+  // created and dropped only with the GIL held.
+  io::VariantOptions vo;
+  auto callback = std::make_shared<py::object>(progress);
+  auto raised = std::make_shared<std::optional<py::error_already_set>>();
+  if (!progress.is_none())
+    vo.on_done = [callback, raised](size_t done, size_t total, const std::string& name) {
+      py::gil_scoped_acquire gil;
+      if (raised->has_value()) return;
+      try {
+        (*callback)(done, total, name);
+      } catch (py::error_already_set& e) {
+        raised->emplace(std::move(e));
+      }
+    };
+  {
+    py::gil_scoped_release release;
+    spec = scenario_spec(source, is_text, source_name);
+    base = build_problem(spec);  // validates the base scenario, as refdyn plan does
+    variants = io::expand_variants(spec);
+    if (variants.empty())
+      throw Error(spec.file + ": variants: missing (run_variants needs a variants: section; see docs/sweeps.md)");
+    if (track && base->experiments.empty())
+      throw Error(spec.file + ": experiments: missing or an empty list (track needs at least one experiment; see "
+                  "docs/scenario.md)");
+    vo.track = track;
+    vo.jobs = jobs;
+    if (!dir.empty()) {
+      io::prepare_output_dir(dir);
+      vo.dir = dir;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    summaries = io::run_variants(spec, variants, vo);
+    wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  if (raised->has_value()) {
+    py::error_already_set e = std::move(**raised);
+    raised->reset();
+    throw e;
+  }
+  const bool tracked = track && !base->experiments.empty();
+  const std::string csv = io::variants_csv(base->model.joint_name, variants, summaries, tracked);
+  JsonValue summary = io::variants_summary_json(base->name, base->file, base->model.joint_name, variants, summaries,
+                                                tracked, wall);
+  if (!dir.empty()) {  // the aggregate as `refdyn plan/track` writes it (summary.json last)
+    summary["variant_folders"] = true;
+    io::write_text_atomic(std::filesystem::path(dir) / "variants.csv", csv);
+    io::write_text_atomic(std::filesystem::path(dir) / "summary.json", json_text(summary, 2, 2) + "\n");
+  }
+  py::list vs;
+  bool ok = true;
+  for (size_t i = 0; i < variants.size(); ++i) {
+    const io::VariantSummary& s = summaries[i];
+    py::dict e;
+    e["name"] = variants[i].name;
+    py::dict values;
+    for (const auto& [k, v] : variants[i].values) values[py::str(k)] = v;
+    e["values"] = values;
+    e["sample"] = variants[i].sample >= 0 ? py::object(py::int_(variants[i].sample)) : py::object(py::none());
+    for (const auto& [k, v] : py_dict(s)) e[k] = v;
+    if (!s.error.empty()) e["status"] = "invalid";
+    e["ok"] = s.ok();
+    ok = ok && s.ok();
+    vs.append(e);
+  }
+  py::dict d;
+  d["variants"] = vs;
+  d["joints"] = base->model.joint_name;
+  d["csv"] = csv;
+  d["summary_json"] = json_text(summary, 2, 2);
+  d["ok"] = ok;
+  d["wall_time"] = wall;
+  return d;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_refdyn, m) {
@@ -303,10 +508,28 @@ PYBIND11_MODULE(_refdyn, m) {
       .def_property_readonly("t0", [](const Problem& p) { return p.integrator.t0; })
       .def_property_readonly("t1", [](const Problem& p) { return p.integrator.t1; })
       .def_property_readonly("step", [](const Problem& p) { return p.integrator.step; })
-      .def_property_readonly("constraint_rows", [](const Problem& p) {
-        std::vector<std::string> r;
-        for (int i = 0; i < p.constraints.rows(); ++i) r.push_back(p.constraints.row_name(i));
-        return r;
+      .def("_constraint_row_info", [](const Problem& p) {
+        // Per row (refdyn.Problem.constraint_rows wraps these): its name, the constraint it
+        // belongs to and its index there, order, origin, kind, time dependence, formula.
+        py::list rows;
+        for (int i = 0; i < p.constraints.rows(); ++i) {
+          const int k = p.constraints.row_owner(i);
+          const Constraint& c = *p.constraints.constraints()[k];
+          const int order = c.order();
+          py::dict d;
+          d["name"] = p.constraints.row_name(i);
+          d["constraint"] = c.name;
+          d["index"] = i - p.constraints.row_offset(k);
+          d["order"] = order;
+          d["order_label"] = order_label(order);
+          d["origin"] = to_string(c.origin);
+          d["kind"] = order == 3 ? "jerk-level" : order == 2 ? "acceleration-level" : c.first_order() ? "first-order"
+                                                                                                      : "holonomic";
+          d["rheonomic"] = c.rheonomic();
+          d["description"] = c.describe();
+          rows.append(d);
+        }
+        return rows;
       })
       .def_property_readonly("experiments", [](const Problem& p) {
         std::vector<std::string> r;
@@ -381,6 +604,24 @@ PYBIND11_MODULE(_refdyn, m) {
         io::write_results(dir, *r.problem, r.results, io::summary_json(*r.problem, r.results));
       }, py::arg("dir"), "Writes plan.csv, feasibility.json, sweep.csv, summary.json, track_<name>.csv as the CLI does.");
 
+  m.def("check", [](const std::string& source, bool is_text, const std::string& source_name) {
+        io::CheckReport r;
+        {
+          py::gil_scoped_release release;
+          const ScenarioSpec spec = scenario_spec(source, is_text, source_name);
+          r = io::check_scenario(spec, is_text ? source_name : source);
+        }
+        return check_dict(r);
+      }, py::arg("source"), py::arg("is_text"), py::arg("source_name") = "<string>",
+      "io::check_scenario of a file (is_text false) or YAML text: what `refdyn check` prints, as a dict.");
+  m.def("generate", [](const std::shared_ptr<Problem>& p, bool c, bool latex, bool json, const std::string& prefix) {
+        return generate(*p, c, latex, json, prefix);
+      }, py::arg("problem"), py::arg("c"), py::arg("latex"), py::arg("json"), py::arg("prefix") = "",
+      "generate_symbolic without the GIL: {c_header, c_source, latex, json} (the formats asked for).");
+  m.def("run_variants", &run_variants, py::arg("source"), py::arg("is_text"), py::arg("source_name"),
+        py::arg("track"), py::arg("jobs"), py::arg("dir"), py::arg("progress"),
+        "io::run_variants without the GIL: per variant its summary; variants.csv and summary.json as texts "
+        "(and in dir, with a folder per variant, when dir is not empty).");
   m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress, int jobs) {
         return run(p, track, progress, jobs);
       }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(), py::arg("jobs") = 1,

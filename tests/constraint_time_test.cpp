@@ -119,25 +119,29 @@ TEST(TimeFunctionThirdDerivative, ClosedFormsAndConstantBranches) {
   EXPECT_EQ(k->eval(1.5).dddf, 0.0);
 }
 
-TEST(TimeFunctionThirdDerivative, ExpressionDifferentiateOption) {
+TEST(TimeFunctionThirdDerivative, ExpressionExtraDerivativeOption) {
   ExpressionOptions o;
   o.derivative_order = 1;
-  o.differentiate_times = 2;
-  o.differentiate_variable = 1;
+  o.extra_derivative_order = 2;
+  o.extra_derivative_variable = 1;
   const Expression e("x*y^4 + sin(y)*x^2", {"x", "y"}, {}, o);  // ∂²/∂y²: 12 x y² − sin(y) x²
   const double xv[2] = {0.7, -1.1};
   double v = 0, g[2];
-  e.evaluate(xv, v, g, nullptr);
-  EXPECT_NEAR(v, 12 * 0.7 * 1.21 - std::sin(-1.1) * 0.49, 1e-14);
-  EXPECT_NEAR(g[0], 12 * 1.21 - 2 * 0.7 * std::sin(-1.1), 1e-14);   // ∂/∂x
-  EXPECT_NEAR(g[1], 24 * 0.7 * -1.1 - std::cos(-1.1) * 0.49, 1e-14);  // ∂/∂y
+  e.evaluate(xv, v, g, nullptr);  // the expression itself is unchanged
+  EXPECT_NEAR(v, 0.7 * std::pow(1.1, 4) + std::sin(-1.1) * 0.49, 1e-14);
+  EXPECT_NEAR(g[1], 4 * 0.7 * std::pow(-1.1, 3) + std::cos(-1.1) * 0.49, 1e-14);
+  EXPECT_NEAR(e.extra_derivative(xv), 12 * 0.7 * 1.21 - std::sin(-1.1) * 0.49, 1e-14);
+  EXPECT_FALSE(e.extra_derivative_text().empty());
+  // Without the option: a clear error. Bad options: errors naming them.
+  const Expression plain("x + y", {"x", "y"});
+  test::expect_error_mentioning([&] { plain.extra_derivative(xv); }, {"extra_derivative", "built without one"});
   ExpressionOptions bad = o;
-  bad.differentiate_variable = 2;
+  bad.extra_derivative_variable = 2;
   test::expect_error_mentioning([&] { Expression("x + y", {"x", "y"}, {}, bad); },
-                                {"differentiate_variable", "0..1", "2"});
-  bad.differentiate_variable = 0;
-  bad.differentiate_times = -1;
-  test::expect_error_mentioning([&] { Expression("x + y", {"x", "y"}, {}, bad); }, {"differentiate_times", ">= 0"});
+                                {"extra_derivative_variable", "0..1", "2"});
+  bad.extra_derivative_variable = 0;
+  bad.extra_derivative_order = -1;
+  test::expect_error_mentioning([&] { Expression("x + y", {"x", "y"}, {}, bad); }, {"extra_derivative_order", ">= 0"});
 }
 
 TEST(TimeFunctionThirdDerivative, EvalDualCarriesTheNextDerivatives) {

@@ -255,6 +255,34 @@ TEST(NoAllocation, ConstraintsOverDualNumbers) {
   for (const JacobianScalar& g : ev.gamma) EXPECT_TRUE(std::isfinite(g.v) && std::isfinite(g.d[0]));
 }
 
+// With a seeded time (issue 22: total time derivatives along a motion) and rheonomic rows of
+// every kind of time function, expression time functions (their f''' tape) and expression rows
+// in t: still nothing allocated after the first call.
+TEST(NoAllocation, ConstraintsOverDualNumbersWithASeededTime) {
+  const Model m = models::paper_manipulator();
+  ConstraintSet set;
+  set.add(point_on_surface(m, "E", plane(Vec3(0, 0.2, 1), expression_time_function("0.9 + 0.05*sin(2*t)"))));
+  set.add(point_coordinate(m, "E", 0, raised_cosine(0.2, 0.1, 2.0)));
+  set.add(joint_trajectory(m, m.joint_name[0], expression_time_function("0.1*t^3 - cos(t)")));
+  set.add(point_speed(m, "E", Vec3(1, 0, 0), cycloidal(0.3, 2.0)));
+  set.add(expression_constraint(m, "e0", "sin(x(E) + t)*exp(y(E)) - 2*t"));
+  set.add(expression_constraint(m, "e1", "vx(E)*cos(t) + atan2(vy(E), 2)", true));
+  set.add(expression_constraint(m, "e2", "ax(E)*cos(q(" + m.joint_name[0] + ") + t) + az(E) - sin(t)",
+                                ConstraintOrder::Acceleration));
+  ConstraintEvalDual ev(m, set);
+  std::vector<JacobianScalar> q(m.nv), qd(m.nv);
+  for (int i = 0; i < m.nv; ++i) {
+    q[i] = JacobianScalar::variable(0.3 * (i + 1), 0, 0.5 - 0.1 * i);  // q ← q̇
+    qd[i] = JacobianScalar::variable(-0.2 * (i + 1), 0, 0.3 * i);     // q̇ ← q̈
+  }
+  auto time = [](double t) { return JacobianScalar::variable(t, 0); };  // t ← 1
+  evaluate_constraints_dual(m, set, ev, time(0.4), q.data(), qd.data());  // warm-up
+  const long before = g_allocations;
+  for (int rep = 0; rep < 10; ++rep) evaluate_constraints_dual(m, set, ev, time(0.4 + 0.01 * rep), q.data(), qd.data());
+  EXPECT_EQ(g_allocations - before, 0);
+  for (const JacobianScalar& g : ev.gamma) EXPECT_TRUE(std::isfinite(g.v) && std::isfinite(g.d[0]));
+}
+
 // The checks still throw (and may allocate then) on bad input: the fast success paths did not
 // change what is rejected.
 TEST(NoAllocation, ChecksStillRejectBadInput) {

@@ -6,6 +6,9 @@
     plan["psi1"], plan.q, plan.t                            # columns by name, typed views
     result = refdyn.track(problem)                          # plan + closed-loop runs + feasibility
     model = problem.model                                   # FK, Jacobian, M, c + g, ID, FD
+    refdyn.check("examples/paper/paper.yaml")               # what `refdyn check` prints, as a dict
+    refdyn.generate(problem, formats="c")                   # the generated C (and LaTeX, JSON) texts
+    refdyn.run_variants("examples/planar_2r_circle/family.yaml")  # variants: per-variant summaries
 
 Errors in the input raise refdyn.Error (a ValueError) with the one-line message of the C++
 library ("file:line: key: ..."). A run that stops (a numerical outcome) is not an exception:
@@ -30,6 +33,7 @@ for _cls in (Error, NumericalFailure, Model, Problem):
 __all__ = [
     "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
     "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",
+    "ConstraintRow", "check", "generate", "run_variants", "VariantResults",
 ]
 __version__ = "0.2.0"  # = project(VERSION) in CMakeLists.txt (cli_test checks)
 
@@ -82,6 +86,136 @@ def from_dict(d: dict, source_name: str = "<dict>") -> Problem:
     """A built scenario from a dict with the keys of a scenario file (docs/scenario.md).
     Numbers may be expressions in strings ("90*deg"); NumPy arrays are accepted for lists."""
     return _refdyn.parse_problem(_dict_text(d), source_name)
+
+
+def _scenario_source(source, what: str, source_name: Optional[str] = None):
+    """(text or path, is_text, source name) of a path, YAML text or a dict (as load() takes them);
+    source_name names a text or dict (as loads' does), default "<string>" / "<dict>"."""
+    if isinstance(source, dict):
+        return _dict_text(source), True, source_name or "<dict>"
+    if isinstance(source, str) and "\n" in source:
+        return source, True, source_name or "<string>"
+    if isinstance(source, (str, _os.PathLike)):
+        return _os.fspath(source), False, ""
+    raise TypeError(f"refdyn.{what}: expected a path, YAML text or a dict, got {type(source).__name__}")
+
+
+class ConstraintRow(str):
+    """One row of a problem's constraints (Problem.constraint_rows). It is the row's name, a str
+    ("ellipse", "loop[1]"), as the list held before, with what the row is:
+    constraint (the constraint's name), index (its row within the constraint), order (0 position,
+    1 velocity, 2 acceleration, 3 jerk), order_label ("holonomic (position)", ...), origin
+    ("material" or "programmed"), kind ("holonomic", "first-order", "acceleration-level",
+    "jerk-level"), rheonomic (explicitly time-dependent) and description (the formula)."""
+
+    _FIELDS = ("constraint", "index", "order", "order_label", "origin", "kind", "rheonomic", "description")
+
+    def __new__(cls, info: dict):
+        row = super().__new__(cls, info["name"])
+        for k in cls._FIELDS:
+            setattr(row, k, info[k])
+        return row
+
+    @property
+    def name(self) -> str:
+        return str(self)
+
+    def as_dict(self) -> Dict[str, Any]:
+        return {"name": str(self), **{k: getattr(self, k) for k in self._FIELDS}}
+
+    def __repr__(self) -> str:
+        return (f"ConstraintRow({str(self)!r}, order={self.order}, origin={self.origin!r}, kind={self.kind!r}, "
+                f"rheonomic={self.rheonomic})")
+
+
+def _constraint_rows(problem: Problem) -> list:
+    return [ConstraintRow(info) for info in problem._constraint_row_info()]
+
+
+Problem.constraint_rows = property(
+    _constraint_rows,
+    doc="The constraint rows in order, each a ConstraintRow: its name (a str) with its order, origin, kind, ...")
+
+
+def check(source: Union[str, "_os.PathLike[str]", dict], source_name: Optional[str] = None) -> Dict[str, Any]:
+    """What `refdyn check` prints, as a dict: scenario, file, model (text), joints, constraints (name,
+    origin, kind, order, order_label, rheonomic, rows, description), rows (total, material, programmed,
+    holonomic, first_order, acceleration, jerk), force_elements, planner, t0, initial_acceleration
+    (None or {values, source}), partition (None or {independent, dependent, automatic, condition}),
+    projection (None or per moved joint {dq, q, dqd, qd}), residuals (per row {label: value}),
+    integrator, experiments, variants (names) and text (the command's output, the same bytes).
+    source: a path, YAML text or a dict (source_name names a text or dict in messages and anchors
+    its relative paths, as in loads). An invalid scenario raises refdyn.Error with the command's
+    message."""
+    text, is_text, name = _scenario_source(source, "check", source_name)
+    return _refdyn.check(text, is_text, name)
+
+
+_FORMATS = ("c", "latex", "json")
+
+
+def generate(source, formats: Union[str, tuple, list] = _FORMATS, prefix: str = "") -> Dict[str, str]:
+    """The generated reference dynamics (`refdyn generate`) as texts: {"c_header", "c_source"} for
+    "c", "latex", "json", for the formats asked for (a comma-separated str such as "c,latex" or a
+    list). prefix: the C identifiers' prefix (default: "rd_" + the scenario's name). source: a
+    path, YAML text, a dict or a Problem. The GIL is released while generating."""
+    if isinstance(formats, str):
+        wanted = [f for f in formats.split(",")]
+    elif isinstance(formats, (list, tuple)):
+        wanted = list(formats)
+    else:
+        raise TypeError(f"refdyn.generate: formats: expected a str or a list, got {type(formats).__name__}")
+    for f in wanted:
+        if f not in _FORMATS:
+            raise Error(f"formats: expected a comma-separated list of c, latex, json, got '{f}'")
+    if not wanted:
+        raise Error("formats: expected at least one of c, latex, json")
+    return _refdyn.generate(load(source), "c" in wanted, "latex" in wanted, "json" in wanted, prefix)
+
+
+@dataclass(frozen=True)
+class VariantResults:
+    """A family of variants run (refdyn.run_variants): per variant a dict (name, values of the varied
+    parameters, sample, error, status, message, t_end, max_constraint_residual, feasible, violations,
+    peak_speed, peak_effort per joint, runs, runs_completed, worst_final_error, worst_peak_tau,
+    wall_time, ok), the joints, variants.csv and summary.json (a dict) as `refdyn plan/track` write
+    them, ok (every variant complete) and the wall time."""
+    variants: list
+    joints: tuple
+    csv: str
+    summary: Dict[str, Any]
+    ok: bool
+    wall_time: float
+
+    def __getitem__(self, name: str) -> Dict[str, Any]:
+        for v in self.variants:
+            if v["name"] == name:
+                return v
+        raise KeyError(f"no variant '{name}' (variants: {', '.join(v['name'] for v in self.variants)})")
+
+    def __len__(self) -> int:
+        return len(self.variants)
+
+    def column(self, key: str) -> np.ndarray:
+        """One number per variant (t_end, feasible, ...) as an array, in the variants' order."""
+        return np.array([v[key] for v in self.variants])
+
+
+def run_variants(source, track: bool = False, jobs: int = 1, directory: Union[str, "_os.PathLike[str]", None] = None,
+                 progress: Optional[Callable] = None, source_name: Optional[str] = None) -> VariantResults:
+    """Plans (track=True: and tracks) every variant of a scenario's `variants:` section, on `jobs`
+    threads (0: every core; the results do not depend on it), without the GIL. directory: also
+    write what `refdyn plan/track` writes there (a folder per variant, variants.csv,
+    summary.json). progress: None or callable(done, total, name) after each variant. A variant
+    that is not a valid scenario or stops early is a result (its error/status), not an
+    exception; an invalid base scenario or variants section raises refdyn.Error. source_name: as
+    in check."""
+    text, is_text, name = _scenario_source(source, "run_variants", source_name)
+    if progress is not None and not callable(progress):
+        raise TypeError("refdyn.run_variants: progress: expected None or a callable(done, total, name)")
+    r = _refdyn.run_variants(text, is_text, name, track, jobs, _os.fspath(directory) if directory else "", progress)
+    return VariantResults(variants=r["variants"], joints=tuple(r["joints"]), csv=r["csv"],
+                          summary=_json.loads(r["summary_json"]), ok=r["ok"], wall_time=r["wall_time"])
 
 
 # --------------------------------------------------------------------------- models

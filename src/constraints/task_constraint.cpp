@@ -380,25 +380,25 @@ class ExpressionConstraint final : public Constraint {
   std::unique_ptr<Expression> expr_;
 };
 
-ExpressionOptions third_derivative() {
+ExpressionOptions with_third_derivative() {
   ExpressionOptions o;
-  o.derivative_order = 0;
-  o.differentiate_times = 3;
-  o.differentiate_variable = 0;
+  o.derivative_order = 2;
+  o.extra_derivative_order = 3;
+  o.extra_derivative_variable = 0;
   return o;
 }
 
-/// f, f', f'' from one tape (value, gradient, Hessian in t); f''' from a second, value-only
-/// tape of d³f/dt³, differentiated by GiNaC.
+/// f, f', f'' from one tape (value, gradient, Hessian in t); f''' from the expression's second,
+/// value-only tape of d³f/dt³, differentiated by GiNaC (ExpressionOptions::extra_derivative_order).
 class ExpressionTimeFunction final : public TimeFunction {
  public:
   ExpressionTimeFunction(const std::string& text, const std::map<std::string, double>& params)
-      : text_(text), params_(params), expr_(text, {"t"}, params, 2), third_(text, {"t"}, params, third_derivative()) {}
+      : text_(text), params_(params), expr_(text, {"t"}, params, with_third_derivative()) {}
   std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
   TimeValue eval(double t) const override {
     TimeValue v;
     expr_.evaluate(&t, v.f, &v.df, &v.ddf);
-    v.dddf = third_.value(&t);
+    v.dddf = expr_.extra_derivative(&t);
     return v;
   }
   std::string describe() const override { return text_; }
@@ -406,7 +406,6 @@ class ExpressionTimeFunction final : public TimeFunction {
   std::string text_;
   std::map<std::string, double> params_;
   Expression expr_;
-  Expression third_;  // d³f/dt³
 };
 
 }  // namespace

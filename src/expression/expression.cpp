@@ -39,13 +39,14 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
     throw Error(expected_got("Expression derivative_order", "0, 1 or 2",
                              std::to_string(derivative_order)));
   impl->order = derivative_order;
-  if (options.differentiate_times < 0)
-    throw Error(expected_got("Expression differentiate_times", ">= 0", std::to_string(options.differentiate_times)));
-  if (options.differentiate_times > 0 &&
-      (options.differentiate_variable < 0 || options.differentiate_variable >= static_cast<int>(variables.size())))
-    throw Error(expected_got("Expression differentiate_variable", variables.empty() ? std::string("a variable's index (there are none)")
+  if (options.extra_derivative_order < 0)
+    throw Error(expected_got("Expression extra_derivative_order", ">= 0", std::to_string(options.extra_derivative_order)));
+  if (options.extra_derivative_order > 0 &&
+      (options.extra_derivative_variable < 0 || options.extra_derivative_variable >= static_cast<int>(variables.size())))
+    throw Error(expected_got("Expression extra_derivative_variable",
+                             variables.empty() ? std::string("a variable's index (there are none)")
                                                : "0.." + std::to_string(variables.size() - 1),
-                             std::to_string(options.differentiate_variable)));
+                             std::to_string(options.extra_derivative_variable)));
 
   // Variable names: stripped, well-formed, unique, not parameters.
   for (const std::string& raw : variables) {
@@ -104,6 +105,32 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
   if (derivative_order >= 2)
     for (const GiNaC::ex& h : s.hess) impl->hess_text.push_back(to_text(h));
 
+  if (options.extra_derivative_order > 0) {
+    // ∂ᵏf/∂x_iᵏ over the same symbols (no new ones: see ExpressionOptions), value only.
+    auto extra = std::make_shared<Impl>();
+    extra->source = text;
+    extra->variables = impl->variables;
+    extra->n = n;
+    extra->order = 0;
+    Symbolic d;
+    try {
+      d.value = s.value.diff(syms[options.extra_derivative_variable], options.extra_derivative_order);
+    } catch (const std::exception& err) {
+      fail_at(text, std::string::npos, 0, std::string("differentiation failed (") + err.what() + ")", "");
+    }
+    for (int i = 0; i < n; ++i)
+      if (d.value.has(syms[i])) d.used.push_back(i);
+    extra->used = d.used;
+    try {
+      compile_tape(d, syms, *extra);
+    } catch (const BadConstant& bc) {
+      fail_bad_constant(text, fe, syms, bc);
+    }
+    extra->text = to_text(d.value);
+    impl->extra_kernel = extra->select_kernel();
+    impl->extra = std::move(extra);
+  }
+
   kernel_ = impl->select_kernel();
   order_ = impl->order;
   raw_ = impl.get();
@@ -140,6 +167,22 @@ void Expression::evaluate(const double* x, double& value, double* grad, double* 
 }
 
 std::string Expression::text() const { return impl_->text; }
+
+double Expression::extra_derivative(const double* x) const {
+  if (!raw_->extra)
+    throw Error("Expression::extra_derivative: \"" + raw_->source +
+                "\" was built without one (hint: ExpressionOptions::extra_derivative_order >= 1)");
+  double v;
+  raw_->extra_kernel(*raw_->extra, x, v, nullptr, nullptr, nullptr);
+  return v;
+}
+
+std::string Expression::extra_derivative_text() const {
+  if (!impl_->extra)
+    throw Error("Expression::extra_derivative_text: \"" + impl_->source +
+                "\" was built without one (hint: ExpressionOptions::extra_derivative_order >= 1)");
+  return impl_->extra->text;
+}
 
 std::string Expression::derivative_text(int i) const {
   if (impl_->order < 1)

@@ -229,6 +229,10 @@ struct Expression::Impl {
                         double* hess) const;
   /// The kernel for this expression.
   Expression::Kernel select_kernel() const;
+
+  /// ExpressionOptions::extra_derivative_order: the derivative's value-only program and kernel.
+  std::shared_ptr<const Impl> extra;
+  Expression::Kernel extra_kernel = nullptr;
 };
 
 }  // namespace refdyn

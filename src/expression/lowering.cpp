@@ -437,13 +437,6 @@ Symbolic lower_symbolic(const std::string& text, const ParseResult& fe,
               param_hint);
   }
 
-  // The derivative asked for in place of f (ExpressionOptions::differentiate_times).
-  try {
-    for (int k = 0; k < opt.differentiate_times; ++k) value = value.diff(syms[opt.differentiate_variable]);
-  } catch (const std::exception& err) {
-    fail_at(text, std::string::npos, 0, std::string("differentiation failed (") + err.what() + ")", param_hint);
-  }
-
   // Derivatives.
   std::vector<ex>& grad = s.grad;
   std::vector<ex>& hess = s.hess;

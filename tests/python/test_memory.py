@@ -27,3 +27,26 @@ def test_no_memory_growth_over_1000_plans():
     growth = rss_bytes() - before
     print(f"RSS growth over 1000 plans: {growth / 1024:.0f} KiB")
     assert growth < 4 * 1024 * 1024, f"RSS grew by {growth / 1024:.0f} KiB over 1000 plans"
+
+
+def test_no_memory_growth_over_check_and_run_variants_calls():
+    # refdyn.check and refdyn.run_variants with a progress callable (Python objects held across
+    # the released GIL): no growth over 300 calls of each.
+    text = MINIMAL_YAML.read_text().replace("t1: 0.5", "t1: 0.02")
+    family = text + "\nvariants:\n  name: \"L{L1}\"\n  grid: {L1: [0.5, 0.55]}\n"
+    seen = []
+
+    def once():
+        assert refdyn.check(text)["valid"]
+        r = refdyn.run_variants(family, progress=lambda done, total, name: seen.append(done))
+        assert r.ok and len(r) == 2
+
+    for _ in range(50):  # warm-up
+        once()
+    before = rss_bytes()
+    for _ in range(300):
+        once()
+    growth = rss_bytes() - before
+    print(f"RSS growth over 300 checks and variant runs: {growth / 1024:.0f} KiB")
+    assert len(seen) == 2 * 350
+    assert growth < 4 * 1024 * 1024, f"RSS grew by {growth / 1024:.0f} KiB over 300 checks and variant runs"

@@ -285,10 +285,10 @@ struct ConstraintEvalDual {
 /// derivative parts are the exact directional derivatives along the seeds of t, q and q̇
 /// (forward kinematics, point kinematics with q̈ = 0 for the drifts, every constraint's
 /// evaluate_dual over dual numbers, functions of time through f', f'', f'''). A plain double t
-/// converts to an unseeded time: then functions of time enter as constants, and the results
-/// are those of the earlier double-t signature bit for bit. Seeding t with 1, q with q̇ and q̇
-/// with q̈ in one direction gives the total time derivatives along the motion of Φ, Φ̇, A, γ
-/// (∂/∂t of the rheonomic rows included), for rows of every order ≤ 2
+/// converts to an unseeded time: then functions of time enter as the same constants as with the
+/// earlier double-t signature (derivative parts +0), and the results are the same. Seeding t
+/// with 1, q with q̇ and q̇ with q̈ in one direction gives the total time derivatives along the
+/// motion of Φ, Φ̇, A, γ (∂/∂t of the rheonomic rows included), for rows of every order ≤ 2
 /// (tests/constraint_time_test.cpp). No heap allocation after the first call with a given ev.
 /// Checks that ev belongs to this model and set; throws the Error of a kind without evaluate_dual.
 void evaluate_constraints_dual(const Model& model, const ConstraintSet& set, ConstraintEvalDual& ev,

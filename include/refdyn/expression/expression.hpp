@@ -137,13 +137,15 @@ struct ExpressionOptions {
   /// (1+1+...+1 has depth 1). 256 by default; raising it far (beyond a few thousand) can
   /// overflow the stack in GiNaC.
   int max_depth = 256;
-  /// Compile ∂ᵏf/∂x_iᵏ instead of f: the text's expression differentiated (GiNaC, exactly, after
-  /// the parameters are substituted) `differentiate_times` = k times along the variable of index
-  /// `differentiate_variable` = i, before the derivatives of derivative_order are taken. 0: f
-  /// itself. E.g. a time function's f''' is the value of its text built with {i = 0 (t), k = 3}.
-  /// text(), used_variables() and the derivative texts then describe the derivative.
-  int differentiate_times = 0;
-  int differentiate_variable = 0;
+  /// Also compile ∂ᵏf/∂x_iᵏ (k = extra_derivative_order ≥ 1 along the variable of index
+  /// i = extra_derivative_variable), differentiated exactly by GiNaC after the parameters are
+  /// substituted, as a second, value-only tape read by Expression::extra_derivative(x); 0: none.
+  /// A time function's f''' is k = 3 along t. It is built in the same construction over the same
+  /// GiNaC symbols: no new symbols, so expressions built afterwards compile exactly as they would
+  /// without it (GiNaC orders the terms of sums and products by hashes of symbol serial numbers,
+  /// and the tape's evaluation order follows).
+  int extra_derivative_order = 0;
+  int extra_derivative_variable = 0;
 };
 
 class Expression {
@@ -206,6 +208,13 @@ class Expression {
                 JacobianScalar* hess, ExpressionDualWorkspace& ws) const;
   void evaluate(const JacobianScalar* x, JacobianScalar& value, JacobianScalar* grad,
                 JacobianScalar* hess, JacobianScalar* registers) const;
+
+  /// ∂ᵏf/∂x_iᵏ at x (size n) as asked for by ExpressionOptions::extra_derivative_order and
+  /// extra_derivative_variable. Allocates as value() does. Throws Error for an expression built
+  /// without it.
+  double extra_derivative(const double* x) const;
+  /// That derivative as text (GiNaC's printout; same Error).
+  std::string extra_derivative_text() const;
 
   /// Canonical GiNaC printout of the expression after parameter substitution.
   std::string text() const;

@@ -1,0 +1,179 @@
+// refdyn check as a library function: the report (check_scenario) and its text (check_text).
+#include "refdyn/io/check.hpp"
+
+#include "refdyn/common/text.hpp"
+#include "refdyn/io/variants.hpp"
+#include "refdyn/scenario/problem.hpp"
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <sstream>
+
+namespace refdyn::io {
+
+namespace {
+
+std::string kind_of(const Constraint& c) {
+  return c.order() == 3 ? "jerk-level" : c.order() == 2 ? "acceleration-level" : c.first_order() ? "first-order" : "holonomic";
+}
+
+/// printf into a string.
+std::string format(const char* f, ...) {
+  va_list a, b;
+  va_start(a, f);
+  va_copy(b, a);
+  const int n = std::vsnprintf(nullptr, 0, f, a);
+  va_end(a);
+  std::string s(static_cast<size_t>(n > 0 ? n : 0) + 1, '\0');
+  std::vsnprintf(s.data(), s.size(), f, b);
+  va_end(b);
+  s.resize(s.size() - 1);
+  return s;
+}
+
+}  // namespace
+
+CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
+  const auto sp = build_problem(spec);
+  const std::vector<Variant> variants = expand_variants(spec);  // checked before "valid"
+  const Problem& s = *sp;
+  const Model& m = s.model;
+  // Everything is evaluated before the report is returned: "valid" is never followed by an error.
+  const double t0 = s.integrator.t0;
+  const auto planner = s.make_planner();
+  const Eigen::VectorXd x = s.initial_state(*planner);
+  Eigen::VectorXd dx(x.size());
+  planner->derivative(t0, x, dx);
+
+  CheckReport r;
+  r.name = s.name;
+  r.file = file;
+  r.model_summary = m.summary();
+  r.joints = m.joint_name;
+  r.rows = s.constraints.rows();
+  for (const auto& c : s.constraints.constraints()) {
+    CheckReport::Constraint e;
+    e.name = c->name;
+    e.origin = to_string(c->origin);
+    e.kind = kind_of(*c);
+    e.order = c->order();
+    e.rheonomic = c->rheonomic();
+    e.rows = c->rows();
+    e.description = c->describe();
+    r.constraints.push_back(e);
+    (c->origin == ConstraintOrigin::Material ? r.material_rows : r.programmed_rows) += c->rows();
+    (c->order() == 3 ? r.jerk_rows : c->order() == 2 ? r.acceleration_rows : c->first_order() ? r.first_order_rows
+                                                                                                : r.holonomic_rows) +=
+        c->rows();
+  }
+  for (const auto& e : s.forces.elements()) r.force_elements.push_back(e->name());
+  r.planner_description = planner->description();
+  r.t0 = t0;
+  if (planner->state_has_acceleration()) {
+    r.has_initial_acceleration = true;
+    r.initial_acceleration_given = s.qdd0.size() > 0;
+    for (int j = 0; j < m.nq; ++j) r.initial_acceleration.push_back(x[2 * m.nq + j]);
+  }
+  if (const std::optional<PlannerPartition> part = planner->partition()) {
+    r.has_partition = true;
+    for (int j : part->independent) r.independent.push_back(m.joint_name[j]);
+    for (int j : part->dependent) r.dependent.push_back(m.joint_name[j]);
+    r.automatic_partition = s.automatic_independent;
+    r.condition = part->condition;
+  }
+  r.projected = s.project_initial && r.has_partition;  // the projection moves the dependent coordinates
+  if (r.projected)
+    for (int j = 0; j < m.nq; ++j)
+      if (s.initial_dq[j] != 0 || s.initial_dqd[j] != 0)
+        r.corrections.push_back({m.joint_name[j], s.initial_dq[j], s.q0[j], s.initial_dqd[j], s.qd0[j]});
+  const std::vector<RowResidual> residuals = planner->row_residuals();
+  for (const RowResidual& k : residuals) r.residual_labels.push_back(k.label);
+  for (int row = 0; row < s.constraints.rows(); ++row) {
+    CheckReport::RowResiduals e{s.constraints.row_name(row), {}};
+    for (const RowResidual& k : residuals) e.values.push_back(k.values[row]);
+    r.residuals.push_back(e);
+  }
+  const IntegratorOptions& io = s.integrator;
+  r.method = to_string(io.method);
+  r.step = io.step;
+  r.rtol = io.rtol;
+  r.atol = io.atol;
+  r.max_order = io.max_order;
+  r.sample_interval = io.output_interval > 0 ? io.output_interval : io.step;
+  r.t1 = io.t1;
+  r.stabilization = to_string(s.options.stabilization);
+  r.projection_tolerance = s.options.projection_tolerance;
+  r.checks_residual = planner->checks_residual_tolerance();
+  r.residual_tolerance = s.residual_tolerance;
+  r.experiments = static_cast<long>(s.experiments.size());
+  for (const Variant& v : variants) r.variants.push_back(v.name);
+  return r;
+}
+
+std::string check_text(const CheckReport& r) {
+  std::ostringstream o;  // std::cout's formatting (6 significant digits)
+  o << "scenario '" << r.name << "' (" << r.file << "): valid\n" << r.model_summary;
+  o << "constraints: " << r.constraints.size() << " (" << r.rows << " rows)\n";
+  for (const CheckReport::Constraint& c : r.constraints)
+    o << "  " << c.name << ": " << c.origin << ", " << c.kind << ", " << (c.rheonomic ? "rheonomic" : "scleronomic")
+      << ": " << c.description << "\n";
+  o << "  rows by kind: " << r.material_rows << " material, " << r.programmed_rows << " programmed; " << r.holonomic_rows
+    << " holonomic, " << r.first_order_rows << " first-order"
+    << (r.acceleration_rows ? ", " + std::to_string(r.acceleration_rows) + " acceleration-level" : std::string())
+    << (r.jerk_rows ? ", " + std::to_string(r.jerk_rows) + " jerk-level" : std::string()) << "\n";
+  o << "force elements: " << r.force_elements.size();
+  for (const std::string& e : r.force_elements) o << "  " << e;
+  o << "\n";
+  if (!r.planner_description.empty()) o << r.planner_description << "\n";
+  if (r.has_initial_acceleration) {
+    o << "initial acceleration at t0 = " << r.t0 << " s" << (r.initial_acceleration_given ? " (from initial.qdd)" : " (free)")
+      << ":";
+    for (size_t j = 0; j < r.joints.size(); ++j) o << " " << r.joints[j] << " " << r.initial_acceleration[j];
+    o << "\n";
+  }
+  if (r.has_partition) {
+    o << "partition: independent [";
+    for (size_t i = 0; i < r.independent.size(); ++i) o << (i ? ", " : "") << r.independent[i];
+    o << "], dependent [";
+    for (size_t i = 0; i < r.dependent.size(); ++i) o << (i ? ", " : "") << r.dependent[i];
+    o << "]" << (r.automatic_partition ? " (chosen automatically)" : "") << "; cond(K_dc) = " << r.condition
+      << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
+  }
+  if (r.projected) {
+    o << "initial state projected onto the constraints (Newton, dependent coordinates):\n";
+    for (const CheckReport::Correction& c : r.corrections)
+      o << format("  %-12s q %+.6g -> %.10g   qd %+.6g -> %.10g\n", c.joint.c_str(), c.dq, c.q, c.dqd, c.qd);
+  }
+  o << "initial residuals at t0 = " << r.t0 << " s" << (r.projected ? " (after projection)" : "") << ":\n";
+  for (const CheckReport::RowResiduals& row : r.residuals) {
+    o << format("  %-20s", row.row.c_str());
+    for (size_t k = 0; k < row.values.size(); ++k)
+      o << format("%s%s = %.3e", k ? "   " : " ", r.residual_labels[k].c_str(), row.values[k]);
+    o << "\n";
+  }
+  o << "integrator: " << r.method;
+  if (r.method == to_string(IntegratorMethod::RK4))
+    o << ", step " << r.step << " s";
+  else
+    o << ", rtol " << r.rtol << ", atol " << r.atol
+      << (r.method == to_string(IntegratorMethod::BDF) ? ", max order " + std::to_string(r.max_order) : std::string())
+      << ", samples every " << r.sample_interval << " s";
+  o << ", t = [" << r.t0 << ", " << r.t1 << "] s";
+  if (r.stabilization != to_string(Stabilization::Baumgarte))
+    o << "; stabilization: " << r.stabilization << " (tolerance " << fmt(r.projection_tolerance) << ")";
+  if (r.checks_residual)
+    o << "; the plan stops where max |Phi| > "
+      << (std::isfinite(r.residual_tolerance) ? fmt(r.residual_tolerance) : std::string("(no check)"))
+      << " (integrator.residual_tolerance)";
+  o << "\n";
+  o << "experiments: " << r.experiments << " runs\n";
+  if (!r.variants.empty()) {
+    o << "variants: " << r.variants.size() << " (";
+    for (size_t i = 0; i < r.variants.size() && i < 3; ++i) o << (i ? ", " : "") << r.variants[i];
+    o << (r.variants.size() > 3 ? ", …" : "") << "; each is checked when it is planned)\n";
+  }
+  return o.str();
+}
+
+}  // namespace refdyn::io
