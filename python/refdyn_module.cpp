@@ -251,7 +251,8 @@ py::dict check_dict(const io::CheckReport& r) {
   if (r.has_initial_acceleration) {
     py::dict a;
     for (size_t j = 0; j < r.joints.size(); ++j) a[py::str(r.joints[j])] = r.initial_acceleration[j];
-    acc = py::dict("values"_a = a, "source"_a = r.initial_acceleration_given ? "initial.qdd" : "free");
+    acc = py::dict("values"_a = a, "source"_a = r.initial_acceleration_source,
+                   "consistent_with"_a = r.initial_acceleration_rows);
   }
   d["initial_acceleration"] = acc;
   py::object part = py::none();

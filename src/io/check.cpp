@@ -72,7 +72,10 @@ CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
   r.t0 = t0;
   if (planner->state_has_acceleration()) {
     r.has_initial_acceleration = true;
-    r.initial_acceleration_given = s.qdd0.size() > 0;
+    r.initial_acceleration_given = s.qdd0.size() > 0 || !s.qdd_consistent_with.empty();
+    r.initial_acceleration_source =
+        s.qdd0.size() ? "initial.qdd" : s.qdd_consistent_with.empty() ? "free" : "consistent_with";
+    r.initial_acceleration_rows = s.qdd_consistent_with;
     for (int j = 0; j < m.nq; ++j) r.initial_acceleration.push_back(x[2 * m.nq + j]);
   }
   if (const std::optional<PlannerPartition> part = planner->partition()) {
@@ -127,7 +130,13 @@ std::string check_text(const CheckReport& r) {
   o << "\n";
   if (!r.planner_description.empty()) o << r.planner_description << "\n";
   if (r.has_initial_acceleration) {
-    o << "initial acceleration at t0 = " << r.t0 << " s" << (r.initial_acceleration_given ? " (from initial.qdd)" : " (free)")
+    std::string rows;
+    for (const std::string& name : r.initial_acceleration_rows) rows += (rows.empty() ? "" : ", ") + name;
+    o << "initial acceleration at t0 = " << r.t0 << " s"
+      << (r.initial_acceleration_source == "initial.qdd" ? " (from initial.qdd)"
+          : r.initial_acceleration_source == "consistent_with"
+              ? " (consistent with the acceleration rows of: " + rows + ")"
+              : " (free)")
       << ":";
     for (size_t j = 0; j < r.joints.size(); ++j) o << " " << r.joints[j] << " " << r.initial_acceleration[j];
     o << "\n";

@@ -12,6 +12,7 @@ from conftest import BAD_DIR, MINIMAL_YAML, PAPER_YAML, SOURCE_DIR
 
 EXAMPLES = SOURCE_DIR / "examples"
 FAMILY = EXAMPLES / "planar_2r_circle" / "family.yaml"
+MIXED = EXAMPLES / "mixed_orders" / "mixed_orders.yaml"
 
 
 def cli_out(cli, *args, cwd=None):
@@ -83,6 +84,17 @@ def test_check_of_a_jerk_problem_reports_the_initial_acceleration():
     assert r["constraints"][0]["order"] == 3 and r["constraints"][0]["kind"] == "jerk-level"
     assert r["initial_acceleration"]["source"] == "free"
     assert set(r["initial_acceleration"]["values"]) == {"j1", "j2"}
+
+
+def test_check_of_a_mixed_order_problem_reports_rows_of_every_order_and_the_consistent_acceleration():
+    r = refdyn.check(MIXED)
+    assert [(c["name"], c["order"]) for c in r["constraints"]] == [("height", 0), ("wrist", 3)]
+    assert r["rows"]["holonomic"] == 1 and r["rows"]["jerk"] == 1
+    assert r["initial_acceleration"]["source"] == "consistent_with"
+    assert r["initial_acceleration"]["consistent_with"] == ["wrist"]
+    assert r["partition"] is None and "no partition" in r["planner"]
+    rows = refdyn.load(MIXED).constraint_rows
+    assert [(row, row.order) for row in rows] == [("height", 0), ("wrist", 3)]
 
 
 @pytest.mark.parametrize("name", ["variants_unknown_parameter.yaml", "order_jerk.yaml"])

@@ -40,6 +40,10 @@ struct CheckReport {
   /// The planner's state holds q̈ (jerk problems): its initial value, from initial.qdd or free.
   bool has_initial_acceleration = false;
   bool initial_acceleration_given = false;
+  /// "initial.qdd" (a hint per joint), "consistent_with" (jerk rows made with differentiate: true
+  /// satisfy their acceleration rows: initial_acceleration_rows) or "free".
+  std::string initial_acceleration_source;
+  std::vector<std::string> initial_acceleration_rows;
   std::vector<double> initial_acceleration;  ///< per joint
 
   bool has_partition = false;
