@@ -286,10 +286,12 @@ TEST(GenericDynamics, GinacWithNumbersEqualsTheDoubleInstantiation) {
     const Eigen::VectorXd qv = test::random_vector(rng, n, 3.0), qdv = test::random_vector(rng, n, 2.0),
                           qddv = test::random_vector(rng, n, 2.0);
     std::vector<ex> q, qd, qdd;
+    // The state as floating-point numbers (GiNaC evaluates sin/cos of a float; from_double<ex>
+    // gives exact rationals, whose sines stay symbolic and whose products grow without bound).
     for (int i = 0; i < n; ++i) {
-      q.push_back(mb::from_double<ex>(qv[i]));
-      qd.push_back(mb::from_double<ex>(qdv[i]));
-      qdd.push_back(mb::from_double<ex>(qddv[i]));
+      q.push_back(GiNaC::numeric(qv[i]));
+      qd.push_back(GiNaC::numeric(qdv[i]));
+      qdd.push_back(GiNaC::numeric(qddv[i]));
     }
     const mb::Poses<ex> Ps = mb::forward_poses(Bs, q);
     const std::vector<ex> tau = mb::inverse_dynamics(Bs, Ps, model.gravity, qd.data(), qdd.data(), true);

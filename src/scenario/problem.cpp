@@ -602,6 +602,32 @@ void build_limits(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   }
 }
 
+/// initial.consistency: project — q0, q̇0 moved onto the rows of `rd` (Newton), the moves kept
+/// for `refdyn check`.
+void project_initial_state(const SpecReader& c, const InitialSpec& ini, ReferenceDynamics& rd, double t0, Problem& s) {
+  const auto cons = rd.make_consistent(t0, s.q0, s.qd0, 1e-12);
+  if (!cons.converged)
+    c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
+                                     fmt(cons.residual_after) + "); start closer to a consistent configuration");
+  s.q0 = cons.q;
+  s.qd0 = cons.qd;
+  s.initial_dq = cons.dq;
+  s.initial_dqd = cons.dqd;
+}
+
+/// Every row of `set` within the tolerance at the initial state (|Φ| and |Φ̇| from `ev`).
+void check_initial_residuals(const SpecReader& c, const InitialSpec& ini, const ConstraintSet& set,
+                             const ConstraintEval& ev, double tolerance) {
+  for (int row = 0; row < set.rows(); ++row) {
+    const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
+    if (!(v <= tolerance))
+      c.fail(ini.value, "initial",
+             "the initial state violates constraint '" + set.row_name(row) + "' by " + fmt(v) +
+                 " (|Phi| or |dPhi/dt|) > tolerance " + fmt(tolerance) +
+                 " (hint: set initial.consistency: project, or correct q/qd)");
+  }
+}
+
 /// The initial state at t0: consistent with the constraints (projected when asked), the
 /// partition chosen, every row finite and independent.
 void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
@@ -625,27 +651,16 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
       return {&e.fields, e.key};
     };
     ConstraintSet lower;
-    std::vector<int> lower_rows;
     for (int k = 0; k < s.constraints.size(); ++k) {
       const ConstraintPtr& con = s.constraints.constraints()[k];
       if (con->order() == 3) continue;
       lower.add(con);
-      for (int i = 0; i < con->rows(); ++i) lower_rows.push_back(s.constraints.row_offset(k) + i);
     }
     if (lower.rows() > 0) {
       ReferenceDynamicsOptions lo = s.options;
       lo.independent.clear();
       ReferenceDynamics rd(m, s.forces, lower, lo);
-      if (s.project_initial) {
-        const auto cons = rd.make_consistent(t0, s.q0, s.qd0, 1e-12);
-        if (!cons.converged)
-          c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
-                                           fmt(cons.residual_after) + "); start closer to a consistent configuration");
-        s.q0 = cons.q;
-        s.qd0 = cons.qd;
-        s.initial_dq = cons.dq;
-        s.initial_dqd = cons.dqd;
-      }
+      if (s.project_initial) project_initial_state(c, ini, rd, t0, s);
       Data data(m);
       ConstraintEval ev(m, lower);
       try {
@@ -653,15 +668,7 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
       } catch (const Error& e) {
         c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
       }
-      for (int row = 0; row < lower.rows(); ++row) {
-        if (lower.row_order(row) == 2) continue;  // acceleration rows restrict q̈0 only
-        const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
-        if (!(v <= s.initial_tolerance))
-          c.fail(ini.value, "initial",
-                 "the initial state violates constraint '" + lower.row_name(row) + "' by " + fmt(v) +
-                     " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s.initial_tolerance) +
-                     " (hint: set initial.consistency: project, or correct q/qd)");
-      }
+      check_initial_residuals(c, ini, lower, ev, s.initial_tolerance);  // acceleration rows: Φ = Φ̇ = 0
     }
     try {
       JerkDynamics jd(m, s.constraints, s.jerk_options(), &s.forces);
@@ -698,31 +705,14 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
     } catch (const NumericalFailure& e) {
       c.fail(where_part, "partition", e.what());
     }
-    if (s.project_initial) {
-      const auto cons = rd.make_consistent(t0, s.q0, s.qd0, 1e-12);
-      if (!cons.converged)
-        c.fail(ini.value, "initial", "the Newton projection onto the constraints did not converge (residual " +
-                                         fmt(cons.residual_after) + "); start closer to a consistent configuration");
-      s.q0 = cons.q;
-      s.qd0 = cons.qd;
-      s.initial_dq = cons.dq;
-      s.initial_dqd = cons.dqd;
-    }
+    if (s.project_initial) project_initial_state(c, ini, rd, t0, s);
     Eigen::VectorXd x = rd.make_state(s.q0, s.qd0), dx(x.size());
     try {
       rd.residual(t0, x);  // with acceleration rows this solves the dynamics once
     } catch (const NumericalFailure& e) {
       c.fail(where_part, "partition", e.what());
     }
-    const ConstraintEval& ev = rd.constraints();
-    for (int row = 0; row < nrows; ++row) {
-      const double v = std::max(std::abs(ev.phi[row]), std::abs(ev.phid[row]));
-      if (!(v <= s.initial_tolerance))
-        c.fail(ini.value, "initial",
-               "the initial state violates constraint '" + s.constraints.row_name(row) + "' by " + fmt(v) +
-                   " (|Phi| or |dPhi/dt|) > tolerance " + fmt(s.initial_tolerance) +
-                   " (hint: set initial.consistency: project, or correct q/qd)");
-    }
+    check_initial_residuals(c, ini, s.constraints, rd.constraints(), s.initial_tolerance);
     if (s.options.solver == ReferenceSolver::Projection && nrows > 0) {
       try {
         rd.derivative(t0, x, dx);
