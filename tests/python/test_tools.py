@@ -151,22 +151,17 @@ def json_shape(x):
 
 
 def test_generate_gives_the_files_of_the_command(cli, tmp_path):
-    # GiNaC orders the terms of sums and products by hashes that depend on where objects live,
-    # so two generations (two runs of the command, or two calls) may print the same expressions
-    # in different orders: compared here are the header (declarations), the JSON's structure,
-    # and the definitions and sections the C source and the LaTeX contain.
+    # The generator's text is canonical (docs/generate.md, "The same text in every run"): the
+    # Python call returns the command's files byte for byte.
     out = cli_out(cli, "generate", PAPER_YAML, "-o", tmp_path, "--format", "c,latex,json", "--prefix", "arm_", "-q")
     assert out.returncode == 0, out.stderr
     g = refdyn.generate(PAPER_YAML, prefix="arm_")
     assert set(g) == {"c_header", "c_source", "latex", "json"}
     assert g["c_header"] == (tmp_path / "reference_dynamics.h").read_text()
+    assert g["c_source"] == (tmp_path / "reference_dynamics.c").read_text()
+    assert g["latex"] == (tmp_path / "equations.tex").read_text()
+    assert g["json"] == (tmp_path / "reference_dynamics.json").read_text()
     assert json_shape(json.loads(g["json"])) == json_shape(json.loads((tmp_path / "reference_dynamics.json").read_text()))
-    cli_c = (tmp_path / "reference_dynamics.c").read_text()
-    defs = lambda text: [l for l in text.splitlines() if l.startswith(("int arm_", "void arm_", "double arm_", "static "))]
-    assert defs(g["c_source"]) == defs(cli_c) and any("arm_rhs" in l for l in defs(cli_c))
-    cli_tex = (tmp_path / "equations.tex").read_text()
-    heads = lambda text: [l for l in text.splitlines() if l.startswith(("\\section", "\\subsection", "\\begin{document}"))]
-    assert heads(g["latex"]) == heads(cli_tex) and heads(cli_tex)
 
 
 def test_generate_formats_sources_and_errors():
