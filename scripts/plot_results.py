@@ -131,7 +131,8 @@ def main():
     for ax, pre, lab in zip(axes, ("q_", "qd_", "qdd_"), ("q", "q'", "q''")):
         for j in joints:
             ax.plot(t, need(plan, pre + j, plan_path), label=j)
-        ax.set_ylabel(lab + " [rad or m, per s]" if pre != "q_" else "q [rad or m]")
+        unit = {"q_": "rad or m", "qd_": "rad or m, per s", "qdd_": "rad or m, per s²"}[pre]
+        ax.set_ylabel(f"{lab} [{unit}]")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("t [s]")
