@@ -117,6 +117,39 @@ class PlanRecorder {
   bool any_material_ = false;
 };
 
+/// The RK4 stages [q̂, q̂̇, q̂̈] of a plan, recorded for tracking on the same grid (RK4 only):
+/// stage s of step k is stored at (4k + s) · 3n, whatever the call order.
+class StageRecorder {
+ public:
+  StageRecorder(ReferenceStages& st, const IntegratorOptions& o, int n)
+      : st_(st), on_(o.method == IntegratorMethod::RK4), per_stage_(3 * static_cast<size_t>(n)) {
+    if (!on_) return;
+    const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+    st_.t0 = o.t0;
+    st_.h = (o.t1 - o.t0) / nsteps;
+    st_.n = n;
+  }
+  bool on() const { return on_; }
+  /// Where this stage's 3n values go (grows the storage as needed).
+  double* slot(const Stage& stage) {
+    const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage_;
+    if (st_.data.size() < at + per_stage_) st_.data.resize(std::max(at + per_stage_, 2 * st_.data.size()));
+    return st_.data.data() + at;
+  }
+  /// Keeps the stages of the steps the plan kept.
+  void finish(long steps) {
+    if (!on_) return;
+    st_.steps = steps;
+    st_.data.resize(static_cast<size_t>(steps) * 4 * per_stage_);
+    st_.data.shrink_to_fit();
+  }
+
+ private:
+  ReferenceStages& st_;
+  bool on_;
+  size_t per_stage_;
+};
+
 /// A run that stopped on a singular or ill-conditioned system: whether the constraint Jacobian A
 /// itself is singular at the last valid state (redundant rows or a singular configuration: no
 /// partition can help) or regular (then another partition or the Lagrange solver works).
@@ -228,23 +261,13 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   const int n = rd.nq();
   Plan plan;
   PlanRecorder recorder(rd, plan, record);
-  const bool rk4 = options.method == IntegratorMethod::RK4;
-  ReferenceStages& st = plan.stages;
-  if (rk4) {
-    const long nsteps = std::lround(std::ceil((options.t1 - options.t0) / options.step - 1e-9));
-    st.t0 = options.t0;
-    st.h = (options.t1 - options.t0) / nsteps;
-    st.n = n;
-  }
-  const size_t per_stage = 3 * static_cast<size_t>(n);
-  // The stage hook: RK4 stage s of step k is stored at (4k + s) · 3n, whatever the call order.
+  StageRecorder stages(plan.stages, options, n);
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
     rd.derivative(t, x, dx);
-    if (rk4) {
-      const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage;
-      if (st.data.size() < at + per_stage) st.data.resize(std::max(at + per_stage, 2 * st.data.size()));
-      std::copy(x.data(), x.data() + 2 * n, st.data.data() + at);
-      std::copy(dx.data() + n, dx.data() + 2 * n, st.data.data() + at + 2 * n);
+    if (stages.on()) {
+      double* s = stages.slot(stage);
+      std::copy(x.data(), x.data() + 2 * n, s);
+      std::copy(dx.data() + n, dx.data() + 2 * n, s + 2 * n);
     }
   };
   double worst = 0;
@@ -302,13 +325,9 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
                 fmt(tol) + ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
                 fmt(s.t_end) + " s (hint: a smaller step, stronger Baumgarte gains, or a task that stays in the "
                 "workspace)";
-    if (rk4) s.steps = std::lround((s.t_end - options.t0) / st.h);
+    if (stages.on()) s.steps = std::lround((s.t_end - options.t0) / plan.stages.h);
   }
-  if (rk4) {
-    st.steps = plan.summary.steps;
-    st.data.resize(static_cast<size_t>(st.steps) * 4 * per_stage);
-    st.data.shrink_to_fit();
-  }
+  stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;
   explain_failure(rd, options, plan, x0, x, plan.summary.t_end, plan.summary);
   return plan;
@@ -363,25 +382,13 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
       plan.target_signals.push_back(c->record_as);
       targets.push_back(c->target());
     }
-  const bool rk4 = options.method == IntegratorMethod::RK4;
-  ReferenceStages& st = plan.stages;
-  if (rk4) {  // [q̂, q̂̇, q̂̈] at every RK4 stage, for tracking on the same grid
-    const long nsteps = std::lround(std::ceil((options.t1 - options.t0) / options.step - 1e-9));
-    st.t0 = options.t0;
-    st.h = (options.t1 - options.t0) / nsteps;
-    st.n = n;
-  }
-  const size_t per_stage = 3 * static_cast<size_t>(n);
+  StageRecorder stages(plan.stages, options, n);  // x[0, 3n) is [q̂, q̂̇, q̂̈] at every stage
   Data data(model);
   Eigen::VectorXd dx(jd.state_size());
   double worst = 0;
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
     jd.derivative(t, x, xdot);
-    if (rk4) {
-      const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage;
-      if (st.data.size() < at + per_stage) st.data.resize(std::max(at + per_stage, 2 * st.data.size()));
-      std::copy(x.data(), x.data() + 3 * n, st.data.data() + at);
-    }
+    if (stages.on()) std::copy(x.data(), x.data() + 3 * n, stages.slot(stage));
   };
   // Rows of order ≤ 2 (their |Phi|, |c| or |B q̈ + s|) are checked against the tolerance as in
   // plan_motion: the first sample beyond it is not recorded and the plan ends before it.
@@ -395,12 +402,10 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
   auto obs = [&](double t, const Eigen::VectorXd& x) {
     const double nan = std::nan("");
     bool ok = true;
-    std::string failure;
     try {
       jd.derivative(t, x, dx);
-    } catch (const NumericalFailure& e) {
+    } catch (const NumericalFailure&) {
       ok = false;
-      failure = e.what();
     }
     if (!lower_rows.empty() && t >= residual_from - 1e-12 && std::isfinite(tol) && !plan.t.empty()) {
       double r = ok ? 0.0 : nan;
@@ -466,13 +471,9 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
                 fmt(s.t_end) + " s (hint: a smaller step — at the jerk level these rows are stabilized by "
                 "d/dt psi + kappa psi = 0 and the Baumgarte gains, whose fastest mode RK4 must resolve — weaker "
                 "gains, or a task that stays in the workspace)";
-    if (rk4) s.steps = std::lround((s.t_end - options.t0) / st.h);
+    if (stages.on()) s.steps = std::lround((s.t_end - options.t0) / plan.stages.h);
   }
-  if (rk4) {
-    st.steps = plan.summary.steps;
-    st.data.resize(static_cast<size_t>(st.steps) * 4 * per_stage);
-    st.data.shrink_to_fit();
-  }
+  stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;
   return plan;
 }
