@@ -428,6 +428,20 @@ void build_reference_options(const SpecReader& c, const ScenarioSpec& spec, Prob
   }
 }
 
+/// The texts of a joint vector as written (a list, or a mapping joint: value), "" where absent.
+std::vector<std::string> joint_texts(const SpecValue& v, const Model& m) {
+  std::vector<std::string> out(static_cast<size_t>(m.nq));
+  if (v.is_list()) {
+    for (int i = 0; i < m.nq && i < static_cast<int>(v.size()); ++i) out[static_cast<size_t>(i)] = v[static_cast<size_t>(i)].text;
+  } else if (v.is_map()) {
+    for (const auto& e : v.entries) {
+      const auto it = std::find(m.joint_name.begin(), m.joint_name.end(), e.key);
+      if (it != m.joint_name.end()) out[static_cast<size_t>(it - m.joint_name.begin())] = e.value.text;
+    }
+  }
+  return out;
+}
+
 /// initial: q0, q̇0 (and q̈0, κ for jerk problems).
 void build_initial(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   const Model& m = s.model;
@@ -435,6 +449,8 @@ void build_initial(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   s.q0 = c.joint_vector(c.need(ini.value, "q", "initial"), "initial.q", m, true, 0.0);
   s.qd0 = ini.qd ? c.joint_vector(ini.qd, "initial.qd", m, false, 0.0) : Eigen::VectorXd::Zero(m.nq);
   s.project_initial = ini.project;
+  s.texts.q0 = joint_texts(ini.value["q"], m);
+  s.texts.qd0 = joint_texts(ini.qd, m);
   if (ini.tolerance) {
     s.initial_tolerance = c.number(ini.tolerance, "initial.tolerance");
     if (!(s.initial_tolerance > 0)) c.fail(ini.tolerance, "initial.tolerance", "expected a value > 0");
@@ -739,6 +755,12 @@ void build_outputs(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
 std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   const SpecReader c = parameter_reader(spec);
   std::unique_ptr<Problem> s = build_model_section(c, spec);
+  for (const auto& [name, value] : spec.parameters) {
+    const auto set = spec.parameter_values.find(name);
+    s->texts.parameters.emplace_back(name, set != spec.parameter_values.end() ? symbolic_number(set->second.value) : value.text);
+  }
+  s->texts.t0 = spec.integrator.t0.text;
+  s->texts.t1 = spec.integrator.t1.text;
   build_constraints_and_forces(c, spec, *s);
   check_jerk_scope(c, spec, *s);
   build_reference_options(c, spec, *s);

@@ -284,6 +284,7 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
 void generate_forces(const Problem& problem, SymbolicReferenceDynamics::Impl& S, Binder& B) {
   const int n = problem.model.nq;
   S.Q.assign(n, 0);
+  S.Qact.assign(n, 0);
   S.zdot.assign(S.nz, 0);
   for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
     const ForceElement& e = *problem.forces.elements()[k];
@@ -310,7 +311,9 @@ void generate_forces(const Problem& problem, SymbolicReferenceDynamics::Impl& S,
     for (size_t r = 0; r < form->rows.size(); ++r) {
       const int j = form->joints[r];
       if (j < 0 || j >= n) throw Error(where + ": joint index out of range");
-      S.Q[j] += B.parse(form->rows[r], form->parameters, where);
+      const ex Qr = B.parse(form->rows[r], form->parameters, where);
+      S.Q[j] += Qr;
+      if (e.actuator()) S.Qact[j] += Qr;
     }
     B.pop(bound);
   }

@@ -88,6 +88,7 @@ struct SymbolicReferenceDynamics::Impl {
   GiNaC::realsymbol alpha_s, beta_s, beta1_s, kappa_s;
   std::vector<GiNaC::ex> M;                 ///< n×n row-major
   std::vector<GiNaC::ex> c, g, Q, zdot;     ///< n, n, n, nz
+  std::vector<GiNaC::ex> Qact;              ///< n: the part of Q from actuator elements (drives, efforts)
   std::vector<GiNaC::ex> phi, phid, A, gamma;  ///< m, m, m×n, m
   /// Jerk problems: R = M q̈ + c + g − Q and Ṙ at q⃛ = 0 (n); G (m×n, A of the rows of order ≤ 2,
   /// B of the jerk rows) and Ġ; per row ψ (stabilized acceleration-level row; 0 for jerk rows)

@@ -1,17 +1,535 @@
-// Forward sensitivities of a plan (symbolic/sensitivity.hpp). Being written: this first version
-// only states that they are not available yet.
-#include "refdyn/symbolic/sensitivity.hpp"
+// Forward sensitivities of a plan (symbolic/sensitivity.hpp).
+//
+// The reference dynamics of order ≤ 2 solves, at every (t, x), the KKT system
+//     R₁ = M(q) q̈ + c + g − Q(t, q, q̇, z; p) + Aᵀ λ = 0                    (n rows)
+//     R₂ = A q̈ − rhs(t, q, q̇; p)                 = 0                    (m rows; rhs: the stabilized
+//                                                                          right-hand side, −γ − 2αΦ̇ − β²Φ, …)
+// whatever route (projection or Lagrange) computes it. Along a direction V of the inputs
+// (t, q, q̇, z, p) with q̈*, λ* held, δR = ∇R·V; then M δq̈ + Aᵀ δλ = −δR₁, A δq̈ = −δR₂ gives the
+// change of q̈ and λ, and ż changes by ∇ż·V. R₁, R₂, ż, the actuator effort
+// τ = M q̈ + c + g − Q_passive + Σ_material Aᵀλ and Φ, Φ̇ come from generate_symbolic with the
+// parameters as symbols; they are compiled once, with their gradients, into expression tapes
+// whose variables are t, q, q̇, z, q̈, λ and the parameters that depend on the chosen ones
+// (∇R with respect to q̈ and λ is M and Aᵀ, so the KKT matrix comes with them).
+//
+// S = ∂x/∂p is propagated through the plan's own RK4 steps (the same stages, the derivative of
+// the RK4 map): K_s = ∂f/∂x S_s + ∂f/∂p, S_s = S + c_s h K_{s−1}, S ← S + h/6 (K₁ + 2K₂ + 2K₃ + K₄).
+// When t1 depends on p, every sample t_k = t0 + (t_k − t0)/(t1 − t0)·(t1 − t0) moves with it: the
+// total derivative at a sample adds the rate along the motion (ẋ, and for q̈, τ, Φ their rates from
+// the same KKT system along the time direction) times (t_k − t0)/(t1 − t0)·∂t1/∂p.
+#include "internal.hpp"
+#include "trace.hpp"
 
+#include "../expression/internal.hpp"
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
+#include "refdyn/expression/expression.hpp"
+#include "refdyn/symbolic/sensitivity.hpp"
+#include "refdyn/symbolic/symbolic.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <list>
+#include <mutex>
+#include <numbers>
 
 namespace refdyn {
 
-PlanSensitivity plan_sensitivity(const Problem&, const Plan&, const SensitivityOptions&) {
-  throw Error("sensitivities are not available in this build yet");
+namespace {
+
+using symbolic_detail::ex;
+
+/// The compiled tapes of one problem's structure for one set of chosen parameters.
+struct Tapes {
+  int n = 0, m = 0, nz = 0;
+  int o_q = 0, o_qd = 0, o_z = 0, o_qdd = 0, o_lam = 0, o_p = 0, nv = 0;
+  std::vector<std::string> pvars;  ///< parameter variables (the chosen ones and those made from them)
+  std::vector<Expression> R, Zd, T, Phi, Phid;  ///< R: R₁ (n) then R₂ (m)
+};
+
+/// Total derivatives of every scenario parameter with respect to the chosen ones, through the
+/// definitions in order (a chosen parameter's own definition is cut: it is the variable).
+std::map<std::string, Eigen::RowVectorXd> parameter_derivatives(const Problem& problem,
+                                                               const std::vector<std::string>& chosen) {
+  const int np = static_cast<int>(chosen.size());
+  std::map<std::string, Eigen::RowVectorXd> D;
+  std::vector<std::string> before;
+  const std::map<std::string, double> consts{{"deg", std::numbers::pi / 180.0}};
+  for (const auto& [name, text] : problem.texts.parameters) {
+    Eigen::RowVectorXd d = Eigen::RowVectorXd::Zero(np);
+    const auto it = std::find(chosen.begin(), chosen.end(), name);
+    if (it != chosen.end()) {
+      d[it - chosen.begin()] = 1.0;
+    } else if (!text.empty() && !before.empty()) {
+      const Expression e(text, before, consts, 1);
+      std::vector<double> x(before.size()), g(before.size());
+      for (size_t i = 0; i < before.size(); ++i) x[i] = problem.parameters.at(before[i]);
+      double v = 0;
+      e.evaluate(x.data(), v, g.data(), nullptr);
+      for (size_t i = 0; i < before.size(); ++i)
+        if (g[i] != 0) d += g[i] * D.at(before[i]);
+    }
+    D[name] = d;
+    before.push_back(name);
+  }
+  return D;
 }
 
-Eigen::MatrixXd metric_gradients(const Problem&, const Plan&, const PlanSensitivity&, const std::vector<Metric>&) {
-  throw Error("sensitivities are not available in this build yet");
+/// d(text)/dp for a number written in the scenario (initial values, t1): "" is a constant.
+Eigen::RowVectorXd text_derivative(const Problem& problem, const std::string& text,
+                                   const std::map<std::string, Eigen::RowVectorXd>& D, int np) {
+  Eigen::RowVectorXd d = Eigen::RowVectorXd::Zero(np);
+  if (text.empty() || problem.texts.parameters.empty()) return d;
+  std::vector<std::string> names;
+  std::vector<double> x;
+  for (const auto& [name, _] : problem.texts.parameters) {
+    names.push_back(name);
+    x.push_back(problem.parameters.at(name));
+  }
+  const Expression e(text, names, {{"deg", std::numbers::pi / 180.0}}, 1);
+  std::vector<double> g(names.size());
+  double v = 0;
+  e.evaluate(x.data(), v, g.data(), nullptr);
+  for (size_t i = 0; i < names.size(); ++i)
+    if (g[i] != 0) d += g[i] * D.at(names[i]);
+  return d;
+}
+
+/// The texts of R₁, R₂, ż, τ, Φ, Φ̇ with the parameters as symbols, and the values of the
+/// parameters that stay constants.
+struct Texts {
+  std::vector<std::string> R, Zd, T, Phi, Phid;
+  std::vector<std::string> symbols;          ///< the parameters the texts name
+  std::map<std::string, double> values;      ///< their values, and the gains
+  std::string key() const {
+    std::string k;
+    for (const auto* v : {&R, &Zd, &T, &Phi, &Phid})
+      for (const auto& s : *v) k += s + ";";
+    for (const auto& [name, value] : values) k += name + "=" + symbolic_number(value) + ";";
+    return k;
+  }
+};
+
+Texts symbolic_texts(const Problem& problem) {
+  const SymbolicReferenceDynamics sym = generate_symbolic(problem);
+  const SymbolicReferenceDynamics::Impl& S = sym.impl();
+  if (S.jerk)
+    throw Error("sensitivities are computed for problems of order ≤ 2; this one has a jerk row (hint: "
+                "differentiate a plan of its acceleration-level form)");
+  const int n = S.n, m = S.m;
+  Texts out;
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+  std::vector<GiNaC::realsymbol> lam;
+  for (int r = 0; r < m; ++r) lam.emplace_back("lam(" + std::to_string(r) + ")");
+  symbolic_detail::Tape tape;
+  symbolic_detail::TapeScope scope(tape);
+  symbolic_detail::FromGinac conv(tape, [](const GiNaC::symbol& s) { return s.get_name(); }, true);
+  auto text = [&](const ex& e) { return symbolic_detail::expression_text(tape, conv(e)); };
+  for (int i = 0; i < n; ++i) {
+    ex r1 = S.cg[i] - S.Q[i], tau = S.cg[i] - (S.Q[i] - S.Qact[i]);
+    for (int j = 0; j < n; ++j) {
+      r1 += S.M[i * n + j] * S.qdd[j];
+      tau += S.M[i * n + j] * S.qdd[j];
+    }
+    for (int r = 0; r < m; ++r) {
+      r1 += S.A[r * n + i] * lam[r];
+      if (S.row_origin[r] == "material") tau += S.A[r * n + i] * lam[r];
+    }
+    out.R.push_back(text(r1));
+    out.T.push_back(text(tau));
+  }
+  for (int r = 0; r < m; ++r) {
+    ex r2 = -S.rhs[r];
+    for (int j = 0; j < n; ++j) r2 += S.A[r * n + j] * S.qdd[j];
+    out.R.push_back(text(r2));
+    out.Phi.push_back(text(S.phi[r]));
+    out.Phid.push_back(text(S.phid[r]));
+  }
+  for (int k = 0; k < S.nz; ++k) out.Zd.push_back(text(S.zdot[k]));
+  for (size_t k = 0; k < S.param_names.size(); ++k) {
+    out.symbols.push_back(S.param_names[k]);
+    out.values[S.param_names[k]] = S.param_values[k];
+  }
+  out.values["rd_alpha"] = S.alpha;
+  out.values["rd_beta"] = S.beta;
+  out.values["rd_beta1"] = S.beta1;
+  return out;
+}
+
+std::shared_ptr<const Tapes> compile(const Problem& problem, const Texts& texts, const std::vector<std::string>& pvars) {
+  auto tp = std::make_shared<Tapes>();
+  Tapes& T = *tp;
+  const Model& model = problem.model;
+  T.n = model.nq;
+  T.m = problem.constraints.rows();
+  T.nz = problem.forces.num_states();
+  T.pvars = pvars;
+  std::vector<std::string> vars{"t"};
+  T.o_q = 1;
+  for (const auto& j : model.joint_name) vars.push_back("q(" + j + ")");
+  T.o_qd = static_cast<int>(vars.size());
+  for (const auto& j : model.joint_name) vars.push_back("qd(" + j + ")");
+  T.o_z = static_cast<int>(vars.size());
+  for (int k = 0; k < T.nz; ++k) vars.push_back("state(" + std::to_string(k) + ")");
+  T.o_qdd = static_cast<int>(vars.size());
+  for (const auto& j : model.joint_name) vars.push_back("qdd(" + j + ")");
+  T.o_lam = static_cast<int>(vars.size());
+  for (int r = 0; r < T.m; ++r) vars.push_back("lam(" + std::to_string(r) + ")");
+  T.o_p = static_cast<int>(vars.size());
+  for (const auto& p : pvars) vars.push_back(p);
+  T.nv = static_cast<int>(vars.size());
+  std::map<std::string, double> constants;
+  for (const auto& [name, value] : texts.values)
+    if (std::find(pvars.begin(), pvars.end(), name) == pvars.end()) constants[name] = value;
+  ExpressionOptions opt;
+  opt.derivative_order = 1;
+  opt.specialize = false;
+  auto build = [&](const std::vector<std::string>& src, std::vector<Expression>& dst) {
+    for (const auto& s : src) dst.emplace_back(s, vars, constants, opt);
+  };
+  build(texts.R, T.R);
+  build(texts.Zd, T.Zd);
+  build(texts.T, T.T);
+  build(texts.Phi, T.Phi);
+  build(texts.Phid, T.Phid);
+  return tp;
+}
+
+/// Compiled tapes, cached by their texts (an optimization differentiates the same structure at
+/// many parameter values: only the chosen parameters change, and they are variables).
+std::shared_ptr<const Tapes> tapes_for(const Problem& problem, const std::vector<std::string>& pvars) {
+  const Texts texts = symbolic_texts(problem);
+  std::string key = texts.key() + "|";
+  for (const auto& p : pvars) key += p + ",";
+  static std::mutex mutex;
+  static std::list<std::pair<std::string, std::shared_ptr<const Tapes>>> cache;  // most recent first
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (auto it = cache.begin(); it != cache.end(); ++it)
+      if (it->first == key) {
+        cache.splice(cache.begin(), cache, it);
+        return cache.front().second;
+      }
+  }
+  auto tp = compile(problem, texts, pvars);
+  std::lock_guard<std::mutex> lock(mutex);
+  cache.emplace_front(key, tp);
+  if (cache.size() > 8) cache.pop_back();
+  return tp;
+}
+
+/// Evaluates the tapes at one point and solves the KKT system along directions.
+class Evaluator {
+ public:
+  Evaluator(const Tapes& T, const Eigen::VectorXd& pvals) : T_(T), pvals_(pvals), x_(T.nv) {
+    GR_.resize(T.n + T.m, T.nv);
+    GZ_.resize(T.nz, T.nv);
+    g_.resize(T.nv);
+  }
+
+  /// At (t, x) with the solved q̈, λ: the gradients of R and ż (and of τ, Φ, Φ̇ when `outputs`).
+  void at(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& qdd, const Eigen::VectorXd& lam, bool outputs) {
+    const int n = T_.n, m = T_.m, nz = T_.nz;
+    x_[0] = t;
+    x_.segment(T_.o_q, n) = x.head(n);
+    x_.segment(T_.o_qd, n) = x.segment(n, n);
+    if (nz) x_.segment(T_.o_z, nz) = x.segment(2 * n, nz);
+    x_.segment(T_.o_qdd, n) = qdd;
+    if (m) x_.segment(T_.o_lam, m) = lam;
+    if (pvals_.size() > 0) x_.tail(pvals_.size()) = pvals_;
+    residual_max_ = 0;
+    for (int i = 0; i < n + m; ++i) {
+      grad(T_.R[i], GR_, i, value_);
+      residual_max_ = std::max(residual_max_, std::abs(value_));
+    }
+    for (int k = 0; k < nz; ++k) grad(T_.Zd[k], GZ_, k, value_);
+    M_ = GR_.block(0, T_.o_qdd, n, n);
+    A_ = GR_.block(n, T_.o_qdd, m, n);
+    llt_.compute(M_);
+    if (llt_.info() != Eigen::Success)
+      throw NumericalFailure(t, "sensitivities: at t = " + fmt(t) + " s the mass matrix is not positive definite");
+    if (m) {
+      MinvAt_ = llt_.solve(A_.transpose());
+      lu_.compute(A_ * MinvAt_);
+    }
+    if (outputs) {
+      GT_.resize(n, T_.nv);
+      GP_.resize(m, T_.nv);
+      GPd_.resize(m, T_.nv);
+      for (int i = 0; i < n; ++i) grad(T_.T[i], GT_, i, value_);
+      for (int r = 0; r < m; ++r) grad(T_.Phi[r], GP_, r, value_);
+      for (int r = 0; r < m; ++r) grad(T_.Phid[r], GPd_, r, value_);
+    }
+  }
+
+  /// The largest |R| at the last point and the size of its terms: R vanishes at the solved q̈, λ
+  /// when the symbolic and the numeric equations agree.
+  double residual() const { return residual_max_; }
+  double scale(const Eigen::VectorXd& qdd, const Eigen::VectorXd& lam) const {
+    double s = 1.0 + M_.cwiseAbs().rowwise().sum().maxCoeff() * qdd.cwiseAbs().maxCoeff();
+    if (T_.m) s += A_.cwiseAbs().colwise().sum().maxCoeff() * lam.cwiseAbs().maxCoeff();
+    return s;
+  }
+
+  /// Along directions V (nv × c): δq̈, δλ, δż.
+  void along(const Eigen::MatrixXd& V, Eigen::MatrixXd& dqdd, Eigen::MatrixXd& dlam, Eigen::MatrixXd& dzdot) {
+    const int n = T_.n, m = T_.m;
+    const Eigen::MatrixXd dR = GR_ * V;
+    const Eigen::MatrixXd r1 = -dR.topRows(n);
+    if (m) {
+      const Eigen::MatrixXd r2 = -dR.bottomRows(m);
+      const Eigen::MatrixXd Minv_r1 = llt_.solve(r1);
+      dlam = lu_.solve(A_ * Minv_r1 - r2);
+      dqdd = Minv_r1 - MinvAt_ * dlam;
+    } else {
+      dlam.resize(0, V.cols());
+      dqdd = llt_.solve(r1);
+    }
+    dzdot = GZ_ * V;
+  }
+
+  const Eigen::MatrixXd& effort_gradient() const { return GT_; }
+  const Eigen::MatrixXd& phi_gradient() const { return GP_; }
+  const Eigen::MatrixXd& phid_gradient() const { return GPd_; }
+
+ private:
+  void grad(const Expression& e, Eigen::MatrixXd& G, int row, double& value) {
+    e.evaluate(x_.data(), value, g_.data(), nullptr, ws_);
+    G.row(row) = g_.transpose();
+  }
+  const Tapes& T_;
+  Eigen::VectorXd pvals_, x_, g_;
+  Eigen::MatrixXd GR_, GZ_, GT_, GP_, GPd_, M_, A_, MinvAt_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  ExpressionWorkspace ws_;
+  double value_ = 0, residual_max_ = 0;
+};
+
+}  // namespace
+
+PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const SensitivityOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (options.parameters.empty()) throw Error("sensitivities: name at least one parameter");
+  std::vector<std::string> names;
+  for (const auto& [name, _] : problem.texts.parameters) names.push_back(name);
+  for (const auto& p : options.parameters) {
+    if (std::find(names.begin(), names.end(), p) == names.end())
+      throw Error("sensitivities: '" + p + "' is not a parameter of the scenario" + did_you_mean(p, names) +
+                  (names.empty() ? " (it has no parameters: add a `parameters:` section)" : ""));
+    if (std::count(options.parameters.begin(), options.parameters.end(), p) > 1)
+      throw Error("sensitivities: parameter '" + p + "' is named twice");
+  }
+  if (problem.is_jerk_problem())
+    throw Error("sensitivities are computed for problems of order ≤ 2; this one has a jerk row");
+  if (problem.integrator.method != IntegratorMethod::RK4)
+    throw Error(std::string("sensitivities are computed through the RK4 integrator; this plan uses method: ") +
+                to_string(problem.integrator.method) + " (hint: integrator.method: rk4)");
+  if (problem.options.stabilization != Stabilization::Baumgarte)
+    throw Error("sensitivities are computed for Baumgarte stabilization; this problem uses stabilization: " +
+                std::string(to_string(problem.options.stabilization)) + " (hint: stabilization: baumgarte)");
+  if (problem.options.paper_literal_forces)
+    throw Error("sensitivities are not available with the paper-literal force option (forces: paper_literal)");
+  if (plan.t.empty()) throw Error("sensitivities: the plan has no samples");
+
+  const int np = static_cast<int>(options.parameters.size());
+  const auto D = parameter_derivatives(problem, options.parameters);
+  const Texts texts = symbolic_texts(problem);
+  std::vector<std::string> pvars;
+  for (const auto& s : texts.symbols)
+    if (D.count(s) && !D.at(s).isZero(0)) pvars.push_back(s);
+  const std::shared_ptr<const Tapes> tp = tapes_for(problem, pvars);
+  const Tapes& T = *tp;
+  const int n = T.n, m = T.m, nz = T.nz, nx = 2 * n + nz, npv = static_cast<int>(pvars.size());
+  Eigen::VectorXd pvals(npv);
+  Eigen::MatrixXd Dp(npv, np);
+  for (int k = 0; k < npv; ++k) {
+    pvals[k] = problem.parameters.at(pvars[k]);
+    Dp.row(k) = D.at(pvars[k]);
+  }
+  if (!text_derivative(problem, problem.texts.t0, D, np).isZero(0))
+    throw Error("sensitivities: integrator.t0 depends on a chosen parameter (not supported: write t0 as a number)");
+  PlanSensitivity out;
+  out.parameters = options.parameters;
+  out.dt_end = text_derivative(problem, problem.texts.t1, D, np);
+
+  auto rd = problem.make_reference_dynamics();
+  Evaluator ev(T, pvals);
+  // Directions: rows t | q | q̇ | z | q̈ | λ | p (the last only for parameter columns).
+  // `tdot`: ∂t/∂p of the evaluation time (a time on the plan's grid moves when t1 does).
+  auto directions = [&](const Eigen::MatrixXd& S, const Eigen::RowVectorXd& tdot) {
+    Eigen::MatrixXd V = Eigen::MatrixXd::Zero(T.nv, np);
+    V.row(0) = tdot;
+    V.middleRows(T.o_q, n) = S.topRows(n);
+    V.middleRows(T.o_qd, n) = S.middleRows(n, n);
+    if (nz) V.middleRows(T.o_z, nz) = S.bottomRows(nz);
+    if (npv) V.bottomRows(npv) = Dp;
+    return V;
+  };
+  Eigen::VectorXd xdot(nx);
+  Eigen::MatrixXd dqdd, dlam, dzdot;
+  // K = ∂f/∂x S + ∂f/∂t ∂t/∂p + ∂f/∂p at (t, x).
+  const Eigen::RowVectorXd no_time = Eigen::RowVectorXd::Zero(np);
+  auto rate = [&](double t, const Eigen::VectorXd& x, const Eigen::MatrixXd& S, const Eigen::RowVectorXd& tdot,
+                  Eigen::MatrixXd& K, bool outputs) {
+    rd->derivative(t, x, xdot);
+    ev.at(t, x, rd->qdd(), rd->lambda(), outputs);
+    ev.along(directions(S, tdot), dqdd, dlam, dzdot);
+    K.resize(nx, np);
+    K.topRows(n) = S.middleRows(n, n);
+    K.middleRows(n, n) = dqdd;
+    if (nz) K.bottomRows(nz) = dzdot;
+  };
+
+  // Initial state and its derivative.
+  Eigen::VectorXd x = rd->make_state(problem.q0, problem.qd0);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(nx, np);
+  for (int i = 0; i < n; ++i) {
+    S.row(i) = text_derivative(problem, problem.texts.q0[static_cast<size_t>(i)], D, np);
+    if (static_cast<size_t>(i) < problem.texts.qd0.size())
+      S.row(n + i) = text_derivative(problem, problem.texts.qd0[static_cast<size_t>(i)], D, np);
+  }
+  const double t0 = problem.integrator.t0, t1 = problem.integrator.t1;
+  if (problem.project_initial && m > 0) {
+    // make_consistent moved q0, then q̇0, onto the rows by minimum-norm Newton steps on the
+    // dependent coordinates: x* = x_raw − K⁺ r (K: the rows' columns of the dependent
+    // coordinates). Its derivative is dx*_dep = dx_raw_dep − K⁺ (∇r · V), exact when K has full
+    // column rank (then K⁺K = I: the implicit-function rule) or when x_raw already met the rows
+    // (r = 0, so the change of K⁺ does not count); otherwise refused.
+    rd->derivative(t0, x, xdot);
+    ev.at(t0, x, rd->qdd(), rd->lambda(), true);
+    const std::vector<int>& dep = rd->dependent();
+    std::vector<int> pos, vel;
+    for (int r = 0; r < m; ++r) {
+      const int o = problem.constraints.row_order(r);
+      if (o == 0) pos.push_back(r);
+      if (o <= 1) vel.push_back(r);
+    }
+    auto solve_dependent = [&](const Eigen::MatrixXd& G, int offset, const std::vector<int>& rows, int block,
+                               const Eigen::VectorXd& moved, const char* what) {
+      if (rows.empty() || dep.empty()) return;
+      const Eigen::MatrixXd V = directions(S, no_time);
+      Eigen::MatrixXd r(rows.size(), np), K(rows.size(), dep.size());
+      for (size_t i = 0; i < rows.size(); ++i) {
+        r.row(i) = G.row(rows[i]) * V;
+        for (size_t a = 0; a < dep.size(); ++a) K(i, a) = G(rows[i], offset + dep[a]);
+      }
+      const auto cod = K.completeOrthogonalDecomposition();
+      if (cod.rank() < static_cast<Eigen::Index>(dep.size()) && moved.size() && moved.cwiseAbs().maxCoeff() > 0)
+        throw Error(std::string("sensitivities: the initial ") + what +
+                    " was projected onto rows that leave some dependent coordinates free; its derivative depends "
+                    "on how the projection moved it (hint: write initial values that meet the constraints, "
+                    "e.g. from closed-form inverse kinematics with the parameters)");
+      const Eigen::MatrixXd step = cod.solve(r);
+      for (size_t a = 0; a < dep.size(); ++a) S.row(block * n + dep[a]) -= step.row(a);
+    };
+    solve_dependent(ev.phi_gradient(), T.o_q, pos, 0, problem.initial_dq, "position");
+    solve_dependent(ev.phid_gradient(), T.o_qd, vel, 1, problem.initial_dqd, "velocity");
+  }
+
+  // The sample bookkeeping of integrate_rk4 (the plan's grid).
+  const IntegratorOptions& o = problem.integrator;
+  const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+  const double h = (o.t1 - o.t0) / nsteps;
+  const long every = o.output_interval > 0 ? std::max(1L, std::lround(o.output_interval / h)) : 1L;
+  const size_t samples = plan.t.size();
+  Eigen::MatrixXd Ss;
+  // ∂t/∂p of a time of the grid: t0 + (k + c)·h with h = (t1 − t0)/nsteps.
+  auto time_rate = [&](double t) -> Eigen::RowVectorXd { return (t - t0) / (t1 - t0) * out.dt_end; };
+  auto record = [&](double t, const Eigen::VectorXd& xs, const Eigen::MatrixXd& Sx) {
+    Eigen::MatrixXd Kx;
+    const Eigen::RowVectorXd tdot = time_rate(t);
+    rate(t, xs, Sx, tdot, Kx, true);
+    Eigen::MatrixXd V = directions(Sx, tdot);  // with the changes of q̈ and λ, which τ reads
+    V.middleRows(T.o_qdd, n) = dqdd;
+    if (m) V.middleRows(T.o_lam, m) = dlam;
+    Eigen::MatrixXd dph(m, np);
+    for (int r = 0; r < m; ++r)
+      dph.row(r) = (problem.constraints.row_order(r) == 1 ? ev.phid_gradient() : ev.phi_gradient()).row(r) * V;
+    out.t.push_back(t);
+    out.dx.push_back(Sx);
+    out.dqdd.push_back(dqdd);
+    out.deffort.push_back(ev.effort_gradient() * V);
+    out.dphi.push_back(std::move(dph));
+  };
+  record(t0, x, S);
+  if (!(ev.residual() <= 1e-7 * ev.scale(rd->qdd(), rd->lambda())))
+    throw Error("sensitivities: the generated equations do not match the reference dynamics at t0 (KKT residual " +
+                fmt(ev.residual()) + "); please report this scenario");
+  // The RK4 map x⁺ = x + h/6 (k₁ + 2k₂ + 2k₃ + k₄), stages at t + c h, differentiated as it is,
+  // with h = (t1 − t0)/nsteps and the stage times moving when t1 does.
+  const Eigen::RowVectorXd dh = out.dt_end / static_cast<double>(nsteps);
+  static constexpr double c[4] = {0.0, 0.5, 0.5, 1.0}, w[4] = {1.0, 2.0, 2.0, 1.0};
+  Eigen::MatrixXd Kst[4], Sacc(nx, np);
+  Eigen::VectorXd kst[4], xs(nx), xacc(nx);
+  for (long k = 0; k < nsteps && out.t.size() < samples; ++k) {
+    const double t = t0 + k * h;
+    xacc.setZero();
+    Sacc.setZero();
+    for (int st = 0; st < 4; ++st) {
+      Ss = S;
+      xs = x;
+      if (st > 0) {
+        xs += (c[st] * h) * kst[st - 1];
+        Ss += (c[st] * h) * Kst[st - 1] + c[st] * kst[st - 1] * dh;
+      }
+      const double ts = t + c[st] * h;
+      rate(ts, xs, Ss, time_rate(ts), Kst[st], false);
+      kst[st] = xdot;
+      xacc += w[st] * kst[st];
+      Sacc += w[st] * Kst[st];
+    }
+    x += (h / 6.0) * xacc;
+    S += (h / 6.0) * Sacc + (1.0 / 6.0) * xacc * dh;
+    const double tn = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
+    if ((k + 1) % every == 0 || k + 1 == nsteps) record(tn, x, S);
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+Eigen::MatrixXd metric_gradients(const Problem& problem, const Plan& plan, const PlanSensitivity& s,
+                                 const std::vector<Metric>& metrics) {
+  const int np = static_cast<int>(s.parameters.size()), n = problem.model.nq;
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(metrics.size()), np);
+  const long K = static_cast<long>(std::min(s.t.size(), plan.t.size()));
+  if (K == 0) return G;
+  const double t0 = problem.integrator.t0, t1 = problem.integrator.t1;
+  for (size_t i = 0; i < metrics.size(); ++i) {
+    const Metric& mt = metrics[i];
+    const long k = std::min(mt.sample, K - 1);
+    switch (mt.kind) {
+      case MetricKind::TEnd: G.row(i) = s.dt_end; break;
+      case MetricKind::PeakSpeed: G.row(i) = mt.sign * s.dx[k].row(n + mt.joint); break;
+      case MetricKind::PeakAcceleration: G.row(i) = mt.sign * s.dqdd[k].row(mt.joint); break;
+      case MetricKind::PeakEffort: G.row(i) = mt.sign * s.deffort[k].row(mt.joint); break;
+      case MetricKind::QMin:
+      case MetricKind::QMax:
+      case MetricKind::FinalQ: G.row(i) = s.dx[k].row(mt.joint); break;
+      case MetricKind::FinalQd: G.row(i) = s.dx[k].row(n + mt.joint); break;
+      case MetricKind::MaxResidual:
+        if (mt.sample >= 0) G.row(i) = mt.sign * s.dphi[k].row(mt.joint);
+        break;
+      case MetricKind::EffortEnergy: {
+        // trapezoid: Σ ½ Δt_k (|τ_k|² + |τ_{k+1}|²); the intervals scale with t1 − t0
+        Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(np);
+        for (long j = 0; j + 1 < K && j + 1 < static_cast<long>(plan.actuator_effort.size()); ++j) {
+          const double dt = plan.t[j + 1] - plan.t[j];
+          const Eigen::VectorXd &a = plan.actuator_effort[j], &b = plan.actuator_effort[j + 1];
+          g += dt * (a.transpose() * s.deffort[j] + b.transpose() * s.deffort[j + 1]);
+          g += 0.5 * (a.squaredNorm() + b.squaredNorm()) * dt / (t1 - t0) * s.dt_end;
+        }
+        G.row(i) = g;
+        break;
+      }
+    }
+  }
+  return G;
 }
 
 }  // namespace refdyn

@@ -71,6 +71,15 @@ struct Problem {
   std::string file;
   std::string name;
   std::map<std::string, double> parameters;
+  /// The scenario's texts of what sensitivities differentiate through besides the equations
+  /// (symbolic/sensitivity.hpp): each parameter's definition in order (a variant's value as a
+  /// number), initial.q and initial.qd per joint ("" where not written) and integrator.t0/t1.
+  struct SourceTexts {
+    std::vector<std::pair<std::string, std::string>> parameters;
+    std::vector<std::string> q0, qd0;
+    std::string t0, t1;
+  };
+  SourceTexts texts;
   const Model model;
   ForceSet forces;
   ConstraintSet constraints;

@@ -67,6 +67,8 @@ class SymbolicReferenceDynamics {
 
   struct Impl;
   explicit SymbolicReferenceDynamics(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}
+  /// The expressions themselves (src/symbolic/internal.hpp; for the sensitivities).
+  const Impl& impl() const { return *impl_; }
 
  private:
   std::shared_ptr<Impl> impl_;

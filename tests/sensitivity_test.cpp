@@ -1,0 +1,173 @@
+// Forward sensitivities of plans (symbolic/sensitivity.hpp) against central differences of
+// whole plans: the paper's manipulator (a drive duration, the height law, a model parameter that
+// a derived parameter and the initial height follow), the waiter tray (acceleration-level row,
+// the swing and its period) and the unicycle (nonholonomic, material and programmed rows, the
+// speed in the initial velocity too). Metrics and the state at samples, relative 1e-5.
+#include "refdyn/io/scenario.hpp"
+#include "refdyn/scenario/problem.hpp"
+#include "refdyn/simulate/metrics.hpp"
+#include "refdyn/symbolic/sensitivity.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace refdyn {
+namespace {
+
+std::string source(const std::string& rel) {
+  std::ifstream f(std::string(REFDYN_SOURCE_DIR) + "/" + rel);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+struct Planned {
+  std::unique_ptr<Problem> problem;
+  Plan plan;
+  std::vector<Metric> metrics;
+};
+
+Planned plan_with(const ScenarioSpec& spec, const std::string& name = "", double value = 0) {
+  ScenarioSpec s = spec;
+  if (!name.empty()) {
+    Quantity q;
+    q.value = value;
+    s.parameter_values[name] = q;
+  }
+  Planned p;
+  p.problem = build_problem(s);
+  p.plan = plan_problem(*p.problem, *p.problem->make_planner());
+  EXPECT_TRUE(p.plan.summary.ok()) << p.plan.summary.message;
+  p.metrics = plan_metrics(p.problem->model, p.plan, p.problem->residual_from);
+  return p;
+}
+
+/// The sensitivities of every metric and of the state at a few samples against central
+/// differences with a relative step `rel`.
+/// A derivative passes when |analytic − differences| ≤ tol · max(|differences|, floor · |J| / |p|):
+/// relative to itself, or, for a small coupling, to the metric's own scale |J|/|p| (a normalized
+/// sensitivity (p/J) dJ/dp within tol·floor).
+enum Check { kMetrics = 1, kStates = 2, kBoth = 3 };
+void check_against_differences(const std::string& yaml, const std::vector<std::string>& parameters,
+                               double rel = 1e-5, double floor = 1e-3, int what = kBoth, double tol = 1e-5) {
+  const ScenarioSpec spec = io::parse_scenario(yaml, "sensitivity_test.yaml");
+  const Planned base = plan_with(spec);
+  SensitivityOptions opt;
+  opt.parameters = parameters;
+  const PlanSensitivity s = plan_sensitivity(*base.problem, base.plan, opt);
+  ASSERT_EQ(s.t.size(), base.plan.t.size());
+  const Eigen::MatrixXd G = metric_gradients(*base.problem, base.plan, s, base.metrics);
+  for (size_t k = 0; k < parameters.size(); ++k) {
+    const std::string& p = parameters[k];
+    const double v = base.problem->parameters.at(p), h = rel * std::max(std::abs(v), 1e-3);
+    // Fourth-order central differences, (−f(2h) + 8 f(h) − 8 f(−h) + f(−2h)) / 12h: the
+    // friction's stiff nonlinearity makes the second-order ones too coarse for small couplings.
+    const Planned up = plan_with(spec, p, v + h), down = plan_with(spec, p, v - h);
+    const Planned up2 = plan_with(spec, p, v + 2 * h), down2 = plan_with(spec, p, v - 2 * h);
+    ASSERT_EQ(up.metrics.size(), base.metrics.size());
+    auto diff = [&](auto get) -> decltype(get(up)) {  // a value, not an expression of temporaries
+      return (8.0 * (get(up) - get(down)) - (get(up2) - get(down2))) / (12 * h);
+    };
+    std::map<MetricKind, double> largest;  // per kind: values far below it are rounding noise
+    for (const Metric& m : base.metrics) largest[m.kind] = std::max(largest[m.kind], std::abs(m.value));
+    for (size_t i = 0; i < base.metrics.size() && (what & kMetrics); ++i) {
+      const Metric& m = base.metrics[i];
+      if (m.kind == MetricKind::MaxResidual) continue;  // rounding-level values
+      if (std::abs(m.value) < 1e-7 * largest[m.kind]) continue;
+      bool moved = false;  // the argmax moved to another sample: not differentiable there
+      for (const Planned* o : {&up, &down, &up2, &down2}) moved = moved || o->metrics[i].sample != m.sample;
+      if (moved) continue;
+      const double fd = diff([&](const Planned& o) { return o.metrics[i].value; });
+      const double scale = std::max({std::abs(fd), floor * std::abs(m.value) / std::max(std::abs(v), 1e-3), 1e-9});
+      EXPECT_NEAR(G(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)), fd, tol * scale)
+          << "d " << m.name << " / d " << p << " (value " << m.value << ")";
+    }
+    // the state at three samples (off the symmetric instants of the tasks, where a joint speed
+    // crosses zero: there the friction's |q̇| has a kink in time) and at the end
+    const size_t K = base.plan.t.size();
+    for (size_t j : {K * 3 / 10, K * 11 / 20, K * 9 / 10, K - 1}) {
+      if (!(what & kStates)) break;
+      const Eigen::VectorXd fd = diff([&](const Planned& o) -> Eigen::VectorXd { return o.plan.x[j]; });
+      const Eigen::VectorXd an = s.dx[j].col(static_cast<Eigen::Index>(k));
+      const double scale = std::max(fd.cwiseAbs().maxCoeff(), 1e-6);
+      EXPECT_LE((an - fd).cwiseAbs().maxCoeff(), tol * scale)
+          << "dx/d" << p << " at t = " << base.plan.t[j] << "\nanalytic " << an.transpose() << "\ndifferences "
+          << fd.transpose();
+    }
+  }
+}
+
+std::string paper_with_duration() {
+  std::string y = source("examples/paper/paper.yaml");
+  y = replace(y, "  Tz: 5 ", "  Tz: 5\n  Td: 5 ");
+  y = replace(y, "rise: 2*pi, duration: 5", "rise: 2*pi, duration: Td");
+  // The plan ends at 4.5 s, in motion: at rest (t = 5 s) the slider's LuGre friction sticks
+  // (Stribeck speed 1 mm/s) and its state's differences converge only below a relative step of
+  // 1e-6, where rounding takes over elsewhere.
+  y = replace(y, "t0: 0, t1: 5,", "t0: 0, t1: 4.5,");
+  return y;
+}
+
+TEST(Sensitivity, PaperDriveDurationAndHeightLawAgreeWithCentralDifferences) {
+  // The slider's LuGre friction (Stribeck speed 1 mm/s) makes this plan rough at the 1e-4
+  // level in the parameters: differences of the effort integral in Td scatter by ±1e-4 over
+  // steps 1e-3 … 1e-6 (44.1255 … 44.1310) while the sensitivity is 44.12999778613 in every
+  // run. So the metrics are compared as normalized sensitivities (floor 1: within 1e-5 of
+  // |J|/|p|), with a relative step of 1e-4. The friction states (bristle deflections) need a
+  // step of 1e-6 to converge: the states at the samples are compared so, within 1e-5.
+  check_against_differences(paper_with_duration(), {"Td", "dz", "Tz"}, 1e-4, 1.0, kMetrics);
+  check_against_differences(paper_with_duration(), {"Td", "dz", "Tz"}, 1e-6, 1.0, kStates);
+}
+
+TEST(Sensitivity, PaperModelParameterFollowedByADerivedParameterAgrees) {
+  // h1 sets the column's height (model), and z0 = h1 + … the height law's base: both move.
+  check_against_differences(paper_with_duration(), {"h1"});
+}
+
+TEST(Sensitivity, WaiterTraySwingAndPeriodAgree) {
+  check_against_differences(source("examples/waiter_tray/waiter_tray.yaml"), {"swing", "T"});
+}
+
+TEST(Sensitivity, NonholonomicUnicycleSpeedAndDampingAgree) {
+  check_against_differences(source("examples/unicycle/unicycle.yaml"), {"v0", "c", "omega"});
+}
+
+TEST(Sensitivity, CircleRadiusThroughTheProjectedInitialStateAgrees) {
+  // consistency: project, a fully prescribed path; R moves the start (q10, q20 from R) and v0.
+  check_against_differences(source("examples/planar_2r_circle/planar_2r_circle.yaml"), {"R", "Tp"});
+}
+
+TEST(Sensitivity, FinalTimeWrittenWithAParameterMovesEverySample) {
+  std::string y = source("examples/waiter_tray/waiter_tray.yaml");
+  // T = 2.00025: t1 = 4.0005 s lies mid-way between two multiples of the step, so the
+  // differences (t1 ± 4e-5 s) keep the number of RK4 steps, which the derivative holds.
+  y = replace(y, "t0: 0, t1: 4}", "t0: 0, t1: 2*T}");
+  y = replace(y, "T: 2.0 ", "T: 2.00025 ");
+  check_against_differences(y, {"T"});
+}
+
+TEST(Sensitivity, BadRequestsAreRefusedWithAHint) {
+  const ScenarioSpec spec = io::parse_scenario(paper_with_duration(), "p.yaml");
+  const Planned base = plan_with(spec);
+  SensitivityOptions opt;
+  opt.parameters = {"Tx"};
+  test::expect_error_mentioning([&] { plan_sensitivity(*base.problem, base.plan, opt); }, {"did you mean 'Tz'"});
+  opt.parameters = {};
+  test::expect_error_mentioning([&] { plan_sensitivity(*base.problem, base.plan, opt); }, {"at least one"});
+  opt.parameters = {"Tz", "Tz"};
+  test::expect_error_mentioning([&] { plan_sensitivity(*base.problem, base.plan, opt); }, {"twice"});
+}
+
+}  // namespace
+}  // namespace refdyn
