@@ -8,6 +8,8 @@
 #include "refdyn/io/check.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
+#include "refdyn/io/sensitivity.hpp"
+#include "refdyn/common/json.hpp"
 #include "refdyn/io/variants.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/scenario/registry.hpp"
@@ -177,6 +179,41 @@ void print_runs(const Problem& p, const io::Results& r, const std::string& out_d
   std::cout << r.feasibility.text() << "results in " << out_dir << (report ? " (report.html)" : "") << "\n";
 }
 
+/// "a, b,c" → {"a", "b", "c"}; an empty name is an error.
+std::vector<std::string> split_names(const std::string& text) {
+  std::vector<std::string> out;
+  std::string rest = text;
+  while (true) {
+    const auto comma = rest.find(',');
+    std::string name = rest.substr(0, comma);
+    name.erase(0, name.find_first_not_of(" \t"));
+    name.erase(name.find_last_not_of(" \t") + 1);
+    if (name.empty()) throw Error("--sensitivity: expected parameter names separated by commas, got '" + text + "'");
+    out.push_back(name);
+    if (comma == std::string::npos) break;
+    rest = rest.substr(comma + 1);
+  }
+  return out;
+}
+
+/// sensitivity.csv and sensitivity.json of a plan that reached its end (else one line on stderr).
+void write_sensitivity(const Problem& problem, const Plan& plan, const SensitivityOptions& options,
+                       const std::string& out_dir, bool quiet) {
+  if (!plan.summary.ok()) {
+    std::fprintf(stderr, "refdyn: error: no sensitivities: the plan stopped early\n");
+    return;
+  }
+  const PlanSensitivity s = plan_sensitivity(problem, plan, options);
+  const std::vector<Metric> metrics = plan_metrics(problem.model, plan, problem.residual_from);
+  const Eigen::MatrixXd G = metric_gradients(problem, plan, s, metrics);
+  io::write_csv_atomic(fs::path(out_dir) / "sensitivity.csv", io::sensitivity_table(problem, plan, s));
+  io::write_text_atomic(fs::path(out_dir) / "sensitivity.json",
+                        json_text(io::sensitivity_json(problem, s, metrics, G), 2, 3) + "\n");
+  if (!quiet)
+    std::printf("sensitivities to %zu parameter%s in %.3f s: sensitivity.csv, sensitivity.json\n", options.parameters.size(),
+                options.parameters.size() == 1 ? "" : "s", s.seconds);
+}
+
 int plan_or_track(const std::string& file, const std::string& out_dir, bool quiet, bool track, const InputOptions& in,
                   const RunConfig& cfg) {
   std::unique_ptr<MpiSession> mpi;
@@ -197,6 +234,7 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   std::unique_ptr<Problem> problem;
   ScenarioSpec spec;
   std::vector<io::Variant> variants;
+  SensitivityOptions sensitivity;
   agree([&] {
     spec = io::load_scenario(file, in.max_input_bytes);
     problem = build_problem(spec);  // validates before anything is written
@@ -206,6 +244,13 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
                   " (track needs at least one experiment; see docs/scenario.md)");
     if (!variants.empty() && cfg.report)
       throw Error("--report: not for a family of variants (hint: refdyn report DIR/<variant> --scenario FILE draws one)");
+    if (!cfg.sensitivity.empty()) {
+      if (!variants.empty())
+        throw Error("--sensitivity: not for a family of variants (hint: plan one variant's scenario, or remove variants:)");
+      if (mpi) throw Error("--sensitivity: not with --mpi (one plan: run it in one process)");
+      sensitivity.parameters = split_names(cfg.sensitivity);
+      check_sensitivity_request(*problem, sensitivity);
+    }
   });
   if (cfg.run_csv != "all" && cfg.run_csv != "auto" && cfg.run_csv != "none")
     throw Error("--run-csv: expected auto, all or none, got '" + cfg.run_csv + "'");
@@ -265,6 +310,7 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   io::Results r;
   agree([&] { r = io::run_problem(*problem, o); });
   if (mpi) mpi->gather_runs(r);
+  if (!sensitivity.parameters.empty()) write_sensitivity(*problem, r.plan, sensitivity, out_dir, quiet);
   return finish([&] {
     if (!mpi) return finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
     const int code = finish_results(*problem, r, out_dir, quiet, false, run_csv);

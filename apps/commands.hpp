@@ -28,6 +28,8 @@ struct RunConfig {
   std::string run_csv = "auto";  ///< track_<name>.csv per run: all, none, auto (all up to kRunCsvAutoLimit runs)
   bool mpi = false;              ///< spread the runs over the MPI ranks (apps/mpi_run.hpp)
   bool report = false;           ///< also write report.html
+  /// plan --sensitivity p1,p2: forward sensitivities of the plan (sensitivity.csv, .json)
+  std::string sensitivity;
 };
 inline constexpr std::size_t kRunCsvAutoLimit = 100;
 /// Runs listed one by one on the terminal (and stopped runs on stderr); the rest are in the files.

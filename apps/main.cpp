@@ -84,6 +84,9 @@ void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   add_output_options(c.plan, a);
   add_input_options(c.plan, a);
   add_run_options(c.plan, a, "the scenario's variants");
+  c.plan->add_option("--sensitivity", a.run.sensitivity,
+                     "Also write the plan's forward sensitivities to the named parameters (comma-separated): "
+                     "sensitivity.csv (per sample), sensitivity.json (metrics and their gradients; docs/sensitivity.md)");
 
   c.track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   c.track->add_option("file", a.file, "Scenario file (YAML)")->required();

@@ -913,3 +913,57 @@ TEST(Report, ShowsRecordedPartitionOrdersAndGeometry) {
   for (const JsonValue& c : tray_data["scenario"]["constraints"]) orders.insert(c["order"].get<std::string>());
   EXPECT_TRUE(orders.count("acceleration (order 2)")) << json_text(tray_data["scenario"]["constraints"]);
 }
+
+// ---------------------------------------------------------------------------------------------
+// plan --sensitivity (docs/sensitivity.md)
+
+TEST(Sensitivity, PlanWritesTheTableAndTheMetricGradients) {
+  Scratch s;
+  const fs::path tray = kSource / "examples/waiter_tray/waiter_tray.yaml", out = s.root() / "out";
+  const Result r = run(s, "plan " + quote(tray) + " -o " + quote(out) + " --sensitivity 'T, swing'");
+  ASSERT_EQ(r.code, 0) << describe(r);
+  EXPECT_TRUE(contains(r.out, "sensitivities to 2 parameters")) << describe(r);
+  const refdyn::io::CsvTable plan = refdyn::io::read_csv_numbers((out / "plan.csv").string());
+  const refdyn::io::CsvTable table = refdyn::io::read_csv_numbers((out / "sensitivity.csv").string());
+  ASSERT_EQ(table.rows.size(), plan.rows.size());
+  const auto col = [&](const std::string& name) {
+    const auto it = std::find(table.header.begin(), table.header.end(), name);
+    EXPECT_NE(it, table.header.end()) << name;
+    return static_cast<size_t>(it - table.header.begin());
+  };
+  const size_t dq1 = col("dq_q1/dT"), dreq2 = col("drequired_q2/dswing");
+  col("dqdd_q2/dT");
+  col("dphi_no_slip_on_tray/dswing");
+  const refdyn::JsonValue js = refdyn::parse_json(read_text(out / "sensitivity.json"), "sensitivity.json");
+  EXPECT_EQ(js["parameters"]["T"].get<double>(), 2.0);
+  std::map<std::string, refdyn::JsonValue> metrics;
+  for (const auto& m : js["metrics"]) metrics[m["name"].get<std::string>()] = m;
+  // The table and the metrics tell the same: the final q1 and the peak elbow effort.
+  EXPECT_EQ(metrics.at("final_q(q1)")["gradient"]["T"].get<double>(), table.rows.back()[dq1]);
+  const refdyn::JsonValue& peak = metrics.at("peak_effort(q2)");
+  const double t_peak = peak["t"].get<double>();
+  size_t k = 0;
+  while (k < table.rows.size() && table.rows[k][0] != t_peak) ++k;
+  ASSERT_LT(k, table.rows.size());
+  const double required = plan.rows[k][static_cast<size_t>(std::find(plan.header.begin(), plan.header.end(), "required_q2") -
+                                                           plan.header.begin())];
+  EXPECT_EQ(peak["gradient"]["swing"].get<double>(), (required < 0 ? -1 : 1) * table.rows[k][dreq2]);
+}
+
+TEST(Sensitivity, UnknownParameterOrAFamilyIsRejectedBeforeAnythingIsWritten) {
+  Scratch s;
+  const fs::path tray = kSource / "examples/waiter_tray/waiter_tray.yaml", out = s.root() / "out";
+  Result r = run(s, "plan " + quote(tray) + " -o " + quote(out) + " --sensitivity Tx");
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_EQ(count_lines(r.err), 1) << describe(r);
+  EXPECT_TRUE(contains(r.err, "did you mean 'T'")) << describe(r);
+  EXPECT_FALSE(fs::exists(out));
+  r = run(s, "plan " + quote(tray) + " -o " + quote(out) + " --sensitivity T,,swing");
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_FALSE(fs::exists(out));
+  const fs::path family = kSource / "examples/planar_2r_circle/family.yaml";
+  r = run(s, "plan " + quote(family) + " -o " + quote(out) + " --sensitivity R");
+  EXPECT_EQ(r.code, 2) << describe(r);
+  EXPECT_TRUE(contains(r.err, "not for a family of variants")) << describe(r);
+  EXPECT_FALSE(fs::exists(out));
+}

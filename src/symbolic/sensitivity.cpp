@@ -202,8 +202,7 @@ std::shared_ptr<const Tapes> compile(const Problem& problem, const Texts& texts,
 
 /// Compiled tapes, cached by their texts (an optimization differentiates the same structure at
 /// many parameter values: only the chosen parameters change, and they are variables).
-std::shared_ptr<const Tapes> tapes_for(const Problem& problem, const std::vector<std::string>& pvars) {
-  const Texts texts = symbolic_texts(problem);
+std::shared_ptr<const Tapes> tapes_for(const Problem& problem, const Texts& texts, const std::vector<std::string>& pvars) {
   std::string key = texts.key() + "|";
   for (const auto& p : pvars) key += p + ",";
   static std::mutex mutex;
@@ -279,18 +278,19 @@ class Evaluator {
   /// Along directions V (nv × c): δq̈, δλ, δż.
   void along(const Eigen::MatrixXd& V, Eigen::MatrixXd& dqdd, Eigen::MatrixXd& dlam, Eigen::MatrixXd& dzdot) {
     const int n = T_.n, m = T_.m;
-    const Eigen::MatrixXd dR = GR_ * V;
-    const Eigen::MatrixXd r1 = -dR.topRows(n);
+    dR_.noalias() = -(GR_ * V);  // −δR: the right-hand sides r₁, r₂
     if (m) {
-      const Eigen::MatrixXd r2 = -dR.bottomRows(m);
-      const Eigen::MatrixXd Minv_r1 = llt_.solve(r1);
-      dlam = lu_.solve(A_ * Minv_r1 - r2);
-      dqdd = Minv_r1 - MinvAt_ * dlam;
+      r1_ = llt_.solve(dR_.topRows(n));  // M⁻¹ r₁
+      tmp_.noalias() = A_ * r1_;
+      tmp_ -= dR_.bottomRows(m);
+      dlam = lu_.solve(tmp_);
+      dqdd = r1_;
+      dqdd.noalias() -= MinvAt_ * dlam;
     } else {
       dlam.resize(0, V.cols());
-      dqdd = llt_.solve(r1);
+      dqdd = llt_.solve(dR_.topRows(n));
     }
-    dzdot = GZ_ * V;
+    dzdot.noalias() = GZ_ * V;
   }
 
   const Eigen::MatrixXd& effort_gradient() const { return GT_; }
@@ -304,7 +304,7 @@ class Evaluator {
   }
   const Tapes& T_;
   Eigen::VectorXd pvals_, x_, g_;
-  Eigen::MatrixXd GR_, GZ_, GT_, GP_, GPd_, M_, A_, MinvAt_;
+  Eigen::MatrixXd GR_, GZ_, GT_, GP_, GPd_, M_, A_, MinvAt_, dR_, r1_, tmp_;
   Eigen::LLT<Eigen::MatrixXd> llt_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   ExpressionWorkspace ws_;
@@ -313,8 +313,9 @@ class Evaluator {
 
 }  // namespace
 
-PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const SensitivityOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
+namespace {
+/// The checks of check_sensitivity_request before the symbolic forms.
+void check_scope(const Problem& problem, const SensitivityOptions& options) {
   if (options.parameters.empty()) throw Error("sensitivities: name at least one parameter");
   std::vector<std::string> names;
   for (const auto& [name, _] : problem.texts.parameters) names.push_back(name);
@@ -335,6 +336,17 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
                 std::string(to_string(problem.options.stabilization)) + " (hint: stabilization: baumgarte)");
   if (problem.options.paper_literal_forces)
     throw Error("sensitivities are not available with the paper-literal force option (forces: paper_literal)");
+}
+}  // namespace
+
+void check_sensitivity_request(const Problem& problem, const SensitivityOptions& options) {
+  check_scope(problem, options);
+  (void)generate_symbolic(problem);  // every kind has a symbolic form
+}
+
+PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const SensitivityOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  check_scope(problem, options);  // the symbolic forms are checked by symbolic_texts below
   if (plan.t.empty()) throw Error("sensitivities: the plan has no samples");
 
   const int np = static_cast<int>(options.parameters.size());
@@ -343,7 +355,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   std::vector<std::string> pvars;
   for (const auto& s : texts.symbols)
     if (D.count(s) && !D.at(s).isZero(0)) pvars.push_back(s);
-  const std::shared_ptr<const Tapes> tp = tapes_for(problem, pvars);
+  const std::shared_ptr<const Tapes> tp = tapes_for(problem, texts, pvars);
   const Tapes& T = *tp;
   const int n = T.n, m = T.m, nz = T.nz, nx = 2 * n + nz, npv = static_cast<int>(pvars.size());
   Eigen::VectorXd pvals(npv);
@@ -441,10 +453,13 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   Eigen::MatrixXd Ss;
   // ∂t/∂p of a time of the grid: t0 + (k + c)·h with h = (t1 − t0)/nsteps.
   auto time_rate = [&](double t) -> Eigen::RowVectorXd { return (t - t0) / (t1 - t0) * out.dt_end; };
+  // A sample's evaluation is also the first stage of the next step (same t, x, S): kept.
+  Eigen::MatrixXd K_sample;
+  Eigen::VectorXd xdot_sample;
   auto record = [&](double t, const Eigen::VectorXd& xs, const Eigen::MatrixXd& Sx) {
-    Eigen::MatrixXd Kx;
     const Eigen::RowVectorXd tdot = time_rate(t);
-    rate(t, xs, Sx, tdot, Kx, true);
+    rate(t, xs, Sx, tdot, K_sample, true);
+    xdot_sample = xdot;
     Eigen::MatrixXd V = directions(Sx, tdot);  // with the changes of q̈ and λ, which τ reads
     V.middleRows(T.o_qdd, n) = dqdd;
     if (m) V.middleRows(T.o_lam, m) = dlam;
@@ -467,6 +482,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   static constexpr double c[4] = {0.0, 0.5, 0.5, 1.0}, w[4] = {1.0, 2.0, 2.0, 1.0};
   Eigen::MatrixXd Kst[4], Sacc(nx, np);
   Eigen::VectorXd kst[4], xs(nx), xacc(nx);
+  bool sampled = true;  // the step starts on a sample (recorded, its evaluation kept)
   for (long k = 0; k < nsteps && out.t.size() < samples; ++k) {
     const double t = t0 + k * h;
     xacc.setZero();
@@ -479,15 +495,21 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
         Ss += (c[st] * h) * Kst[st - 1] + c[st] * kst[st - 1] * dh;
       }
       const double ts = t + c[st] * h;
-      rate(ts, xs, Ss, time_rate(ts), Kst[st], false);
-      kst[st] = xdot;
+      if (st == 0 && sampled) {
+        Kst[0].swap(K_sample);
+        kst[0].swap(xdot_sample);
+      } else {
+        rate(ts, xs, Ss, time_rate(ts), Kst[st], false);
+        kst[st] = xdot;
+      }
       xacc += w[st] * kst[st];
       Sacc += w[st] * Kst[st];
     }
     x += (h / 6.0) * xacc;
     S += (h / 6.0) * Sacc + (1.0 / 6.0) * xacc * dh;
     const double tn = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
-    if ((k + 1) % every == 0 || k + 1 == nsteps) record(tn, x, S);
+    sampled = (k + 1) % every == 0 || k + 1 == nsteps;
+    if (sampled) record(tn, x, S);
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

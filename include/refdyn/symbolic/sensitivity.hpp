@@ -1,6 +1,6 @@
 #pragma once
 /// Forward sensitivities of a plan with respect to named scenario parameters
-/// (docs/optimize.md, "Sensitivities"): S(t) = ∂x(t)/∂p along the planned motion, and from it
+/// (docs/sensitivity.md): S(t) = ∂x(t)/∂p along the planned motion, and from it
 /// the derivatives of the plan's metrics (simulate/metrics.hpp).
 ///
 /// The derivatives are exact: ∂f/∂p comes from the reference dynamics in GiNaC
@@ -34,9 +34,14 @@ struct PlanSensitivity {
   double seconds = 0;                       ///< wall time of the sensitivity computation
 };
 
-/// The sensitivities of `plan` (made by plan_problem from `problem`). Throws Error naming what
-/// is not supported (an unknown parameter, a kind without a symbolic form, a jerk problem, a
-/// method other than RK4).
+/// Throws Error when the sensitivities of `problem`'s plan cannot be computed: an unknown or
+/// repeated parameter name ("did you mean"), none, a jerk problem, a method other than RK4, a
+/// stabilization other than Baumgarte, a constraint kind or force element without a symbolic form.
+/// Called by plan_sensitivity; callers check before planning to fail before writing anything.
+void check_sensitivity_request(const Problem& problem, const SensitivityOptions& options);
+
+/// The sensitivities of `plan` (made by plan_problem from `problem`) at its samples. Throws as
+/// check_sensitivity_request does, and NumericalFailure where the plan's equations are singular.
 PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const SensitivityOptions& options);
 
 /// d(metric)/dp for each metric (the same order as `metrics`): rows of an (metrics × np) matrix.
