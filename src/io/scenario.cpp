@@ -543,7 +543,8 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
   const SpecValue& vars = c.need(op, "variables", "optimize");
   if (!vars.is_list() || vars.size() == 0)
     c.fail(vars.where.line ? vars.where : op.key_location("variables"), "optimize.variables",
-           "expected a non-empty list of {name, lower, upper[, start]}, got " + vars.describe());
+           "expected a non-empty list of {name, lower, upper[, start]}, got " +
+               (vars.is_list() ? std::string("an empty list") : vars.describe()));
   for (size_t i = 0; i < vars.size(); ++i) {
     OptimizeVariableSpec v;
     v.key = "optimize.variables[" + std::to_string(i) + "]";
