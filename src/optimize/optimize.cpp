@@ -504,8 +504,10 @@ std::string optimized_yaml(const std::string& text, const std::vector<std::strin
         // Flow style: parameters: {a: 1, b: 2}
         for (size_t i = 0; i < names.size(); ++i) {
           const std::regex re("([{,]\\s*" + names[i] + "\\s*:\\s*)([^,}#]*[^,}#\\s])");
-          if (std::regex_search(l, re)) {
-            l = std::regex_replace(l, re, "$1" + fmt(values[i]), std::regex_constants::format_first_only);
+          std::smatch mm;
+          if (std::regex_search(l, mm, re)) {
+            l = l.substr(0, static_cast<size_t>(mm.position(2))) + fmt(values[i]) +
+                l.substr(static_cast<size_t>(mm.position(2) + mm.length(2)));
             done[i] = true;
           }
         }
