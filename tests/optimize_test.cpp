@@ -199,6 +199,11 @@ TEST(OptimizeCommand, WritesTheOptimumAndExits4WithoutAFeasiblePoint) {
   for (const char* f : {"optimized.yaml", "optimization.csv", "plan.csv", "feasibility.json", "summary.json"})
     EXPECT_TRUE(fs::exists(dir / "a" / f)) << f;
   EXPECT_NE(slurp((dir / "a" / "summary.json").string()).find("\"optimization\""), std::string::npos);
+  // refdyn report draws the optimization's history from optimization.csv.
+  const std::string rep = cli + " report " + (dir / "a").string() + " -q";
+  ASSERT_EQ(std::system(rep.c_str()), 0);
+  const std::string html = slurp((dir / "a" / "report.html").string());
+  EXPECT_NE(html.find("\"optimization\":{\"columns\":[\"index\",\"Td\",\"objective\",\"velocity(psi1)\""), std::string::npos);
   // The optimized scenario plans to the same feasible result.
   const ScenarioSpec opt = io::load_scenario((dir / "a" / "optimized.yaml").string());
   const auto p = build_problem(spec_at(opt, {}, {}));

@@ -394,6 +394,7 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
 
   OptimizeSummary& sum = out.summary;
   sum.method = to_string(s.method);
+  sum.maximize = s.maximize;
   sum.variables = s.variables;
   for (const auto& c : s.constraints) sum.constraint_names.push_back(c.name);
   std::vector<double> x = s.start;
@@ -456,6 +457,7 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
 JsonValue OptimizeSummary::to_json() const {
   JsonValue j = JsonValue::object();
   j["method"] = method;
+  j["sense"] = maximize ? "maximize" : "minimize";
   j["status"] = status;
   j["message"] = message;
   j["evaluations"] = evaluations;

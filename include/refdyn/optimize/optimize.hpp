@@ -86,6 +86,7 @@ struct OptimizeOptions {
 
 struct OptimizeSummary {
   std::string method;
+  bool maximize = false;                ///< the objective's sense
   std::string status;                   ///< success | xtol_reached | ftol_reached | budget | stopped | failure | roundoff_limited
   std::string message;
   long evaluations = 0;                 ///< plans made (each distinct x once)
