@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -223,4 +224,25 @@ TEST(OptimizeCommand, WritesTheOptimumAndExits4WithoutAFeasiblePoint) {
   EXPECT_FALSE(fs::exists(dir / "b" / "optimized.yaml"));
   EXPECT_NE(slurp((dir / "err.txt").string()).find("no feasible point found"), std::string::npos);
   fs::remove_all(dir);
+}
+
+// The stop flag (SIGINT in the command) ends the run before the next plan; the best feasible
+// point so far is the result.
+TEST(OptimizeEvaluations, StopFlagKeepsTheBestFeasiblePointSoFar) {
+  const ScenarioSpec spec = io::load_scenario(source_path("examples/paper/duration.yaml"));
+  std::atomic<bool> stop{false};
+  OptimizeOptions o;
+  o.stop = &stop;
+  o.progress = [&](const OptimizeEvaluation& e, long) {
+    if (e.index == 3) stop = true;
+  };
+  const OptimizeResult r = optimize_scenario(spec, o);
+  EXPECT_TRUE(r.summary.stopped);
+  EXPECT_EQ(r.summary.status, "stopped");
+  EXPECT_EQ(r.summary.evaluations, 4);
+  ASSERT_TRUE(r.summary.feasible);
+  double best = INFINITY;
+  for (const auto& e : r.summary.history)
+    if (e.feasible) best = std::min(best, e.objective);
+  EXPECT_EQ(r.summary.best_objective, best);
 }
