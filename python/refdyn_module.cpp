@@ -210,6 +210,12 @@ std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bo
 
 // ---------------------------------------------------------------- scenario texts
 /// The scenario of a path (is_text false) or of YAML text named source_name.
+/// A scenario's optimize: section checked as `refdyn plan` checks it (the whole file is valid or
+/// an error, with the command's message).
+void check_optimize_of(const ScenarioSpec& spec, const Problem& problem) {
+  if (spec.optimize) (void)check_optimize(spec, problem);
+}
+
 ScenarioSpec scenario_spec(const std::string& source, bool is_text, const std::string& source_name) {
   return is_text ? io::parse_scenario(source, source_name) : io::load_scenario(source);
 }
@@ -562,6 +568,7 @@ PYBIND11_MODULE(_refdyn, m) {
         {
           py::gil_scoped_release release;
           p = io::load_problem(path);
+          check_optimize_of(io::load_scenario(path), *p);
         }
         return std::shared_ptr<Problem>(std::move(p));
       }, py::arg("path"));
@@ -570,6 +577,7 @@ PYBIND11_MODULE(_refdyn, m) {
         {
           py::gil_scoped_release release;
           p = io::parse_problem(yaml, source);
+          check_optimize_of(io::parse_scenario(yaml, source), *p);
         }
         return std::shared_ptr<Problem>(std::move(p));
       }, py::arg("yaml"), py::arg("source_name") = "<string>");

@@ -134,6 +134,17 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     if (b.lower) s.constraints.push_back({name + ".lower", "", static_cast<int>(i), lo, lo != 0 ? std::abs(lo) : 1.0, false});
     if (b.upper) s.constraints.push_back({name + ".upper", "", static_cast<int>(i), hi, hi != 0 ? std::abs(hi) : 1.0, true});
   }
+  s.metric_used.assign(s.metric_names.size(), false);
+  auto mark = [&](const Expression& e) {
+    for (int i : e.referenced_variables())
+      if (static_cast<size_t>(i) < s.metric_names.size()) s.metric_used[static_cast<size_t>(i)] = true;
+  };
+  mark(*s.objective);
+  for (const auto& b : s.bounds) mark(*b);
+  for (const auto& c : s.constraints)
+    if (c.expression < 0)
+      s.metric_used[static_cast<size_t>(std::find(s.metric_names.begin(), s.metric_names.end(), c.metric) -
+                                        s.metric_names.begin())] = true;
   if (o.tolerance_x) {
     s.xtol = c.number(o.tolerance_x, "optimize.tolerance.x");
     if (!(s.xtol >= 0)) c.fail(o.tolerance_x, "optimize.tolerance.x", "expected a relative tolerance ≥ 0, got " + fmt(s.xtol));
@@ -254,8 +265,6 @@ class Evaluator {
       } else {
         const std::vector<Metric> metrics = plan_metrics(problem->model, plan, problem->residual_from);
         std::vector<double> args(nm + nv, 0.0);
-        std::map<std::string, size_t> index;
-        for (size_t i = 0; i < metrics.size() && i < nm; ++i) index[metrics[i].name] = i;
         for (size_t i = 0; i < nm; ++i) {
           auto it = std::find_if(metrics.begin(), metrics.end(), [&](const Metric& m) { return m.name == s_.metric_names[i]; });
           if (it != metrics.end()) args[i] = it->value;
@@ -268,11 +277,21 @@ class Evaluator {
           so.parameters = s_.variables;
           try {
             const PlanSensitivity sens = plan_sensitivity(*problem, plan, so);
-            const Eigen::MatrixXd dm = metric_gradients(*problem, plan, sens, metrics);
-            G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nm + nv), static_cast<Eigen::Index>(nv));
+            // Only the metrics the expressions and limits name are differentiated.
+            std::vector<Metric> used;
+            std::vector<size_t> rows;
             for (size_t i = 0; i < nm; ++i) {
+              if (!s_.metric_used[i]) continue;
               auto it = std::find_if(metrics.begin(), metrics.end(), [&](const Metric& m) { return m.name == s_.metric_names[i]; });
-              if (it != metrics.end()) G.row(static_cast<Eigen::Index>(i)) = dm.row(it - metrics.begin());
+              if (it == metrics.end()) continue;
+              used.push_back(*it);
+              rows.push_back(i);
+            }
+            G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nm + nv), static_cast<Eigen::Index>(nv));
+            if (!used.empty()) {
+              const Eigen::MatrixXd dm = metric_gradients(*problem, plan, sens, used);
+              for (size_t k = 0; k < rows.size(); ++k)
+                G.row(static_cast<Eigen::Index>(rows[k])) = dm.row(static_cast<Eigen::Index>(k));
             }
             for (size_t k = 0; k < nv; ++k) G(static_cast<Eigen::Index>(nm + k), static_cast<Eigen::Index>(k)) = 1.0;
           } catch (const Error& e) {

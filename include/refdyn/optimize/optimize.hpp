@@ -50,6 +50,7 @@ struct OptimizeSetup {
   OptimizeMethod method = OptimizeMethod::Slsqp;
   bool maximize = false;
   std::vector<std::string> metric_names;            ///< the expressions' first variables
+  std::vector<bool> metric_used;                    ///< named by an expression or a limit (differentiated)
   std::shared_ptr<const Expression> objective;
   std::vector<std::shared_ptr<const Expression>> bounds;
   std::vector<OptimizeConstraint> constraints;
