@@ -246,3 +246,26 @@ TEST(OptimizeEvaluations, StopFlagKeepsTheBestFeasiblePointSoFar) {
     if (e.feasible) best = std::min(best, e.objective);
   EXPECT_EQ(r.summary.best_objective, best);
 }
+
+// BOBYQA has no nonlinear constraints: with `feasible: true` it runs inside NLopt's augmented
+// Lagrangian (AUGLAG). It needs more plans than COBYLA; here: it runs within its budget and
+// keeps a feasible point no longer than the start.
+TEST(OptimizeMethods, BobyqaWithConstraintsRunsUnderAuglag) {
+  const ScenarioSpec spec = io::load_scenario(source_path("examples/paper/duration.yaml"));
+  OptimizeOptions o;
+  o.method = "bobyqa";
+  o.budget = 20;
+  const OptimizeResult r = optimize_scenario(spec, o);
+  EXPECT_EQ(r.summary.method, "bobyqa");
+  EXPECT_LE(r.summary.evaluations, 20);
+  ASSERT_TRUE(r.summary.feasible);
+  EXPECT_LE(r.summary.best_x[0], 5.0);
+  EXPECT_GE(r.summary.best_x[0], 4.188);  // never below the true optimum (4.18903)
+  EXPECT_THROW(
+      {
+        OptimizeOptions bad;
+        bad.method = "nelder";
+        (void)optimize_scenario(spec, bad);
+      },
+      Error);
+}
