@@ -11,6 +11,7 @@
 #include "refdyn/io/sensitivity.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/io/variants.hpp"
+#include "refdyn/optimize/optimize.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/scenario/registry.hpp"
 #include "refdyn/common/text.hpp"
@@ -111,10 +112,17 @@ io::ProgressFactory terminal_progress(bool enabled) {
   };
 }
 
+void check_optimize_section(const ScenarioSpec& spec) {
+  if (!spec.optimize) return;
+  (void)check_optimize(spec, *build_problem(spec));
+}
+
 int run_check(const std::string& file, const InputOptions& in) {
   const ScenarioSpec spec = io::load_scenario(file, in.max_input_bytes);
   // Everything is evaluated before anything is printed: "valid" is never followed by an error.
-  std::cout << io::check_text(io::check_scenario(spec, file));
+  const std::string text = io::check_text(io::check_scenario(spec, file));
+  check_optimize_section(spec);
+  std::cout << text;
   return kOk;
 }
 
@@ -239,6 +247,7 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
     spec = io::load_scenario(file, in.max_input_bytes);
     problem = build_problem(spec);  // validates before anything is written
     variants = io::expand_variants(spec);
+    if (spec.optimize) (void)check_optimize(spec, *problem);  // the whole file is valid or an error
     if (track && problem->experiments.empty())
       throw Error(file + ": experiments: " + (spec.experiments_value ? "an empty list" : "missing") +
                   " (track needs at least one experiment; see docs/scenario.md)");

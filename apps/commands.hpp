@@ -46,6 +46,13 @@ io::ProgressFactory terminal_progress(bool enabled);
 void report_stopped(const io::Results& results);
 
 int run_check(const std::string& file, const InputOptions& in);
+/// The scenario's optimize: section checked (check_optimize; nothing when it has none), so that
+/// check, plan and track reject a file that optimize would.
+void check_optimize_section(const ScenarioSpec& spec);
+/// refdyn optimize (apps/optimize_command.cpp): kOk; kNumerical when no feasible point was
+/// found; 130 when interrupted (the best feasible point so far written).
+int run_optimize(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
+                 const std::string& method, long budget);
 int run_plan(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,
              const RunConfig& config);
 int run_track(const std::string& file, const std::string& out_dir, bool quiet, const InputOptions& in,

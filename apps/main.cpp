@@ -37,13 +37,15 @@ struct Args {
   std::string formats = "c,latex,json", prefix;
   refdyn::app::InputOptions in;
   refdyn::app::RunConfig run;
+  std::string method;
+  long budget = 0;
 };
 
 struct Commands {
-  CLI::App *check, *plan, *track, *plot, *paper, *report, *generate, *kinds;
+  CLI::App *check, *plan, *optimize, *track, *plot, *paper, *report, *generate, *kinds;
 };
 
-const std::vector<std::string> kCommandNames{"check", "plan", "track", "plot", "report", "paper", "generate", "kinds"};
+const std::vector<std::string> kCommandNames{"check", "plan", "optimize", "track", "plot", "report", "paper", "generate", "kinds"};
 
 void add_input_options(CLI::App* c, Args& a) {
   c->add_option("--max-input-size", a.in.max_input_bytes, "Largest scenario or URDF file read [bytes]")
@@ -87,6 +89,16 @@ void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   c.plan->add_option("--sensitivity", a.run.sensitivity,
                      "Also write the plan's forward sensitivities to the named parameters (comma-separated): "
                      "sensitivity.csv (per sample), sensitivity.json (metrics and their gradients; docs/sensitivity.md)");
+
+  c.optimize = app.add_subcommand(
+      "optimize", "Choose task parameters (the scenario's optimize: section): optimized.yaml, optimization.csv, the optimum's plan");
+  c.optimize->add_option("file", a.file, "Scenario file (YAML) with an optimize: section")->required();
+  c.optimize->add_option("-o,--output", a.out_dir, "Output folder")->capture_default_str();
+  c.optimize->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
+  c.optimize->add_option("--method", a.method, "slsqp | mma | cobyla | bobyqa (default: the scenario's optimize.method)");
+  c.optimize->add_option("--budget", a.budget, "Most plan evaluations (default: the scenario's optimize.budget)")
+      ->check(CLI::PositiveNumber);
+  add_input_options(c.optimize, a);
 
   c.track = app.add_subcommand("track", "Plan, then run the scenario's closed-loop tracking experiments");
   c.track->add_option("file", a.file, "Scenario file (YAML)")->required();
@@ -133,6 +145,7 @@ int dispatch(const Commands& c, Args& a) {
   if (a.report) require_report_template();
   a.run.report = a.report;
   if (*c.plan) return run_plan(a.file, a.out_dir, a.quiet, a.in, a.run);
+  if (*c.optimize) return run_optimize(a.file, a.out_dir, a.quiet, a.in, a.method, a.budget);
   if (*c.track) return run_track(a.file, a.out_dir, a.quiet, a.in, a.run);
   if (*c.plot) return run_plot(a.out_dir);
   if (*c.report) return run_report(a.out_dir, a.scenario, a.report_out, a.quiet, a.in);

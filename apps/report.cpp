@@ -352,6 +352,36 @@ std::string report_html(const ReportInput& in) {
   for (size_t r = 0; r < in.runs.size(); ++r)
     replay_runs.push_back(
         {{"name", in.runs[r].first}, {"frames", kinematics_json(m, resample(in.runs[r].second, rgrid), run_q[r], false)}});
+  if (!in.optimization.header.empty()) {
+    // The numeric columns (index … feasible; not status and reason); "nan" cells as null.
+    const auto& h = in.optimization.header;
+    const int last = in.optimization.column("feasible");
+    if (in.optimization.column("index") != 0 || in.optimization.column("objective") < 0 || last < 0)
+      throw Error("optimization.csv: expected the columns index, the variables, objective, the constraints, feasible, …");
+    JsonValue o = JsonValue::object();
+    o["columns"] = JsonValue(std::vector<std::string>(h.begin(), h.begin() + last + 1));
+    JsonValue rows = JsonValue::array();
+    for (const auto& r : in.optimization.rows) {
+      JsonValue row = JsonValue::array();
+      for (int c = 0; c <= last; ++c) {
+        char* end = nullptr;
+        const double v = std::strtod(r[static_cast<size_t>(c)].c_str(), &end);
+        if (std::isfinite(v) && end && *end == 0) row.push_back(v);
+        else row.push_back(nullptr);
+      }
+      rows.push_back(row);
+    }
+    o["rows"] = rows;
+    const JsonValue summary = parse_json(in.summary_json, "summary.json");
+    const auto opt = summary.find("optimization");
+    if (opt != summary.end() && opt->is_object()) {
+      if (opt->contains("method")) o["method"] = (*opt)["method"];
+      o["maximize"] = opt->contains("sense") && (*opt)["sense"] == "maximize";
+    } else {
+      o["maximize"] = false;
+    }
+    data["optimization"] = o;
+  }
   const std::string d = json_text(data, -1);  // minimal separators: the page is large
 
   // The markers are located in the template once, so nothing inserted can be taken for one.
@@ -450,6 +480,10 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
                     f.filename().string());
       in.runs.emplace_back(name, io::read_csv_numbers(f.string()));
     }
+  if (fs::exists(dir / "optimization.csv")) {
+    const std::string f = (dir / "optimization.csv").string();
+    in.optimization = io::parse_csv(io::read_text_file(f, "results file"), f);
+  }
   const std::string html = report_html(in);  // everything is formed before anything is written
   const fs::path out = output.empty() ? dir / "report.html" : fs::path(output);
   io::write_text_atomic(out, html);

@@ -8,6 +8,7 @@
 
 #include "commands.hpp"
 #include "refdyn/io/output.hpp"
+#include "refdyn/io/csv.hpp"
 #include "refdyn/io/results.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/scenario/problem.hpp"
@@ -27,6 +28,9 @@ struct ReportInput {
   std::string feasibility_json;  ///< feasibility.json (text, embedded as is)
   io::CsvTable plan;             ///< plan.csv
   std::vector<std::pair<std::string, io::CsvTable>> runs;  ///< experiment name, track_<name>.csv
+  /// optimization.csv of `refdyn optimize` (empty header: none): the report's optimization
+  /// section (objective and constraint history).
+  io::CsvText optimization;
 };
 
 /// Largest number of samples per series in the plots and of frames in the 3D replay.

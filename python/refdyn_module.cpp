@@ -22,6 +22,7 @@
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/urdf.hpp"
 #include "refdyn/io/variants.hpp"
+#include "refdyn/optimize/optimize.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/model.hpp"
@@ -209,6 +210,12 @@ std::shared_ptr<PyResults> run(const std::shared_ptr<const Problem>& problem, bo
 
 // ---------------------------------------------------------------- scenario texts
 /// The scenario of a path (is_text false) or of YAML text named source_name.
+/// A scenario's optimize: section checked as `refdyn plan` checks it (the whole file is valid or
+/// an error, with the command's message).
+void check_optimize_of(const ScenarioSpec& spec, const Problem& problem) {
+  if (spec.optimize) (void)check_optimize(spec, problem);
+}
+
 ScenarioSpec scenario_spec(const std::string& source, bool is_text, const std::string& source_name) {
   return is_text ? io::parse_scenario(source, source_name) : io::load_scenario(source);
 }
@@ -561,6 +568,7 @@ PYBIND11_MODULE(_refdyn, m) {
         {
           py::gil_scoped_release release;
           p = io::load_problem(path);
+          check_optimize_of(io::load_scenario(path), *p);
         }
         return std::shared_ptr<Problem>(std::move(p));
       }, py::arg("path"));
@@ -569,6 +577,7 @@ PYBIND11_MODULE(_refdyn, m) {
         {
           py::gil_scoped_release release;
           p = io::parse_problem(yaml, source);
+          check_optimize_of(io::parse_scenario(yaml, source), *p);
         }
         return std::shared_ptr<Problem>(std::move(p));
       }, py::arg("yaml"), py::arg("source_name") = "<string>");
@@ -623,6 +632,62 @@ PYBIND11_MODULE(_refdyn, m) {
         py::arg("track"), py::arg("jobs"), py::arg("dir"), py::arg("progress"),
         "io::run_variants without the GIL: per variant its summary; variants.csv and summary.json as texts "
         "(and in dir, with a folder per variant, when dir is not empty).");
+  m.def("optimize", [](const std::string& source, bool is_text, const std::string& source_name, const std::string& method,
+                       long budget) {
+        OptimizeResult r;
+        {
+          py::gil_scoped_release release;
+          const ScenarioSpec spec = scenario_spec(source, is_text, source_name);
+          OptimizeOptions o;
+          o.method = method;
+          o.budget = budget;
+          r = optimize_scenario(spec, o);
+        }
+        const OptimizeSummary& s = r.summary;
+        py::dict d;
+        d["method"] = s.method;
+        d["status"] = s.status;
+        d["message"] = s.message;
+        d["evaluations"] = s.evaluations;
+        d["feasible"] = s.feasible;
+        d["objective"] = s.best_objective;
+        d["wall_time"] = s.wall_time;
+        py::dict best;
+        for (size_t i = 0; i < s.variables.size(); ++i) best[py::str(s.variables[i])] = s.best_x[i];
+        d["best"] = best;
+        d["variables"] = s.variables;
+        d["constraint_names"] = s.constraint_names;
+        const auto n = static_cast<py::ssize_t>(s.history.size());
+        const auto nv = static_cast<py::ssize_t>(s.variables.size()), nc = static_cast<py::ssize_t>(s.constraint_names.size());
+        py::array_t<double> x({n, nv}), obj(n), g({n, nc});
+        py::array_t<bool> feas(n), ok(n);
+        py::list reasons;
+        auto X = x.mutable_unchecked<2>();
+        auto O = obj.mutable_unchecked<1>();
+        auto G = g.mutable_unchecked<2>();
+        auto F = feas.mutable_unchecked<1>();
+        auto K = ok.mutable_unchecked<1>();
+        for (py::ssize_t i = 0; i < n; ++i) {
+          const OptimizeEvaluation& e = s.history[static_cast<size_t>(i)];
+          for (py::ssize_t k = 0; k < nv; ++k) X(i, k) = e.x[static_cast<size_t>(k)];
+          for (py::ssize_t k = 0; k < nc; ++k) G(i, k) = e.constraints[static_cast<size_t>(k)];
+          O(i) = e.objective;
+          F(i) = e.feasible;
+          K(i) = e.ok;
+          reasons.append(e.reason);
+        }
+        py::dict h;
+        h["x"] = x;
+        h["objective"] = obj;
+        h["constraints"] = g;
+        h["feasible"] = feas;
+        h["ok"] = ok;
+        h["reason"] = reasons;
+        d["history"] = h;
+        d["csv"] = optimization_csv(s);
+        return d;
+      }, py::arg("source"), py::arg("is_text"), py::arg("source_name"), py::arg("method"), py::arg("budget"),
+      "optimize_scenario without the GIL: the summary as a dict, the history as NumPy arrays.");
   m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress, int jobs) {
         return run(p, track, progress, jobs);
       }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(), py::arg("jobs") = 1,

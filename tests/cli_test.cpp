@@ -237,12 +237,14 @@ TEST_P(BadScenario, RejectedWithOneLineAndNothingWritten) {
   const fs::path out_empty = s.root() / "out_empty", out_new = s.root() / "out_new" / "nested",
                  track_new = s.root() / "track_new";
   fs::create_directories(out_empty);
-  const std::vector<std::string> commands{
+  std::vector<std::string> commands{
       "check " + quote(file),
       "plan " + quote(file) + " -o " + quote(out_empty),
       "plan " + quote(file) + " -o " + quote(out_new),
       "track " + quote(file) + " -o " + quote(track_new) + " --report",
   };
+  if (contains(read_text(file), "\noptimize:"))  // refdyn optimize rejects it the same way
+    commands.push_back("optimize " + quote(file) + " -o " + quote(out_new));
   // The same problem in several commands is reported once, with the first command's output.
   std::vector<std::pair<std::string, Result>> found;
   std::vector<std::vector<std::string>> in_commands;

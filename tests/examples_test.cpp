@@ -609,7 +609,8 @@ TEST(Examples, RunThroughTheCommandLine) {
                                        "examples/waiter_tray/waiter_tray.yaml", "examples/paper/paper.yaml",
                                        "examples/stiff_friction/stiff_friction.yaml",
                                        "examples/stiff_friction/stick_slip.yaml",
-                                       "examples/mixed_orders/mixed_orders.yaml"};
+                                       "examples/mixed_orders/mixed_orders.yaml",
+                                       "examples/paper/duration.yaml", "examples/waiter_tray/fastest.yaml"};
   for (const auto& rel : files) {
     const std::string file = source_path(rel), name = fs::path(rel).stem().string();
     const fs::path out = tmp / name;

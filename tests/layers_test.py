@@ -16,7 +16,7 @@ import sys
 import tempfile
 
 LAYERS = ["common", "expression", "multibody", "constraints", "forces", "reference", "simulate", "models",
-          "scenario", "symbolic", "io", "report", "apps"]
+          "scenario", "symbolic", "io", "optimize", "report", "apps"]
 RANK = {name: i for i, name in enumerate(LAYERS)}
 INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.M)
 SOURCE_ENDINGS = (".hpp", ".cpp", ".h", ".def")

@@ -33,7 +33,7 @@ for _cls in (Error, NumericalFailure, Model, Problem):
 __all__ = [
     "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
     "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",
-    "ConstraintRow", "check", "generate", "run_variants", "VariantResults",
+    "ConstraintRow", "check", "generate", "run_variants", "VariantResults", "optimize",
 ]
 __version__ = "0.2.0"  # = project(VERSION) in CMakeLists.txt (cli_test checks)
 
@@ -216,6 +216,20 @@ def run_variants(source, track: bool = False, jobs: int = 1, directory: Union[st
     r = _refdyn.run_variants(text, is_text, name, track, jobs, _os.fspath(directory) if directory else "", progress)
     return VariantResults(variants=r["variants"], joints=tuple(r["joints"]), csv=r["csv"],
                           summary=_json.loads(r["summary_json"]), ok=r["ok"], wall_time=r["wall_time"])
+
+
+def optimize(source, method: Optional[str] = None, budget: Optional[int] = None,
+             source_name: Optional[str] = None) -> Dict[str, Any]:
+    """`refdyn optimize` of a scenario with an `optimize:` section (docs/optimize.md), without the
+    GIL: {"method", "status", "message", "evaluations", "feasible", "objective", "best" (variable ->
+    value), "variables", "constraint_names", "wall_time", "csv" (optimization.csv's text), "history":
+    {"x" (evaluations x variables), "objective", "constraints" (evaluations x constraints, g <= 0),
+    "feasible", "ok" (NumPy arrays), "reason" (list)}}. method / budget override the section's.
+    A bad section raises refdyn.Error with the command's message. source: as in check."""
+    text, is_text, name = _scenario_source(source, "optimize", source_name)
+    if budget is not None and (not isinstance(budget, int) or budget <= 0):
+        raise ValueError(f"refdyn.optimize: budget: expected a whole number > 0, got {budget!r}")
+    return _refdyn.optimize(text, is_text, name, method or "", int(budget or 0))
 
 
 # --------------------------------------------------------------------------- models

@@ -214,6 +214,35 @@ struct VariantsSpec {
   SpecValue value;                         ///< the section as written
 };
 
+/// `optimize:` — the task parameters `refdyn optimize` chooses (optimize/optimize.hpp,
+/// docs/optimize.md), as written; the optimize layer checks names, bounds and expressions.
+struct OptimizeVariableSpec {
+  std::string name;
+  std::string key;                         ///< "optimize.variables[i]"
+  SpecValue lower, upper, start;           ///< as written (start: absent = the parameter's value)
+  SpecValue value;
+};
+
+struct OptimizeBoundSpec {
+  std::string expression;                  ///< an expression of metrics, variables and parameters
+  std::string key;                         ///< "optimize.constraints.bounds[i]"
+  SpecValue lower, upper;                  ///< at least one of them
+  SpecValue value;
+};
+
+struct OptimizeSpec {
+  std::vector<OptimizeVariableSpec> variables;
+  bool maximize = false;                   ///< objective: {maximize: EXPR} (else minimize)
+  std::string objective;                   ///< the expression as written
+  SpecValue objective_value;               ///< the expression's value (for its location)
+  bool feasible = false;                   ///< constraints.feasible
+  std::vector<OptimizeBoundSpec> bounds;
+  std::string method = "slsqp";            ///< slsqp | mma | cobyla | bobyqa
+  SpecValue method_value;
+  SpecValue tolerance_x, tolerance_f, budget;  ///< as written (absent: defaults)
+  SpecValue value;                         ///< the section as written
+};
+
 struct ScenarioSpec {
   std::string file;                        ///< source name used in messages
   std::string name;
@@ -239,6 +268,7 @@ struct ScenarioSpec {
   SpecValue experiments_value;
   std::optional<std::vector<SpecValue>> output_points;  ///< absent: every model point
   std::optional<VariantsSpec> variants;    ///< absent: one scenario
+  std::optional<OptimizeSpec> optimize;    ///< absent: nothing to optimize
   SpecValue limits;                        ///< {max_steps, max_samples, max_runs} as written
   SpecValue root;                          ///< the whole file as written (for messages)
 };

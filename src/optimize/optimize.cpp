@@ -1,0 +1,564 @@
+// refdyn optimize (optimize/optimize.hpp, docs/optimize.md): NLopt around the plan pipeline.
+#include "refdyn/optimize/optimize.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
+#include "refdyn/io/csv.hpp"
+#include "refdyn/io/variants.hpp"
+#include "refdyn/simulate/metrics.hpp"
+#include "refdyn/symbolic/sensitivity.hpp"
+
+#include <nlopt.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <regex>
+#include <sstream>
+
+namespace refdyn {
+
+namespace {
+const std::vector<std::string> kMethods{"slsqp", "mma", "cobyla", "bobyqa"};
+}
+
+const char* to_string(OptimizeMethod m) {
+  switch (m) {
+    case OptimizeMethod::Slsqp: return "slsqp";
+    case OptimizeMethod::Mma: return "mma";
+    case OptimizeMethod::Cobyla: return "cobyla";
+    case OptimizeMethod::Bobyqa: return "bobyqa";
+  }
+  return "?";
+}
+
+OptimizeMethod optimize_method(const std::string& name) {
+  for (size_t i = 0; i < kMethods.size(); ++i)
+    if (kMethods[i] == name) return static_cast<OptimizeMethod>(i);
+  throw Error("unknown optimization method '" + name + "' (expected one of slsqp, mma, cobyla, bobyqa)" +
+              did_you_mean(name, kMethods));
+}
+
+namespace {
+
+/// An expression of (metric names…, variables…) with the scenario's other parameters as constants.
+std::shared_ptr<const Expression> compile(const SpecReader& c, const SpecValue& at, const std::string& key,
+                                          const std::string& text, const std::vector<std::string>& metrics,
+                                          const std::vector<std::string>& variables) {
+  std::vector<std::string> vars = metrics;
+  vars.insert(vars.end(), variables.begin(), variables.end());
+  std::map<std::string, double> params = c.params;
+  for (const auto& v : variables) params.erase(v);
+  for (const auto& m : metrics) params.erase(m);
+  try {
+    return std::make_shared<const Expression>(text, vars, params, 1);
+  } catch (const Error& e) {
+    std::string msg = e.what();
+    // Name the likely intended metric.
+    static const std::regex ident(R"(([A-Za-z_][A-Za-z_0-9]*(\s*\([^()]*\))?))");
+    for (std::sregex_iterator it(text.begin(), text.end(), ident), end; it != end; ++it) {
+      std::string w = (*it)[1].str();
+      w.erase(std::remove_if(w.begin(), w.end(), [](unsigned char ch) { return std::isspace(ch); }), w.end());
+      if (w.find('(') == std::string::npos) continue;
+      if (std::find(metrics.begin(), metrics.end(), w) == metrics.end()) {
+        msg = "unknown metric '" + w + "'" + did_you_mean(w, metrics) + " (metrics: docs/optimize.md)";
+        break;
+      }
+    }
+    c.fail(at, key, msg);
+  }
+}
+
+}  // namespace
+
+OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
+  if (!spec.optimize) throw Error(spec.file + ": optimize: missing (refdyn optimize needs an optimize: section; docs/optimize.md)");
+  const OptimizeSpec& o = *spec.optimize;
+  const SpecReader c = parameter_reader(spec);
+  OptimizeSetup s;
+  s.method = optimize_method(o.method);
+  std::vector<std::string> names;
+  for (const auto& p : spec.parameters) names.push_back(p.first);
+  for (const auto& v : o.variables) {
+    const SpecValue& at = v.value["name"];
+    if (std::find(names.begin(), names.end(), v.name) == names.end())
+      c.fail(at, v.key + ".name",
+             "no parameter '" + v.name + "' to optimize (variables are parameters of the scenario)" + did_you_mean(v.name, names));
+    if (std::find(s.variables.begin(), s.variables.end(), v.name) != s.variables.end())
+      c.fail(at, v.key + ".name", "the parameter '" + v.name + "' is a variable twice");
+    const double lo = c.number(v.lower, v.key + ".lower"), hi = c.number(v.upper, v.key + ".upper");
+    if (lo > hi) c.fail(v.lower, v.key + ".lower", "lower = " + fmt(lo) + " is above upper = " + fmt(hi));
+    double x0 = c.params.at(v.name);
+    if (v.start) x0 = c.number(v.start, v.key + ".start");
+    if (x0 < lo || x0 > hi)
+      c.fail(v.start ? v.start : v.value, v.key + ".start",
+             "start = " + fmt(x0) + " is outside [" + fmt(lo) + ", " + fmt(hi) + "]" +
+                 (v.start ? "" : " (the parameter's value; hint: give start:)"));
+    s.variables.push_back(v.name);
+    s.variable_where.push_back(at.where);
+    s.lower.push_back(lo);
+    s.upper.push_back(hi);
+    s.start.push_back(x0);
+  }
+  s.metric_names = metric_names(base.model);
+  s.maximize = o.maximize;
+  s.objective = compile(c, o.objective_value, std::string("optimize.objective.") + (o.maximize ? "maximize" : "minimize"),
+                        o.objective, s.metric_names, s.variables);
+  s.feasible = o.feasible;
+  if (o.feasible) {
+    const Model& m = base.model;
+    for (int j = 0; j < m.nq; ++j) {
+      const JointLimits& l = m.limits[static_cast<size_t>(j)];
+      const std::string& jn = m.joint_name[static_cast<size_t>(j)];
+      auto add = [&](const std::string& what, const std::string& metric, double limit, bool upper) {
+        if (!std::isfinite(limit)) return;
+        s.constraints.push_back({what + "(" + jn + ")", metric + "(" + jn + ")", -1, limit,
+                                 limit != 0 ? std::abs(limit) : 1.0, upper});
+      };
+      add("velocity", "peak_speed", l.velocity, true);
+      add("effort", "peak_effort", l.effort, true);
+      add("upper", "q_max", l.upper, true);
+      add("lower", "q_min", l.lower, false);
+    }
+  }
+  for (size_t i = 0; i < o.bounds.size(); ++i) {
+    const OptimizeBoundSpec& b = o.bounds[i];
+    s.bounds.push_back(compile(c, b.value["expression"], b.key + ".expression", b.expression, s.metric_names, s.variables));
+    double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+    if (b.lower) lo = c.number(b.lower, b.key + ".lower");
+    if (b.upper) hi = c.number(b.upper, b.key + ".upper");
+    if (lo > hi) c.fail(b.lower, b.key + ".lower", "lower = " + fmt(lo) + " is above upper = " + fmt(hi));
+    const std::string name = "bounds[" + std::to_string(i) + "]";
+    if (b.lower) s.constraints.push_back({name + ".lower", "", static_cast<int>(i), lo, lo != 0 ? std::abs(lo) : 1.0, false});
+    if (b.upper) s.constraints.push_back({name + ".upper", "", static_cast<int>(i), hi, hi != 0 ? std::abs(hi) : 1.0, true});
+  }
+  s.metric_used.assign(s.metric_names.size(), false);
+  auto mark = [&](const Expression& e) {
+    for (int i : e.referenced_variables())
+      if (static_cast<size_t>(i) < s.metric_names.size()) s.metric_used[static_cast<size_t>(i)] = true;
+  };
+  mark(*s.objective);
+  for (const auto& b : s.bounds) mark(*b);
+  for (const auto& c : s.constraints)
+    if (c.expression < 0)
+      s.metric_used[static_cast<size_t>(std::find(s.metric_names.begin(), s.metric_names.end(), c.metric) -
+                                        s.metric_names.begin())] = true;
+  if (o.tolerance_x) {
+    s.xtol = c.number(o.tolerance_x, "optimize.tolerance.x");
+    if (!(s.xtol >= 0)) c.fail(o.tolerance_x, "optimize.tolerance.x", "expected a relative tolerance ≥ 0, got " + fmt(s.xtol));
+  }
+  if (o.tolerance_f) {
+    s.ftol = c.number(o.tolerance_f, "optimize.tolerance.f");
+    if (!(s.ftol >= 0)) c.fail(o.tolerance_f, "optimize.tolerance.f", "expected a relative tolerance ≥ 0, got " + fmt(s.ftol));
+  }
+  if (o.budget) {
+    const double b = c.number(o.budget, "optimize.budget");
+    if (!(b >= 1) || b != std::floor(b) || b > 1e7)
+      c.fail(o.budget, "optimize.budget", "expected a whole number of plan evaluations > 0, got " + fmt(b));
+    s.budget = static_cast<long>(b);
+  }
+  return s;
+}
+
+ScenarioSpec spec_at(const ScenarioSpec& spec, const std::vector<std::string>& variables, const std::vector<double>& x) {
+  io::Variant v;
+  v.name = "candidate";
+  for (size_t i = 0; i < variables.size(); ++i) v.values.emplace_back(variables[i], x[i]);
+  ScenarioSpec s = io::variant_spec(spec, v);
+  s.optimize.reset();
+  return s;
+}
+
+namespace {
+
+struct Stop {};  // thrown through NLopt (as nlopt::forced_stop) to end the run
+
+class Evaluator {
+ public:
+  Evaluator(const ScenarioSpec& spec, const OptimizeSetup& setup, const OptimizeOptions& options, long budget)
+      : spec_(spec), s_(setup), o_(options), budget_(budget) {}
+
+  struct Point {
+    OptimizeEvaluation row;
+    Eigen::RowVectorXd df;      ///< d objective / dx (gradient methods)
+    Eigen::MatrixXd dg;         ///< d constraints / dx
+  };
+
+  const Point& at(const double* xp) {
+    std::vector<double> x(xp, xp + s_.variables.size());
+    auto it = cache_.find(x);
+    if (it != cache_.end()) return points_[it->second];
+    if (o_.stop && o_.stop->load()) {
+      stopped = true;
+      throw nlopt::forced_stop();
+    }
+    if (static_cast<long>(points_.size()) >= budget_) {
+      budget_reached = true;
+      throw nlopt::forced_stop();
+    }
+    points_.push_back(evaluate(x));
+    cache_[x] = points_.size() - 1;
+    if (o_.progress) o_.progress(points_.back().row, budget_);
+    return points_.back();
+  }
+
+  /// at() with an Error kept for after NLopt (NLopt's C++ wrapper turns exceptions into a stop).
+  const Point& guarded(const double* x) {
+    try {
+      return at(x);
+    } catch (const Error& e) {
+      fatal = e.what();
+      throw nlopt::forced_stop();
+    }
+  }
+
+  /// NLopt's objective: minimized (negated for maximize).
+  double objective(const std::vector<double>& x, std::vector<double>& grad) {
+    const Point& p = guarded(x.data());
+    const double sign = s_.maximize ? -1 : 1;
+    if (!grad.empty())
+      for (size_t k = 0; k < grad.size(); ++k) grad[k] = p.row.ok ? sign * p.df(static_cast<Eigen::Index>(k)) : 0.0;
+    return sign * (p.row.ok ? p.row.objective : penalty_objective());
+  }
+
+  void constraints(unsigned m, double* result, unsigned n, const double* x, double* grad) {
+    const Point& p = guarded(x);
+    for (unsigned i = 0; i < m; ++i) {
+      result[i] = p.row.ok ? p.row.constraints[i] : 1.0;
+      if (grad)
+        for (unsigned k = 0; k < n; ++k) grad[i * n + k] = p.row.ok ? p.dg(i, k) : 0.0;
+    }
+  }
+
+  std::vector<Point> points_;
+  bool stopped = false, budget_reached = false;
+  std::string fatal;
+
+ private:
+  /// A failed plan: the worst objective seen (so it is never better than a planned point).
+  double penalty_objective() const {
+    double worst = std::numeric_limits<double>::quiet_NaN();
+    for (const auto& p : points_)
+      if (p.row.ok && std::isfinite(p.row.objective))
+        worst = std::isnan(worst) ? p.row.objective
+                                  : (s_.maximize ? std::min(worst, p.row.objective) : std::max(worst, p.row.objective));
+    return std::isnan(worst) ? 0.0 : worst;
+  }
+
+  Point evaluate(const std::vector<double>& x) {
+    Point p;
+    OptimizeEvaluation& r = p.row;
+    r.index = static_cast<long>(points_.size());
+    r.x = x;
+    r.constraints.assign(s_.constraints.size(), std::numeric_limits<double>::quiet_NaN());
+    r.objective = std::numeric_limits<double>::quiet_NaN();
+    const auto start = std::chrono::steady_clock::now();
+    const size_t nv = x.size(), nm = s_.metric_names.size();
+    try {
+      const auto problem = build_problem(spec_at(spec_, s_.variables, x));
+      auto planner = problem->make_planner();
+      const Plan plan = plan_problem(*problem, *planner);
+      if (!plan.summary.ok()) {
+        r.reason = std::string("plan ") + to_string(plan.summary.status) + ": " + plan.summary.message;
+      } else {
+        const std::vector<Metric> metrics = plan_metrics(problem->model, plan, problem->residual_from);
+        std::vector<double> args(nm + nv, 0.0);
+        for (size_t i = 0; i < nm; ++i) {
+          auto it = std::find_if(metrics.begin(), metrics.end(), [&](const Metric& m) { return m.name == s_.metric_names[i]; });
+          if (it != metrics.end()) args[i] = it->value;
+        }
+        for (size_t k = 0; k < nv; ++k) args[nm + k] = x[k];
+        Eigen::MatrixXd G;  // d args / dx
+        const bool grad = uses_gradients(s_.method);
+        if (grad) {
+          SensitivityOptions so;
+          so.parameters = s_.variables;
+          try {
+            const PlanSensitivity sens = plan_sensitivity(*problem, plan, so);
+            // Only the metrics the expressions and limits name are differentiated.
+            std::vector<Metric> used;
+            std::vector<size_t> rows;
+            for (size_t i = 0; i < nm; ++i) {
+              if (!s_.metric_used[i]) continue;
+              auto it = std::find_if(metrics.begin(), metrics.end(), [&](const Metric& m) { return m.name == s_.metric_names[i]; });
+              if (it == metrics.end()) continue;
+              used.push_back(*it);
+              rows.push_back(i);
+            }
+            G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nm + nv), static_cast<Eigen::Index>(nv));
+            if (!used.empty()) {
+              const Eigen::MatrixXd dm = metric_gradients(*problem, plan, sens, used);
+              for (size_t k = 0; k < rows.size(); ++k)
+                G.row(static_cast<Eigen::Index>(rows[k])) = dm.row(static_cast<Eigen::Index>(k));
+            }
+            for (size_t k = 0; k < nv; ++k) G(static_cast<Eigen::Index>(nm + k), static_cast<Eigen::Index>(k)) = 1.0;
+          } catch (const Error& e) {
+            // Not a property of this candidate: the method cannot be used for this scenario.
+            throw Error(spec_.file + ": optimize.method: " + to_string(s_.method) +
+                        " needs the plan's sensitivities: " + e.what() + " (hint: method: cobyla or bobyqa)");
+          }
+        }
+        auto eval = [&](const Expression& e, double& v, Eigen::RowVectorXd* d) {
+          std::vector<double> g(nm + nv, 0.0);
+          e.evaluate(args.data(), v, d ? g.data() : nullptr, nullptr);
+          if (d) *d = Eigen::Map<const Eigen::RowVectorXd>(g.data(), static_cast<Eigen::Index>(g.size())) * G;
+        };
+        eval(*s_.objective, r.objective, grad ? &p.df : nullptr);
+        if (grad) p.dg = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(s_.constraints.size()), static_cast<Eigen::Index>(nv));
+        bool feasible = std::isfinite(r.objective);
+        for (size_t i = 0; i < s_.constraints.size(); ++i) {
+          const OptimizeConstraint& c = s_.constraints[i];
+          double v = 0;
+          Eigen::RowVectorXd dv = Eigen::RowVectorXd::Zero(static_cast<Eigen::Index>(nv));
+          if (c.expression >= 0) {
+            eval(*s_.bounds[static_cast<size_t>(c.expression)], v, grad ? &dv : nullptr);
+          } else {
+            const size_t mi = static_cast<size_t>(
+                std::find(s_.metric_names.begin(), s_.metric_names.end(), c.metric) - s_.metric_names.begin());
+            v = args[mi];
+            if (grad) dv = G.row(static_cast<Eigen::Index>(mi));
+          }
+          const double sg = c.upper ? 1.0 : -1.0;
+          r.constraints[i] = sg * (v - c.limit) / c.scale;
+          if (grad) p.dg.row(static_cast<Eigen::Index>(i)) = sg * dv / c.scale;
+          feasible = feasible && r.constraints[i] <= 0;
+        }
+        r.ok = std::isfinite(r.objective);
+        if (!r.ok) r.reason = "the objective is not finite";
+        r.feasible = r.ok && feasible;
+      }
+    } catch (const Error& e) {
+      if (std::string(e.what()).find("optimize.method:") != std::string::npos) throw;
+      r.reason = e.what();
+    } catch (const std::bad_alloc&) {
+      r.reason = "out of memory";
+    }
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return p;
+  }
+
+  const ScenarioSpec& spec_;
+  const OptimizeSetup& s_;
+  const OptimizeOptions& o_;
+  long budget_;
+  std::map<std::vector<double>, size_t> cache_;
+};
+
+const char* result_name(nlopt::result r) {
+  switch (r) {
+    case nlopt::SUCCESS: return "success";
+    case nlopt::STOPVAL_REACHED: return "success";
+    case nlopt::FTOL_REACHED: return "ftol_reached";
+    case nlopt::XTOL_REACHED: return "xtol_reached";
+    case nlopt::MAXEVAL_REACHED: return "budget";
+    case nlopt::MAXTIME_REACHED: return "budget";
+    case nlopt::ROUNDOFF_LIMITED: return "roundoff_limited";
+    case nlopt::FORCED_STOP: return "stopped";
+    default: return "failure";
+  }
+}
+
+}  // namespace
+
+OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  OptimizeResult out;
+  {
+    const auto base = build_problem(spec_at(spec, {}, {}));
+    out.setup = check_optimize(spec, *base);
+  }
+  if (!options.method.empty()) try {
+      out.setup.method = optimize_method(options.method);
+    } catch (const Error& e) {
+      throw Error(std::string("--method: ") + e.what());
+    }
+  OptimizeSetup& s = out.setup;
+  if (options.budget > 0) s.budget = options.budget;
+  const unsigned n = static_cast<unsigned>(s.variables.size());
+  const unsigned m = static_cast<unsigned>(s.constraints.size());
+  Evaluator ev(spec, s, options, s.budget);
+
+  nlopt::algorithm alg = nlopt::LD_SLSQP;
+  switch (s.method) {
+    case OptimizeMethod::Slsqp: alg = nlopt::LD_SLSQP; break;
+    case OptimizeMethod::Mma: alg = nlopt::LD_MMA; break;
+    case OptimizeMethod::Cobyla: alg = nlopt::LN_COBYLA; break;
+    case OptimizeMethod::Bobyqa: alg = m ? nlopt::AUGLAG : nlopt::LN_BOBYQA; break;
+  }
+  nlopt::opt opt(alg, n);
+  if (alg == nlopt::AUGLAG) {  // BOBYQA has no nonlinear constraints: the augmented Lagrangian around it
+    nlopt::opt local(nlopt::LN_BOBYQA, n);
+    local.set_xtol_rel(s.xtol);
+    local.set_ftol_rel(s.ftol);
+    opt.set_local_optimizer(local);
+  }
+  opt.set_lower_bounds(s.lower);
+  opt.set_upper_bounds(s.upper);
+  opt.set_xtol_rel(s.xtol);
+  opt.set_ftol_rel(s.ftol);
+  opt.set_maxeval(static_cast<int>(std::min<long>(4 * s.budget + 10, 1'000'000'000)));
+  opt.set_min_objective(
+      [](const std::vector<double>& x, std::vector<double>& grad, void* data) {
+        return static_cast<Evaluator*>(data)->objective(x, grad);
+      },
+      &ev);
+  if (m)
+    opt.add_inequality_mconstraint(
+        [](unsigned mm, double* result, unsigned nn, const double* x, double* grad, void* data) {
+          static_cast<Evaluator*>(data)->constraints(mm, result, nn, x, grad);
+        },
+        &ev, std::vector<double>(m, 0.0));
+
+  OptimizeSummary& sum = out.summary;
+  sum.method = to_string(s.method);
+  sum.maximize = s.maximize;
+  sum.variables = s.variables;
+  for (const auto& c : s.constraints) sum.constraint_names.push_back(c.name);
+  std::vector<double> x = s.start;
+  double f = 0;
+  nlopt::result res = nlopt::FAILURE;
+  try {
+    res = opt.optimize(x, f);
+    sum.message = "NLopt: " + std::string(result_name(res));
+  } catch (const nlopt::forced_stop&) {
+    res = nlopt::FORCED_STOP;
+  } catch (const nlopt::roundoff_limited&) {
+    res = nlopt::ROUNDOFF_LIMITED;
+    sum.message = "NLopt: roundoff limited the progress";
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    res = nlopt::FAILURE;
+    sum.message = std::string("NLopt: ") + e.what();
+  }
+  if (!ev.fatal.empty()) throw Error(ev.fatal);
+  sum.status = result_name(res);
+  if (ev.stopped) {
+    sum.status = "stopped";
+    sum.stopped = true;
+    sum.message = "interrupted";
+  } else if (ev.budget_reached) {
+    sum.status = "budget";
+    sum.message = "the budget of " + std::to_string(s.budget) + " plan evaluations is spent";
+  }
+  for (auto& p : ev.points_) sum.history.push_back(p.row);
+  sum.evaluations = static_cast<long>(sum.history.size());
+  // The best feasible point; without one, the planned point with the least violation.
+  const OptimizeEvaluation* best = nullptr;
+  for (const auto& r : sum.history) {
+    if (!r.feasible) continue;
+    if (!best || (s.maximize ? r.objective > best->objective : r.objective < best->objective)) best = &r;
+  }
+  sum.feasible = best != nullptr;
+  if (!best) {
+    double least = std::numeric_limits<double>::infinity();
+    for (const auto& r : sum.history) {
+      if (!r.ok) continue;
+      double v = 0;
+      for (double g : r.constraints) v = std::max(v, g);
+      if (v < least) least = v, best = &r;
+    }
+  }
+  if (best) {
+    sum.best_x = best->x;
+    sum.best_objective = best->objective;
+  } else {
+    sum.best_x = s.start;
+    sum.best_objective = std::numeric_limits<double>::quiet_NaN();
+  }
+  out.best_spec = spec_at(spec, s.variables, sum.best_x);
+  sum.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+JsonValue OptimizeSummary::to_json() const {
+  JsonValue j = JsonValue::object();
+  j["method"] = method;
+  j["sense"] = maximize ? "maximize" : "minimize";
+  j["status"] = status;
+  j["message"] = message;
+  j["evaluations"] = evaluations;
+  JsonValue b = JsonValue::object();
+  for (size_t i = 0; i < variables.size() && i < best_x.size(); ++i) b[variables[i]] = best_x[i];
+  j["best"] = b;
+  if (std::isfinite(best_objective)) j["objective"] = best_objective;
+  else j["objective"] = nullptr;
+  j["feasible"] = feasible;
+  j["constraints"] = constraint_names;
+  j["wall_time_s"] = wall_time;
+  return j;
+}
+
+std::string optimization_csv(const OptimizeSummary& s) {
+  std::ostringstream o;
+  o << "index";
+  for (const auto& v : s.variables) o << "," << io::csv_text(v);
+  o << ",objective";
+  for (const auto& c : s.constraint_names) o << "," << io::csv_text(c);
+  o << ",feasible,status,reason\n";
+  for (const auto& r : s.history) {
+    o << r.index;
+    for (double x : r.x) o << "," << io::csv_number(x);
+    o << "," << io::csv_number(r.objective);
+    for (double g : r.constraints) o << "," << io::csv_number(g);
+    o << "," << (r.feasible ? 1 : 0) << "," << (r.ok ? "ok" : "failed") << "," << io::csv_text(r.reason) << "\n";
+  }
+  return o.str();
+}
+
+std::string optimized_yaml(const std::string& text, const std::vector<std::string>& names, const std::vector<double>& values) {
+  std::vector<std::string> lines;
+  {
+    std::istringstream in(text);
+    std::string l;
+    while (std::getline(in, l)) lines.push_back(l);
+  }
+  std::vector<bool> done(names.size(), false);
+  bool in_block = false;
+  for (auto& l : lines) {
+    if (!l.empty() && l[0] != ' ' && l[0] != '\t' && l[0] != '#') {
+      in_block = false;
+      if (l.rfind("parameters:", 0) == 0) {
+        in_block = true;
+        // Flow style: parameters: {a: 1, b: 2}
+        for (size_t i = 0; i < names.size(); ++i) {
+          const std::regex re("([{,]\\s*" + names[i] + "\\s*:\\s*)([^,}#]*[^,}#\\s])");
+          std::smatch mm;
+          if (std::regex_search(l, mm, re)) {
+            l = l.substr(0, static_cast<size_t>(mm.position(2))) + fmt(values[i]) +
+                l.substr(static_cast<size_t>(mm.position(2) + mm.length(2)));
+            done[i] = true;
+          }
+        }
+      }
+      continue;
+    }
+    if (!in_block) continue;
+    for (size_t i = 0; i < names.size(); ++i) {
+      if (done[i]) continue;
+      const std::regex re("^(\\s+" + names[i] + "\\s*:\\s*)([^#]*[^#\\s])(\\s*(#.*)?)$");
+      std::smatch mm;
+      if (std::regex_match(l, mm, re)) {
+        std::string tail = mm[3].str();
+        const std::string nv = fmt(values[i]);
+        // keep a comment where it was: pad or shrink the spaces before it
+        if (mm[4].matched) {
+          const long pad = static_cast<long>(mm[2].length()) - static_cast<long>(nv.size()) +
+                           static_cast<long>(tail.size() - mm[4].length());
+          tail = std::string(static_cast<size_t>(std::max(1L, pad)), ' ') + mm[4].str();
+        }
+        l = mm[1].str() + nv + tail;
+        done[i] = true;
+      }
+    }
+  }
+  std::string out;
+  for (const auto& l : lines) out += l + "\n";
+  for (size_t i = 0; i < names.size(); ++i)
+    if (!done[i]) throw Error("optimized.yaml: the parameter '" + names[i] + "' was not found as 'name: value' in the parameters: section");
+  return out;
+}
+
+}  // namespace refdyn
