@@ -23,6 +23,8 @@
 #include "refdyn/io/urdf.hpp"
 #include "refdyn/io/variants.hpp"
 #include "refdyn/optimize/optimize.hpp"
+#include "refdyn/simulate/metrics.hpp"
+#include "refdyn/symbolic/sensitivity.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/model.hpp"
@@ -688,6 +690,53 @@ PYBIND11_MODULE(_refdyn, m) {
         return d;
       }, py::arg("source"), py::arg("is_text"), py::arg("source_name"), py::arg("method"), py::arg("budget"),
       "optimize_scenario without the GIL: the summary as a dict, the history as NumPy arrays.");
+  m.def("sensitivity", [](const std::shared_ptr<Problem>& p, const std::vector<std::string>& parameters) {
+        SensitivityOptions o;
+        o.parameters = parameters;
+        Plan plan;
+        PlanSensitivity s;
+        std::vector<Metric> metrics;
+        Eigen::MatrixXd G;
+        {
+          py::gil_scoped_release release;
+          check_sensitivity_request(*p, o);
+          plan = plan_problem(*p, *p->make_planner());
+          if (!plan.summary.ok()) throw Error("no sensitivities: the plan stopped early: " + plan.summary.message);
+          s = plan_sensitivity(*p, plan, o);
+          metrics = plan_metrics(p->model, plan, p->residual_from);
+          G = metric_gradients(*p, plan, s, metrics);
+        }
+        const auto K = static_cast<py::ssize_t>(s.t.size()), np = static_cast<py::ssize_t>(parameters.size());
+        auto stack = [&](const std::vector<Eigen::MatrixXd>& v) {  // samples x rows x parameters
+          const auto rows = v.empty() ? py::ssize_t{0} : static_cast<py::ssize_t>(v[0].rows());
+          py::array_t<double> a({K, rows, np});
+          auto A = a.mutable_unchecked<3>();
+          for (py::ssize_t k = 0; k < K; ++k)
+            for (py::ssize_t i = 0; i < rows; ++i)
+              for (py::ssize_t j = 0; j < np; ++j) A(k, i, j) = v[static_cast<size_t>(k)](i, j);
+          return a;
+        };
+        py::dict d;
+        d["parameters"] = parameters;
+        d["t"] = out(Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(s.t.data(), static_cast<Eigen::Index>(s.t.size()))));
+        d["dx"] = stack(s.dx);
+        d["dqdd"] = stack(s.dqdd);
+        d["deffort"] = stack(s.deffort);
+        d["dphi"] = stack(s.dphi);
+        d["dt_end"] = out(Eigen::VectorXd(s.dt_end.transpose()));
+        py::dict ms;
+        for (size_t i = 0; i < metrics.size(); ++i) {
+          py::dict e;
+          e["value"] = metrics[i].value;
+          e["t"] = metrics[i].sample >= 0 ? py::object(py::float_(s.t[static_cast<size_t>(metrics[i].sample)])) : py::none();
+          e["gradient"] = out(Eigen::VectorXd(G.row(static_cast<Eigen::Index>(i)).transpose()));
+          ms[py::str(metrics[i].name)] = e;
+        }
+        d["metrics"] = ms;
+        d["wall_time"] = s.seconds;
+        return d;
+      }, py::arg("problem"), py::arg("parameters"),
+      "plan_problem + plan_sensitivity + metric_gradients without the GIL (docs/sensitivity.md).");
   m.def("run", [](const std::shared_ptr<Problem>& p, bool track, const py::object& progress, int jobs) {
         return run(p, track, progress, jobs);
       }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(), py::arg("jobs") = 1,

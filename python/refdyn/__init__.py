@@ -33,7 +33,7 @@ for _cls in (Error, NumericalFailure, Model, Problem):
 __all__ = [
     "Error", "NumericalFailure", "Model", "Problem", "Trajectory", "TrackResult", "Results",
     "load", "loads", "from_dict", "plan", "track", "run", "model", "load_urdf", "parse_urdf",
-    "ConstraintRow", "check", "generate", "run_variants", "VariantResults", "optimize",
+    "ConstraintRow", "check", "generate", "run_variants", "VariantResults", "optimize", "sensitivity",
 ]
 __version__ = "0.2.0"  # = project(VERSION) in CMakeLists.txt (cli_test checks)
 
@@ -230,6 +230,18 @@ def optimize(source, method: Optional[str] = None, budget: Optional[int] = None,
     if budget is not None and (not isinstance(budget, int) or budget <= 0):
         raise ValueError(f"refdyn.optimize: budget: expected a whole number > 0, got {budget!r}")
     return _refdyn.optimize(text, is_text, name, method or "", int(budget or 0))
+
+
+def sensitivity(source, parameters) -> Dict[str, Any]:
+    """The plan's forward sensitivities to scenario parameters (docs/sensitivity.md), as
+    `refdyn plan --sensitivity` writes them: {"parameters", "t" (samples), "dx" (samples x state x
+    parameters: d[q; qd; z]/dp), "dqdd", "deffort" (the actuator effort), "dphi" (constraint
+    rows) likewise, "dt_end", "metrics": {name: {"value", "t", "gradient" (one per parameter)}},
+    "wall_time"}, NumPy arrays. source: a Problem, or as load() takes it; parameters: a name or
+    a list of names. A bad name raises refdyn.Error ("did you mean")."""
+    problem = source if isinstance(source, Problem) else load(source)
+    names = [parameters] if isinstance(parameters, str) else list(parameters)
+    return _refdyn.sensitivity(problem, names)
 
 
 # --------------------------------------------------------------------------- models
