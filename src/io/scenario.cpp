@@ -548,7 +548,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "stabilization", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
-                    "experiments", "variants", "outputs", "limits"});
+                    "experiments", "variants", "outputs", "limits", "time_law"});
   const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
@@ -569,6 +569,10 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     for (size_t i = 0; i < ex.size(); ++i) s.experiments.push_back(read_experiment(c, rd, ex, i, source));
   }
   if (const SpecValue& va = root["variants"]) s.variants = read_variants(c, va);
+  if (const SpecValue& tl = root["time_law"]) {
+    c.keys(tl, "time_law", {"task_duration", "segments"});
+    s.time_law = tl;
+  }
   if (const SpecValue& lim = root["limits"]) {
     c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});
     s.limits = lim;

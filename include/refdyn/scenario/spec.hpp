@@ -240,6 +240,9 @@ struct ScenarioSpec {
   std::optional<std::vector<SpecValue>> output_points;  ///< absent: every model point
   std::optional<VariantsSpec> variants;    ///< absent: one scenario
   SpecValue limits;                        ///< {max_steps, max_samples, max_runs} as written
+  /// `time_law: {task_duration, segments}` as written (null: none); build_problem makes the
+  /// TimeLaw (expression/time_law.hpp) that retimes every function of time.
+  SpecValue time_law;
   SpecValue root;                          ///< the whole file as written (for messages)
 };
 
