@@ -67,7 +67,7 @@ TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments) : Tp_(std::
 }
 
 TimeLawValue TimeLaw::eval(double t) const {
-  if (!(t > 0)) return {0, 0, 0, 0};
+  if (t < 0) return {0, 0, 0, 0};  // at t = 0 itself: the first part (right-sided, as at every knot)
   if (t >= knots_.back()) return {Tp_.value, 0, 0, 0};
   const size_t K = d_.size();
   size_t i = static_cast<size_t>(std::upper_bound(knots_.begin(), knots_.end(), t) - knots_.begin());  // t in [t_{i-1}, t_i)
