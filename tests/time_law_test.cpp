@@ -32,9 +32,10 @@ namespace fs = std::filesystem;
 namespace {
 
 std::vector<Number> random_segments(std::mt19937& rng, int K) {
-  std::uniform_real_distribution<double> U(0.02, 1.5);
+  // durations over almost two decades, so that the slope limiter (3·min δ) is active at some knots
+  std::uniform_real_distribution<double> U(std::log(0.02), std::log(1.5));
   std::vector<Number> d;
-  for (int i = 0; i < K; ++i) d.emplace_back(U(rng));
+  for (int i = 0; i < K; ++i) d.emplace_back(std::exp(U(rng)));
   return d;
 }
 
@@ -85,12 +86,33 @@ TEST(TimeLaw, MonotoneC1AndExactEndsForRandomSegments) {
       EXPECT_LE(std::abs(l.ds - r.ds), e * (std::abs(l.dds) + std::abs(r.dds)) * 1.01 + 1e-12);
       EXPECT_NEAR(at.ds, law.slope(i), 1e-12 * (1 + law.slope(i)));
       EXPECT_GT(law.slope(i), 0.0);
+      const double di = law.knots()[i] - law.knots()[i - 1], dn = law.knots()[i + 1] - law.knots()[i];
+      EXPECT_LE(law.slope(i), 3 * (Tp / K) / std::max(di, dn) * (1 + 1e-12));  // the Fritsch–Carlson limit (d from knot differences: rounding)
     }
   }
 }
 
+TEST(TimeLaw, UniformAccelerationIsReproducedExactly) {
+  // s = a t²/2 cut into K equal parts of τ: d_i = √(2iΔτ/a) − √(2(i−1)Δτ/a). The parabola slope
+  // of every inner knot is exact (a t_i, within the limiter's 3·min δ), the first part starts
+  // with slope 0 as s does, so the cubic pieces are s itself on the first K − 1 parts.
+  const double a = 3.0, Tp = 2.0;
+  const int K = 10;
+  std::vector<Number> d;
+  for (int i = 1; i <= K; ++i) d.emplace_back(std::sqrt(2 * i * Tp / K / a) - std::sqrt(2 * (i - 1) * Tp / K / a));
+  const TimeLaw law(Tp, d);
+  for (int i = 1; i < K; ++i) EXPECT_NEAR(law.slope(i), a * law.knots()[i], 1e-12);
+  for (int k = 0; k < 1000; ++k) {
+    const double t = law.knots()[K - 1] * k / 1000.0;
+    const TimeLawValue v = law.eval(t);
+    EXPECT_NEAR(v.s, a * t * t / 2, 1e-12);
+    EXPECT_NEAR(v.ds, a * t, 1e-11);
+    EXPECT_NEAR(v.dds, a, 1e-9);
+  }
+}
+
 TEST(TimeLaw, EqualSegmentsOfTpOverKAreTheIdentityAwayFromTheEnds) {
-  // Interior slopes 2Δτ/(d + d) = 1: the Hermite cubic through linear data with slopes 1 is the
+  // Interior slopes Δτ(d² + d²)/(d·d·2d) = 1: the Hermite cubic through linear data with slopes 1 is the
   // line itself, so s(t) = t on [Tp/K, Tp − Tp/K]; only the first and last parts (rest to rest,
   // ṡ = 0 at the ends) differ from the identity.
   const double Tp = 2.0;
@@ -388,7 +410,7 @@ TEST(TimeLawScenario, PlannedEffortsOfTheRetimedCircleConvergeToTheHandWrittenDy
   // engine (a wrong or missing term, e.g. f′s̈, is an O(1) error that no step size removes).
   // s̈ jumps at the knots (s is C¹), so an RK4 step that contains a knot is only first-order
   // accurate there: the plan's residual (|Φ| ~ 2e-5 m at step 1e-3 s) is corrected by
-  // Baumgarte's 2αΦ̇ + β²Φ into an effort error ~ O(step). Measured: 0.71 N m at 1e-3 s, 0.071 N m
+  // Baumgarte's 2αΦ̇ + β²Φ into an effort error ~ O(step). Measured: 0.37 N m at 1e-3 s, 0.037 N m
   // at 1e-4 s (peak efforts ~50 N m): checked as first-order convergence.
   int n1 = 0, n2 = 0;
   const double w1 = worst_effort_difference("1e-3", &n1), w2 = worst_effort_difference("1e-4", &n2);

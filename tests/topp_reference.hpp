@@ -94,9 +94,8 @@ inline std::pair<double, double> u_range(const PathDynamics& p, const ToppLimits
 }
 }  // namespace topp_detail
 
-/// The minimum rest-to-rest traversal time of the sampled path (see the file's comment);
-/// infinity when no admissible traversal exists.
-inline double topp_min_time(const PathDynamics& p, const ToppLimits& L) {
+/// The optimal profile x_i = θ̇² at the grid points θ_i (empty when no admissible traversal exists).
+inline std::vector<double> topp_profile(const PathDynamics& p, const ToppLimits& L) {
   using namespace topp_detail;
   const size_t N = p.a.size() - 1;
   const double h = p.theta_end / static_cast<double>(N);
@@ -109,7 +108,7 @@ inline double topp_min_time(const PathDynamics& p, const ToppLimits& L) {
     r.emplace_back(1.0, 2 * h, K[i + 1]);
     r.emplace_back(-1.0, -2 * h, 0.0);
     K[i] = max_x(r);
-    if (K[i] < 0) return kInf;
+    if (K[i] < 0) return {};
   }
   // forward pass: maximum acceleration from x_0 = 0, kept inside the controllable sets
   std::vector<double> x(N + 1, 0.0);
@@ -119,6 +118,17 @@ inline double topp_min_time(const PathDynamics& p, const ToppLimits& L) {
     u = std::max(u, lo);  // within rounding of the LP: stay admissible
     x[i + 1] = std::clamp(x[i] + 2 * h * u, 0.0, K[i + 1]);
   }
+  return x;
+}
+
+/// The minimum rest-to-rest traversal time of the sampled path (see the file's comment);
+/// infinity when no admissible traversal exists.
+inline double topp_min_time(const PathDynamics& p, const ToppLimits& L) {
+  using namespace topp_detail;
+  const std::vector<double> x = topp_profile(p, L);
+  if (x.empty()) return kInf;
+  const size_t N = x.size() - 1;
+  const double h = p.theta_end / static_cast<double>(N);
   double T = 0;
   for (size_t i = 0; i < N; ++i) {
     const double s = std::sqrt(x[i]) + std::sqrt(x[i + 1]);

@@ -63,7 +63,11 @@ TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments) : Tp_(std::
   const size_t K = d_.size();
   const double dtau = Tp_.value / static_cast<double>(K);
   m_.assign(K + 1, 0.0);
-  for (size_t i = 1; i < K; ++i) m_[i] = 2.0 * dtau / (d_[i - 1].value + d_[i].value);
+  for (size_t i = 1; i < K; ++i) {
+    const double a = d_[i - 1].value, b = d_[i].value;
+    // the three-point (parabola) slope, limited to 3·min(δ_i, δ_{i+1}) (Fritsch–Carlson)
+    m_[i] = std::min(dtau * (a * a + b * b) / (a * b * (a + b)), 3.0 * dtau / std::max(a, b));
+  }
 }
 
 TimeLawValue TimeLaw::eval(double t) const {
@@ -106,7 +110,9 @@ std::string TimeLaw::symbolic_text() const {
   };
   auto slope = [&](size_t i) {  // m_i (0 at both ends)
     if (i == 0 || i == K) return std::string("0");
-    return "(2*" + dtau + "/(" + symbolic_number(d_[i - 1]) + " + " + symbolic_number(d_[i]) + "))";
+    const std::string a = symbolic_number(d_[i - 1]), b = symbolic_number(d_[i]);
+    return "min(" + dtau + "*(" + a + "^2 + " + b + "^2)/(" + a + "*" + b + "*(" + a + " + " + b + ")), 3*" + dtau +
+           "/max(" + a + ", " + b + "))";
   };
   std::string out = symbolic_number(Tp_);
   for (size_t i = K; i >= 1; --i) {

@@ -3,10 +3,13 @@
 /// docs/scenario.md "time_law"). The task's span [0, Tp] is cut into K equal parts of task time
 /// Δτ = Tp/K; part i takes d_i seconds of real time. s is the piecewise cubic Hermite
 /// interpolant through the knots (t_i, τ_i), t_i = d_1 + … + d_i, τ_i = i·Tp/K, with knot slopes
-///   m_0 = m_K = 0 (rest to rest),  m_i = 2Δτ/(d_i + d_{i+1})  (0 < i < K),
-/// i.e. the harmonic mean of the neighbouring secants δ_i = Δτ/d_i. Since m_i/δ_i < 2 and
-/// m_{i-1}/δ_i < 2 on every part (inside Fritsch–Carlson's monotone region α, β ∈ [0, 3]), s is
-/// monotone and C¹ by construction, s(0) = 0, s(Σd) = Tp exactly; s = 0 before 0 and s = Tp
+///   m_0 = m_K = 0 (rest to rest),
+///   m_i = min(Δτ (d_i² + d_{i+1}²)/(d_i d_{i+1} (d_i + d_{i+1})), 3Δτ/max(d_i, d_{i+1}))  (0 < i < K):
+/// the slope of the parabola through the three neighbouring knots (exact for a constant
+/// acceleration, so a bang-bang law is reproduced well), limited to 3·min(δ_i, δ_{i+1}) with the
+/// secants δ_i = Δτ/d_i (Fritsch–Carlson). Since then m_{i−1}/δ_i ≤ 3 and m_i/δ_i ≤ 3 on every part
+/// (inside Fritsch–Carlson's monotone region), s is monotone and C¹ by construction,
+/// s(0) = 0, s(Σd) = Tp exactly; s = 0 before 0 and s = Tp
 /// after Σd. s̈ and s⃛ are piecewise (s̈ may jump at the knots).
 /// time_law_function(f, law) is f(s(t)) with exact derivatives by the chain rule.
 
