@@ -412,7 +412,8 @@ integrator: {method: rk4, step: 1e-3, t1: 2}
   }
   for (const std::string file : {"paper/paper.yaml", "four_bar/four_bar.yaml", "unicycle/unicycle.yaml",
                                  "planar_2r_circle/planar_2r_circle.yaml", "waiter_tray/waiter_tray.yaml",
-                                 "urdf_arm_line/urdf_arm_line.yaml"}) {
+                                 "urdf_arm_line/urdf_arm_line.yaml",
+                                 "planar_2r_circle/retime.yaml"}) {  // times 0.1, 0.47, 0.84: inside parts of its time law
     const auto problem = io::load_problem(std::string(REFDYN_SOURCE_DIR) + "/examples/" + file);
     const int n = problem->model.nv;
     Worst worst;

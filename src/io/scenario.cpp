@@ -611,7 +611,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "stabilization", "solver",
                     "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
-                    "experiments", "variants", "optimize", "outputs", "limits"});
+                    "experiments", "variants", "optimize", "outputs", "limits", "time_law"});
   const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
@@ -634,6 +634,10 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (const SpecValue& va = root["variants"]) s.variants = read_variants(c, va);
   if (root["optimize"] || std::any_of(root.entries.begin(), root.entries.end(), [](const auto& e) { return e.key == "optimize"; }))
     s.optimize = read_optimize(c, root["optimize"], root.key_location("optimize"));
+  if (const SpecValue& tl = root["time_law"]) {
+    c.keys(tl, "time_law", {"task_duration", "segments"});
+    s.time_law = tl;
+  }
   if (const SpecValue& lim = root["limits"]) {
     c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});
     s.limits = lim;

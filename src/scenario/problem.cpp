@@ -287,6 +287,33 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
 
 namespace {
 
+/// time_law: {task_duration, segments: [d1, …, dK]} → c.time_law (docs/scenario.md "time_law").
+void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
+  const SpecValue& tl = spec.time_law;
+  if (!tl) return;
+  c.keys(tl, "time_law", {"task_duration", "segments"});
+  const Quantity Tp = c.quantity(c.need(tl, "task_duration", "time_law"), "time_law.task_duration");
+  if (!(Tp.value > 0))
+    c.fail(tl["task_duration"], "time_law.task_duration", "expected the task's duration > 0 [s], got " + fmt(Tp.value));
+  const SpecValue& seg = c.need(tl, "segments", "time_law");
+  if (!seg.is_list() || seg.size() == 0)
+    c.fail(seg, "time_law.segments",
+           "expected a list of K > 0 durations [d1, d2, …] (the real time of each of K equal parts of task time), got " +
+               (seg.is_list() ? std::string("an empty list") : seg.describe()));
+  std::vector<Number> d;
+  for (size_t i = 0; i < seg.size(); ++i) {
+    const std::string k = "time_law.segments[" + std::to_string(i) + "]";
+    const Quantity q = c.quantity(seg[i], k);
+    if (!(q.value > 0)) c.fail(seg[i], k, "expected a duration > 0 [s], got " + fmt(q.value) + (q.literal ? "" : " (" + q.text + ")"));
+    d.push_back(q.number());
+  }
+  try {
+    c.time_law = std::make_shared<const TimeLaw>(Tp.number(), std::move(d));
+  } catch (const Error& e) {
+    c.fail(tl, "time_law", e.what());
+  }
+}
+
 /// constraints: (URDF <mimic> couplings first) and forces, each named before it is published.
 void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
   const Model& m = s.model;
@@ -753,7 +780,8 @@ void build_outputs(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
 }  // namespace
 
 std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
-  const SpecReader c = parameter_reader(spec);
+  SpecReader c = parameter_reader(spec);
+  read_time_law(c, spec);
   std::unique_ptr<Problem> s = build_model_section(c, spec);
   for (const auto& [name, value] : spec.parameters) {
     const auto set = spec.parameter_values.find(name);
@@ -762,6 +790,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   s->texts.t0 = spec.integrator.t0.text;
   s->texts.t1 = spec.integrator.t1.text;
   build_constraints_and_forces(c, spec, *s);
+  if (c.time_law && c.retimed == 0)
+    c.fail(spec.time_law, "time_law",
+           "a time law retimes the functions of time of programmed constraints and force profiles, and this scenario "
+           "has none: it has nothing to retime (hint: write the task's motion with a `function:` key in t, or remove "
+           "time_law)");
   check_jerk_scope(c, spec, *s);
   build_reference_options(c, spec, *s);
   build_initial(c, spec, *s);

@@ -1,6 +1,7 @@
 // SpecReader and EntryArgs: written values → numbers, names, vectors and functions of time.
 #include "refdyn/common/error.hpp"
 #include "refdyn/expression/expression.hpp"
+#include "refdyn/expression/time_law.hpp"
 #include "refdyn/scenario/registry.hpp"
 #include "refdyn/common/text.hpp"
 
@@ -189,6 +190,14 @@ std::string SpecReader::point(const SpecValue& n, const std::string& key, const 
 int SpecReader::axis(const SpecValue& n, const std::string& key) const { return choice(n, key, {"x", "y", "z"})[0] - 'x'; }
 
 TimeFunctionPtr SpecReader::function(const SpecValue& n, const std::string& key) const {
+  TimeFunctionPtr f = function_of_task_time(n, key);
+  // a time law retimes every function that depends on t (a number or a text without t is constant)
+  if (!time_law || (n.is_scalar() && !uses_identifier(n.text, "t"))) return f;
+  ++retimed;
+  return time_law_function(std::move(f), time_law);
+}
+
+TimeFunctionPtr SpecReader::function_of_task_time(const SpecValue& n, const std::string& key) const {
   if (n.is_scalar()) {
     double v = 0;
     const std::string& s = n.text;

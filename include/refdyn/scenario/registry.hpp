@@ -14,6 +14,7 @@
 #include "refdyn/scenario/spec.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/expression/time_function.hpp"
+#include "refdyn/expression/time_law.hpp"
 
 #include <functional>
 #include <map>
@@ -30,6 +31,10 @@ class SpecReader {
       : params(std::move(parameters)), file_(std::move(file)) {}
   const std::string& file() const { return file_; }
   std::map<std::string, double> params;  ///< visible parameters (deg, the scenario's, a sweep's)
+  /// The scenario's `time_law:` (none: real time is task time). function() returns every
+  /// time-dependent function f as f(s(t)) and counts it in `retimed`.
+  TimeLawPtr time_law;
+  mutable int retimed = 0;
 
   /// Throws Error "FILE:LINE: KEY: message" (message made one line; LINE omitted if unknown).
   [[noreturn]] void fail(const SourceLocation& at, const std::string& key, const std::string& msg) const;
@@ -61,7 +66,10 @@ class SpecReader {
   std::string point(const SpecValue& n, const std::string& key, const Model& m) const;
   /// A function of t: a number, an expression in t and the parameters, {cycloidal: {rise,
   /// duration, from, start}} or {raised_cosine: {base, amplitude, period}}.
+  /// Under a time law (time_law above) the function of task time f(τ) as f(s(t)).
   TimeFunctionPtr function(const SpecValue& n, const std::string& key) const;
+  /// The function as written, in task time (no time law applied).
+  TimeFunctionPtr function_of_task_time(const SpecValue& n, const std::string& key) const;
   int axis(const SpecValue& n, const std::string& key) const;  ///< x | y | z → 0 | 1 | 2
 
   /// Multi-line diagnostics joined into one line (marker-only lines dropped).

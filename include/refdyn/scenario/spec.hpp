@@ -270,6 +270,9 @@ struct ScenarioSpec {
   std::optional<VariantsSpec> variants;    ///< absent: one scenario
   std::optional<OptimizeSpec> optimize;    ///< absent: nothing to optimize
   SpecValue limits;                        ///< {max_steps, max_samples, max_runs} as written
+  /// `time_law: {task_duration, segments}` as written (null: none); build_problem makes the
+  /// TimeLaw (expression/time_law.hpp) that retimes every function of time.
+  SpecValue time_law;
   SpecValue root;                          ///< the whole file as written (for messages)
 };
 

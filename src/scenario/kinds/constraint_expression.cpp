@@ -25,6 +25,10 @@ ConstraintKind constraint_expression() {
     ConstraintOrder order = ConstraintOrder::Position;
     const bool differentiate = a.has("differentiate") && a.reader.boolean(a.value("differentiate"), a.key("differentiate"));
     std::string text = a.text("expression");
+    if (a.reader.time_law && uses_identifier(text, "t"))
+      a.fail("expression", "an expression constraint in t is not retimed by the scenario's time_law (hint: write "
+                           "the function of time with a `function:` key, e.g. kind: point_coordinate or "
+                           "joint_trajectory, which the time law applies to)");
     std::string o = "position";
     if (a.has("order")) o = a.reader.choice(a.value("order"), a.key("order"), {"position", "velocity", "acceleration", "jerk"});
     if (differentiate) {

@@ -1,0 +1,62 @@
+#pragma once
+/// A time law s(t): real time t → task time τ = s(t) (the scenario's `time_law:` section,
+/// docs/scenario.md "time_law"). The task's span [0, Tp] is cut into K equal parts of task time
+/// Δτ = Tp/K; part i takes d_i seconds of real time. s is the piecewise cubic Hermite
+/// interpolant through the knots (t_i, τ_i), t_i = d_1 + … + d_i, τ_i = i·Tp/K, with knot slopes
+///   m_0 = m_K = 0 (rest to rest),
+///   m_i = min(Δτ (d_i² + d_{i+1}²)/(d_i d_{i+1} (d_i + d_{i+1})), 3Δτ/max(d_i, d_{i+1}))  (0 < i < K):
+/// the slope of the parabola through the three neighbouring knots (exact for a constant
+/// acceleration, so a bang-bang law is reproduced well), limited to 3·min(δ_i, δ_{i+1}) with the
+/// secants δ_i = Δτ/d_i (Fritsch–Carlson). Since then m_{i−1}/δ_i ≤ 3 and m_i/δ_i ≤ 3 on every part
+/// (inside Fritsch–Carlson's monotone region), s is monotone and C¹ by construction,
+/// s(0) = 0, s(Σd) = Tp exactly; s = 0 before 0 and s = Tp
+/// after Σd. s̈ and s⃛ are piecewise (s̈ may jump at the knots).
+/// time_law_function(f, law) is f(s(t)) with exact derivatives by the chain rule.
+
+#include "refdyn/expression/symbolic_form.hpp"
+#include "refdyn/expression/time_function.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refdyn {
+
+struct TimeLawValue {
+  double s = 0, ds = 0, dds = 0, ddds = 0;  ///< s(t), ṡ, s̈, s⃛
+};
+
+class TimeLaw {
+ public:
+  /// Throws Error for task_duration ≤ 0, no segments, or a segment ≤ 0 or not finite.
+  TimeLaw(Number task_duration, std::vector<Number> segments);
+  TimeLawValue eval(double t) const;
+  double task_duration() const { return Tp_; }
+  double end_time() const { return knots_.back(); }  ///< Σ d_i
+  int segments() const { return static_cast<int>(d_.size()); }
+  const std::vector<double>& knots() const { return knots_; }  ///< t_0 = 0, t_1, …, t_K
+  /// Knot slope m_i (i = 0..K).
+  double slope(int i) const { return m_[i]; }
+  /// s(t) as a text of the expression language in t: a chain of if(t < t_i, cubic_i, …) with the
+  /// durations and Tp written as their scenario texts (parameter names stay symbols).
+  std::string symbolic_text() const;
+  bool has_texts() const;
+
+ private:
+  Number Tp_;
+  std::vector<Number> d_;
+  std::vector<double> knots_, m_;
+};
+using TimeLawPtr = std::shared_ptr<const TimeLaw>;
+
+/// f(s(t)): f' ṡ, f'' ṡ² + f' s̈, f''' ṡ³ + 3 f'' ṡ s̈ + f' s⃛ (Faà di Bruno). Its symbolic form is
+/// f's with every `t` replaced by the text of s(t).
+TimeFunctionPtr time_law_function(TimeFunctionPtr inner, TimeLawPtr law);
+
+/// `text` with every identifier `name` (a whole word, not part of another name or a call
+/// like name(…) ) replaced by "(replacement)".
+std::string replace_identifier(const std::string& text, const std::string& name, const std::string& replacement);
+/// Whether `text` uses the identifier `name` as a variable (a whole word, not a call).
+bool uses_identifier(const std::string& text, const std::string& name);
+
+}  // namespace refdyn

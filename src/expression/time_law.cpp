@@ -1,0 +1,164 @@
+#include "refdyn/expression/time_law.hpp"
+
+#include "refdyn/common/error.hpp"
+#include "refdyn/common/text.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+namespace refdyn {
+
+namespace {
+bool ident_char(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
+
+/// Positions of `name` as a variable in `text`: whole word, not followed by '(' (a call).
+std::vector<size_t> identifier_positions(const std::string& text, const std::string& name) {
+  std::vector<size_t> at;
+  for (size_t i = 0; i + name.size() <= text.size();) {
+    if (text.compare(i, name.size(), name) != 0 || (i > 0 && ident_char(text[i - 1])) ||
+        (i + name.size() < text.size() && ident_char(text[i + name.size()]))) {
+      // skip the whole word (a number such as 1e5 or a name containing `name`)
+      if (ident_char(text[i])) {
+        while (i < text.size() && ident_char(text[i])) ++i;
+      } else {
+        ++i;
+      }
+      continue;
+    }
+    size_t j = i + name.size();
+    while (j < text.size() && std::isspace(static_cast<unsigned char>(text[j]))) ++j;
+    if (j >= text.size() || text[j] != '(') at.push_back(i);
+    i += name.size();
+  }
+  return at;
+}
+}  // namespace
+
+std::string replace_identifier(const std::string& text, const std::string& name, const std::string& replacement) {
+  const std::vector<size_t> at = identifier_positions(text, name);
+  std::string out;
+  size_t from = 0;
+  for (size_t p : at) {
+    out += text.substr(from, p - from) + "(" + replacement + ")";
+    from = p + name.size();
+  }
+  return out + text.substr(from);
+}
+
+bool uses_identifier(const std::string& text, const std::string& name) {
+  return !identifier_positions(text, name).empty();
+}
+
+TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments) : Tp_(std::move(task_duration)), d_(std::move(segments)) {
+  if (!std::isfinite(Tp_.value) || !(Tp_.value > 0))
+    throw Error(expected_got("time_law task_duration", "> 0 [s]", fmt(Tp_.value)));
+  if (d_.empty()) throw Error("time_law segments: expected a list of at least one duration > 0 [s], got an empty list");
+  knots_.assign(1, 0.0);
+  for (size_t i = 0; i < d_.size(); ++i) {
+    if (!std::isfinite(d_[i].value) || !(d_[i].value > 0))
+      throw Error(expected_got("time_law segment " + std::to_string(i + 1), "a duration > 0 [s]", fmt(d_[i].value)));
+    knots_.push_back(knots_.back() + d_[i].value);
+  }
+  const size_t K = d_.size();
+  const double dtau = Tp_.value / static_cast<double>(K);
+  m_.assign(K + 1, 0.0);
+  for (size_t i = 1; i < K; ++i) {
+    const double a = d_[i - 1].value, b = d_[i].value;
+    // the three-point (parabola) slope, limited to 3·min(δ_i, δ_{i+1}) (Fritsch–Carlson)
+    m_[i] = std::min(dtau * (a * a + b * b) / (a * b * (a + b)), 3.0 * dtau / std::max(a, b));
+  }
+}
+
+TimeLawValue TimeLaw::eval(double t) const {
+  if (t < 0) return {0, 0, 0, 0};  // at t = 0 itself: the first part (right-sided, as at every knot)
+  if (t >= knots_.back()) return {Tp_.value, 0, 0, 0};
+  const size_t K = d_.size();
+  size_t i = static_cast<size_t>(std::upper_bound(knots_.begin(), knots_.end(), t) - knots_.begin());  // t in [t_{i-1}, t_i)
+  i = std::clamp<size_t>(i, 1, K);
+  const double h = d_[i - 1].value, dtau = Tp_.value / static_cast<double>(K);
+  const double u = (t - knots_[i - 1]) / h;
+  const double ma = m_[i - 1] * h, mb = m_[i] * h;  // slopes in τ per unit u
+  const double tau0 = dtau * static_cast<double>(i - 1);
+  // s = τ_{i-1} + Δτ H01(u) + ma H10(u) + mb H11(u)
+  const double H01 = u * u * (3 - 2 * u), H10 = u * (u - 1) * (u - 1), H11 = u * u * (u - 1);
+  const double H01d = 6 * u * (1 - u), H10d = (3 * u - 1) * (u - 1), H11d = u * (3 * u - 2);
+  const double H01dd = 6 - 12 * u, H10dd = 6 * u - 4, H11dd = 6 * u - 2;
+  const double H01ddd = -12, H10ddd = 6, H11ddd = 6;
+  TimeLawValue v;
+  v.s = i == K && u >= 1 ? Tp_.value : tau0 + dtau * H01 + ma * H10 + mb * H11;
+  v.ds = (dtau * H01d + ma * H10d + mb * H11d) / h;
+  v.dds = (dtau * H01dd + ma * H10dd + mb * H11dd) / (h * h);
+  v.ddds = (dtau * H01ddd + ma * H10ddd + mb * H11ddd) / (h * h * h);
+  return v;
+}
+
+bool TimeLaw::has_texts() const {
+  bool any = !Tp_.text.empty();
+  for (const Number& d : d_) any = any || !d.text.empty();
+  return any;
+}
+
+std::string TimeLaw::symbolic_text() const {
+  const size_t K = d_.size();
+  const std::string dtau = "(" + symbolic_number(Tp_) + "/" + std::to_string(K) + ")";
+  auto knot = [&](size_t i) {  // t_i as the sum of the durations' texts
+    if (i == 0) return std::string("0");
+    std::string s;
+    for (size_t j = 0; j < i; ++j) s += (j ? " + " : "") + symbolic_number(d_[j]);
+    return "(" + s + ")";
+  };
+  auto slope = [&](size_t i) {  // m_i (0 at both ends)
+    if (i == 0 || i == K) return std::string("0");
+    const std::string a = symbolic_number(d_[i - 1]), b = symbolic_number(d_[i]);
+    return "min(" + dtau + "*(" + a + "^2 + " + b + "^2)/(" + a + "*" + b + "*(" + a + " + " + b + ")), 3*" + dtau +
+           "/max(" + a + ", " + b + "))";
+  };
+  std::string out = symbolic_number(Tp_);
+  for (size_t i = K; i >= 1; --i) {
+    const std::string h = symbolic_number(d_[i - 1]);
+    const std::string u = "((t - " + knot(i - 1) + ")/" + h + ")";
+    std::string seg = std::to_string(i - 1) + "*" + dtau + " + " + dtau + "*" + u + "^2*(3 - 2*" + u + ")";
+    if (i > 1) seg += " + " + h + "*" + slope(i - 1) + "*" + u + "*(" + u + " - 1)^2";
+    if (i < K) seg += " + " + h + "*" + slope(i) + "*" + u + "^2*(" + u + " - 1)";
+    out = "if(t < " + knot(i) + ", " + seg + ", " + out + ")";
+  }
+  return "if(t < 0, 0, " + out + ")";
+}
+
+namespace {
+class Retimed final : public TimeFunction {
+ public:
+  Retimed(TimeFunctionPtr f, TimeLawPtr law) : f_(std::move(f)), law_(std::move(law)) {}
+  TimeValue eval(double t) const override {
+    const TimeLawValue s = law_->eval(t);
+    const TimeValue v = f_->eval(s.s);
+    return {v.f, v.df * s.ds, v.ddf * s.ds * s.ds + v.df * s.dds,
+            v.dddf * s.ds * s.ds * s.ds + 3 * v.ddf * s.ds * s.dds + v.df * s.ddds};
+  }
+  std::string describe() const override {
+    return f_->describe() + " on the time law (" + std::to_string(law_->segments()) + " segments, task time " +
+           fmt(law_->task_duration()) + " s in " + fmt(law_->end_time()) + " s)";
+  }
+  std::optional<SymbolicForm> symbolic() const override {
+    std::optional<SymbolicForm> f = f_->symbolic();
+    if (!f) return f;
+    const std::string s = law_->symbolic_text();
+    for (std::string& row : f->rows) row = replace_identifier(row, "t", s);
+    for (auto& [name, text] : f->functions) text = replace_identifier(text, "t", s);
+    f->scenario_texts = f->scenario_texts || law_->has_texts();
+    return f;
+  }
+
+ private:
+  TimeFunctionPtr f_;
+  TimeLawPtr law_;
+};
+}  // namespace
+
+TimeFunctionPtr time_law_function(TimeFunctionPtr inner, TimeLawPtr law) {
+  if (!inner || !law) throw Error("time_law_function: no function or no time law");
+  return std::make_shared<Retimed>(std::move(inner), std::move(law));
+}
+
+}  // namespace refdyn
