@@ -189,6 +189,9 @@ std::shared_ptr<const Tapes> compile(const Problem& problem, const Texts& texts,
   ExpressionOptions opt;
   opt.derivative_order = 1;
   opt.specialize = false;
+  // Generated texts, not user input: a time law's piecewise s(t), differentiated twice inside γ,
+  // writes the rows of a 16-part law in ~70 KB.
+  opt.max_length = std::size_t{1} << 24;
   auto build = [&](const std::vector<std::string>& src, std::vector<Expression>& dst) {
     for (const auto& s : src) dst.emplace_back(s, vars, constants, opt);
   };
