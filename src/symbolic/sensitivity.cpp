@@ -377,8 +377,11 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   Evaluator ev(T, pvals);
   // Directions: rows t | q | q̇ | z | q̈ | λ | p (the last only for parameter columns).
   // `tdot`: ∂t/∂p of the evaluation time (a time on the plan's grid moves when t1 does).
-  auto directions = [&](const Eigen::MatrixXd& S, const Eigen::RowVectorXd& tdot) {
-    Eigen::MatrixXd V = Eigen::MatrixXd::Zero(T.nv, np);
+  // One buffer for every stage (the rows of q̈ and λ stay zero unless a caller fills them).
+  Eigen::MatrixXd V_buffer(T.nv, np);
+  auto directions = [&](const Eigen::MatrixXd& S, const Eigen::RowVectorXd& tdot) -> Eigen::MatrixXd& {
+    Eigen::MatrixXd& V = V_buffer;
+    V.setZero();
     V.row(0) = tdot;
     V.middleRows(T.o_q, n) = S.topRows(n);
     V.middleRows(T.o_qd, n) = S.middleRows(n, n);
@@ -463,7 +466,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
     const Eigen::RowVectorXd tdot = time_rate(t);
     rate(t, xs, Sx, tdot, K_sample, true);
     xdot_sample = xdot;
-    Eigen::MatrixXd V = directions(Sx, tdot);  // with the changes of q̈ and λ, which τ reads
+    Eigen::MatrixXd& V = directions(Sx, tdot);  // the buffer, with the changes of q̈ and λ, which τ reads
     V.middleRows(T.o_qdd, n) = dqdd;
     if (m) V.middleRows(T.o_lam, m) = dlam;
     Eigen::MatrixXd dph(m, np);
