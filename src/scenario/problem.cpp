@@ -808,6 +808,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   }
   s->texts.t0 = spec.integrator.t0.text;
   s->texts.t1 = t1_is_end(spec.integrator.t1) && c.time_law ? c.time_law->end_text() : spec.integrator.t1.text;
+  if (c.time_law) s->time_law_knots = c.time_law->knots();
   build_constraints_and_forces(c, spec, *s);
   if (c.time_law && c.retimed == 0)
     c.fail(spec.time_law, "time_law",
