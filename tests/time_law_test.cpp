@@ -206,6 +206,159 @@ TEST(TimeLaw, BadLawsThrow) {
   test::expect_error_mentioning([] { TimeLaw(1.0, {Number(1.0), Number(-0.5)}); }, {"segment 2", "> 0"});
 }
 
+// ---- the knot_speeds form (TOPP-RA discretisation) ----
+
+namespace {
+std::vector<Number> random_speeds(std::mt19937& rng, int n) {
+  std::uniform_real_distribution<double> U(std::log(0.05), std::log(5.0));
+  std::vector<Number> v;
+  for (int i = 0; i < n; ++i) v.emplace_back(std::exp(U(rng)));
+  return v;
+}
+}  // namespace
+
+TEST(TimeLawKnotSpeeds, MonotoneC1ExactEndAndKnotSpeeds) {
+  std::mt19937 rng(29);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int K = 2 + trial % 30;
+    const double Tp = 0.1 + 3.0 * std::uniform_real_distribution<double>(0, 1)(rng);
+    const std::vector<Number> v = random_speeds(rng, K - 1);
+    const TimeLaw law(TimeLawForm::knot_speeds, Tp, v);
+    ASSERT_EQ(law.segments(), K);
+    const double dtau = Tp / K;
+    // end = Σ 2Δτ/(v_i + v_{i+1}), v_0 = v_K = 0
+    double end = 0;
+    for (int i = 0; i < K; ++i) end += 2 * dtau / ((i ? v[i - 1].value : 0.0) + (i + 1 < K ? v[i].value : 0.0));
+    EXPECT_NEAR(law.end_time(), end, 1e-12 * end);
+    EXPECT_EQ(law.eval(0).s, 0);
+    EXPECT_EQ(law.eval(0).ds, 0);
+    EXPECT_EQ(law.eval(law.end_time()).s, Tp);
+    EXPECT_EQ(law.eval(-1).s, 0);
+    EXPECT_EQ(law.eval(law.end_time() + 1).s, Tp);
+    for (int i = 0; i <= K; ++i) {
+      const double ti = law.knots()[i];
+      const TimeLawValue left = law.eval(std::nextafter(ti, -1.0)), at = law.eval(ti);
+      EXPECT_NEAR(at.s, dtau * i, 1e-12 * Tp) << "knot " << i;  // τ_i reached at t_i
+      if (i > 0 && i < K) {
+        EXPECT_NEAR(at.ds, v[i - 1].value, 1e-12 * (1 + v[i - 1].value));  // ṡ(t_i) = v_i, from both sides
+        EXPECT_NEAR(left.ds, v[i - 1].value, 1e-9 * (1 + v[i - 1].value));
+        EXPECT_NEAR(left.s, at.s, 1e-12 * Tp);
+        EXPECT_EQ(law.slope(i), v[i - 1].value);
+      }
+    }
+    double prev = -1;
+    for (int k = 0; k <= 2000; ++k) {
+      const TimeLawValue x = law.eval(law.end_time() * k / 2000.0);
+      EXPECT_GE(x.s, prev);
+      EXPECT_GE(x.ds, 0);
+      EXPECT_EQ(x.ddds, 0);
+      prev = x.s;
+    }
+  }
+}
+
+TEST(TimeLawKnotSpeeds, ConstantAccelerationPerPartAndDerivativesMatchFiniteDifferences) {
+  std::mt19937 rng(31);
+  const auto law = std::make_shared<const TimeLaw>(TimeLawForm::knot_speeds, Number(2.0), random_speeds(rng, 11));
+  const double dtau = 2.0 / 12;
+  const TimeFunctionPtr inner = expression_time_function("0.6 + 0.15*cos(2*pi*t/2) + 0.3*t^3");
+  const TimeFunctionPtr f = time_law_function(inner, law);
+  const double h = 1e-6;
+  std::uniform_real_distribution<double> U(0, 1);
+  for (int k = 0; k < 400; ++k) {
+    const int i = 1 + static_cast<int>(U(rng) * law->segments()) % law->segments();
+    const double a = law->knots()[i - 1], b = law->knots()[i];
+    const double t = a + (b - a) * (0.05 + 0.9 * U(rng));
+    const TimeLawValue v = law->eval(t), vp = law->eval(t + h), vm = law->eval(t - h);
+    const double va = law->slope(i - 1), vb = law->slope(i);
+    EXPECT_NEAR(v.dds, (vb * vb - va * va) / (2 * dtau), 1e-12 * (1 + std::abs(v.dds)));
+    EXPECT_NEAR(b - a, 2 * dtau / (va + vb), 1e-12 * (b - a));
+    EXPECT_NEAR(v.ds, (vp.s - vm.s) / (2 * h), 1e-6 * std::max(1.0, std::abs(v.ds)));
+    EXPECT_NEAR(v.dds, (vp.ds - vm.ds) / (2 * h), 1e-6 * std::max(1.0, std::abs(v.dds)));
+    const TimeValue g = f->eval(t), gp = f->eval(t + h), gm = f->eval(t - h);
+    EXPECT_DOUBLE_EQ(g.f, inner->eval(v.s).f);
+    EXPECT_NEAR(g.df, (gp.f - gm.f) / (2 * h), 1e-6 * std::max(1.0, std::abs(g.df)));
+    EXPECT_NEAR(g.ddf, (gp.df - gm.df) / (2 * h), 1e-6 * std::max(1.0, std::abs(g.ddf)));
+    EXPECT_NEAR(g.dddf, (gp.ddf - gm.ddf) / (2 * h), 1e-6 * std::max(1.0, std::abs(g.dddf)));
+  }
+}
+
+TEST(TimeLawKnotSpeeds, SymbolicTextAndEndTextWithParameterNamesAreTheNumericLaw) {
+  std::mt19937 rng(37);
+  const int K = 9;
+  std::map<std::string, double> params{{"Tp", 1.7}};
+  std::vector<Number> v;
+  for (const Number& x : random_speeds(rng, K - 1)) {
+    const std::string name = "v" + std::to_string(v.size() + 1);
+    params[name] = x.value;
+    v.emplace_back(x.value, name);
+  }
+  const auto law = std::make_shared<const TimeLaw>(TimeLawForm::knot_speeds, Number(1.7, "Tp"), v);
+  const std::string text = law->symbolic_text();
+  for (const auto& [name, x] : params) EXPECT_TRUE(uses_identifier(text, name)) << name;
+  const TimeFunctionPtr sym = expression_time_function(text, params);
+  EXPECT_NEAR(expression_time_function(law->end_text(), params)->eval(0).f, law->end_time(), 1e-12 * law->end_time());
+  const TimeFunctionPtr f = time_law_function(expression_time_function("sin(2*pi*t/Tp)", params), law);
+  const std::optional<SymbolicForm> form = f->symbolic();
+  ASSERT_TRUE(form);
+  EXPECT_TRUE(form->scenario_texts);
+  const TimeFunctionPtr fsym = expression_time_function(form->rows[0], params);
+  for (int k = 0; k <= 500; ++k) {
+    const double t = -0.1 + (law->end_time() + 0.2) * k / 500.0;
+    const TimeLawValue x = law->eval(t);
+    const TimeValue s = sym->eval(t);
+    const double tol = 1e-9;
+    EXPECT_NEAR(s.f, x.s, tol);
+    EXPECT_NEAR(s.df, x.ds, tol * (1 + std::abs(x.ds)));
+    EXPECT_NEAR(s.ddf, x.dds, tol * (1 + std::abs(x.dds)));
+    EXPECT_NEAR(s.dddf, 0, tol);
+    const TimeValue a = f->eval(t), b = fsym->eval(t);
+    EXPECT_NEAR(a.f, b.f, tol);
+    EXPECT_NEAR(a.df, b.df, tol * (1 + std::abs(a.df)));
+    EXPECT_NEAR(a.ddf, b.ddf, tol * (1 + std::abs(a.ddf)));
+  }
+}
+
+TEST(TimeLawKnotSpeeds, BadLawsThrow) {
+  test::expect_error_mentioning([] { TimeLaw(TimeLawForm::knot_speeds, 0.0, {Number(1.0)}); }, {"task_duration", "> 0"});
+  test::expect_error_mentioning([] { TimeLaw(TimeLawForm::knot_speeds, 1.0, {}); }, {"knot_speeds", "empty"});
+  test::expect_error_mentioning([] { TimeLaw(TimeLawForm::knot_speeds, 1.0, {Number(1.0), Number(0.0)}); },
+                                {"knot speed 2", "> 0"});
+  test::expect_error_mentioning([] { TimeLaw(TimeLawForm::knot_speeds, 1.0, {Number(std::nan(""))}); },
+                                {"knot speed 1", "> 0"});
+}
+
+namespace {
+const std::string kSpeedsExample = std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/retime_speeds.yaml";
+}
+
+TEST(TimeLawKnotSpeeds, TheExampleEndsAtTheLawsEndAndBadInputIsOneLocatedError) {
+  const auto p = io::load_problem(kSpeedsExample);
+  // 30 inner parts at ṡ = 0.5 (2Δτ/1 = 0.125 s each) and two end parts from/to rest (0.25 s each)
+  EXPECT_NEAR(p->integrator.t1, 30 * 0.125 + 2 * 0.25, 1e-12);
+  EXPECT_NE(p->texts.t1.find("v31"), std::string::npos) << p->texts.t1;
+  EXPECT_NE(p->texts.t1.find("Tp"), std::string::npos) << p->texts.t1;
+  // t1: end on the segments form: Σ d_i, with the durations' names in its text
+  const auto seg = io::parse_problem(replaced(example_text(), "t1: d1 + d2 + d3 + d4 + d5 + d6 + d7 + d8 + d9 + d10 + d11 + d12 + d13 + d14 + d15 + d16", "t1: end"), "retime.yaml");
+  EXPECT_NEAR(seg->integrator.t1, 2.0, 1e-12);
+  EXPECT_NE(seg->texts.t1.find("d16"), std::string::npos) << seg->texts.t1;
+  const std::string base = test::read_file(kSpeedsExample);
+  const std::string src = "retime_speeds.yaml";
+  auto expect_bad = [&](const std::string& yaml, const std::vector<std::string>& needles) {
+    test::expect_error_mentioning([&] { (void)io::parse_problem(yaml, src); }, needles);
+  };
+  const std::string speeds = "knot_speeds: [v1, v2,";
+  expect_bad(replaced(base, speeds, "knot_speeds: [v1, 0,"), {"retime_speeds.yaml:", "time_law.knot_speeds[1]", "> 0"});
+  expect_bad(replaced(base, speeds, "knot_speeds: [v1, -0.5,"), {"retime_speeds.yaml:", "time_law.knot_speeds[1]", "> 0"});
+  expect_bad(replaced(base, "task_duration: Tp", "task_duration: Tp\n  segments: [1, 1]"),
+             {"retime_speeds.yaml:", "knot_speeds", "exclude"});
+  // t1: end without a time law
+  std::string no_law = test::read_file(kSpeedsExample);
+  no_law = replaced(no_law, "time_law:\n  task_duration: Tp\n", "");
+  no_law = no_law.substr(0, no_law.find("  knot_speeds:")) + no_law.substr(no_law.find("\n", no_law.find("  knot_speeds:")) + 1);
+  test::expect_error_mentioning([&] { (void)io::parse_problem(no_law, src); }, {"retime_speeds.yaml:", "integrator.t1", "time_law"});
+}
+
 TEST(TimeLawScenario, TheExampleBuildsAndItsFunctionsAreRetimed) {
   const auto p = io::load_problem(kExample);
   ASSERT_EQ(p->constraints.size(), 2);
@@ -420,4 +573,70 @@ TEST(TimeLawScenario, PlannedEffortsOfTheRetimedCircleConvergeToTheHandWrittenDy
   EXPECT_GT(n2, 10000);
   EXPECT_LT(w2, w1 / 5);  // first order (or better) in the step
   EXPECT_LT(w2, 0.1);
+}
+
+// ---- the knot-speed law against the true time-optimal traversal ----
+
+TEST(TimeLawKnotSpeeds, AKnotSpeedLawPlannedByRefdynIsWithin2PercentOfTheTimeOptimum) {
+  // The knot speeds of the fastest K-part knot-speed law (topp_knot_law: TOPP-RA on K parts with
+  // the limits imposed at 21 points inside every part) written into
+  // examples/planar_2r_circle/retime_speeds.yaml and planned by refdyn. What the law can
+  // represent, not what `refdyn optimize` finds (it does not find these speeds yet).
+  //  - effort limits, K = 64, limits lowered by 0.1 % (room for the plan's integration error at
+  //    the knots, where s̈ jumps), step 2e-4 s: the plan is feasible for the true limits and
+  //    ends within 2 % of T*;
+  //  - effort + speed limits (vmax 2.5), K = 40, true limits: the law ends within 2 % of T*, and
+  //    the refdyn plan of it exceeds the limits by at most 0.5 % (not yet feasible: measured
+  //    worst 18.064 N m and 2.5002 rad/s at step 1e-3; lowering the limits did not fix it, the
+  //    cause is not yet understood, so it is not asserted feasible).
+  const double inf = std::numeric_limits<double>::infinity();
+  const test::TwoLinkArm arm;
+  const test::Circle c;
+  struct Case {
+    int K;
+    double vmax, T_star, shrink;
+    std::string step;
+    bool feasible;
+  };
+  for (const Case& k : {Case{64, inf, 0.906705, 0.999, "2e-4", true}, Case{40, 2.5, 1.133059, 1.0, "1e-3", false}}) {
+    const test::ToppLimits L{Eigen::Vector2d(18 * k.shrink, 5 * k.shrink), Eigen::Vector2d(k.vmax * k.shrink, k.vmax * k.shrink)};
+    const std::vector<double> x = test::topp_knot_law(arm, c, L, k.K, 20);
+    ASSERT_EQ(x.size(), static_cast<size_t>(k.K) + 1);
+    std::string yaml = test::read_file(kSpeedsExample);
+    std::string speeds, names;
+    for (int i = 1; i < k.K; ++i) {  // θ̇ → task speed ṡ = θ̇·Tp/(2π), Tp = 2
+      speeds += "  v" + std::to_string(i) + ": " + fmt(std::sqrt(x[static_cast<size_t>(i)]) * 2.0 / (2 * std::numbers::pi)) + "\n";
+      names += (i > 1 ? ", v" : "v") + std::to_string(i);
+    }
+    const size_t a = yaml.find("  v1: 0.5\n"), b = yaml.find("  # Start at E");
+    ASSERT_NE(a, std::string::npos);
+    yaml = yaml.substr(0, a) + speeds + yaml.substr(b);
+    yaml = yaml.substr(0, yaml.find("knot_speeds: [")) + "knot_speeds: [" + names + yaml.substr(yaml.find("]", yaml.find("knot_speeds: [")));
+    yaml = replaced(yaml, "vmax: 100 ", "vmax: " + (std::isfinite(k.vmax) ? fmt(k.vmax) : std::string("100")) + " ");
+    yaml = replaced(yaml, "step: 1e-3", "step: " + k.step);
+    yaml = yaml.substr(0, yaml.find("\noptimize:") + 1);
+    const fs::path out = fs::temp_directory_path() / ("time_law_knots_" + std::to_string(::getpid()));
+    fs::remove_all(out);
+    fs::create_directories(out);
+    std::ofstream(out / "k.yaml") << yaml;
+    ASSERT_EQ(run_cli("plan '" + (out / "k.yaml").string() + "' -o '" + (out / "plan").string() + "'"), 0);
+    const std::string feas = test::read_file((out / "plan" / "feasibility.json").string());
+    if (k.feasible) EXPECT_NE(feas.find("\"feasible\": true"), std::string::npos) << "K = " << k.K << ": " << feas.substr(0, 400);
+    // worst ratio peak/limit over both joints (effort, and speed when limited)
+    double worst = 0;
+    for (const char* key : {"\"peak_effort\": ", "\"peak_speed\": "})
+      for (size_t at = feas.find(key), j = 0; at != std::string::npos; at = feas.find(key, at + 1), ++j) {
+        const double v = std::stod(feas.substr(at + std::string(key).size()));
+        const double lim = std::string(key) == "\"peak_effort\": " ? (j == 0 ? 18.0 : 5.0) : k.vmax;
+        worst = std::max(worst, v / lim);
+      }
+    const auto p = io::parse_problem(yaml, "k.yaml");
+    const double T = p->integrator.t1;  // the law's end (t1: end)
+    std::printf("K = %d, vmax = %g: knot-speed law %.6f s, T* %.6f s (%+.2f %%); plan: worst peak/limit %.5f\n", k.K,
+                k.vmax, T, k.T_star, 100 * (T / k.T_star - 1), worst);
+    EXPECT_LT(T, 1.02 * k.T_star);
+    EXPECT_GT(T, k.T_star);  // no law beats the time optimum
+    EXPECT_LT(worst, k.feasible ? 1.0 : 1.005);
+    fs::remove_all(out);
+  }
 }

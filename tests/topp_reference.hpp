@@ -206,4 +206,57 @@ inline double topp_min_time(const TwoLinkArm& arm, const Circle& c, const ToppLi
   return topp_min_time(circle_path(arm, c, N), L);
 }
 
+/// The fastest traversal by a knot-speed time law (docs/scenario.md "time_law", knot_speeds):
+/// K equal parts of θ ∈ [0, θ_end], x = θ̇² linear in θ on each part (constant θ̈, the TOPP-RA
+/// discretisation), x_0 = x_K = 0, with the limits imposed at M + 1 points of every part (not
+/// only at the knots): on part i every constraint is linear in (x_i, u_i), u_i = (x_{i+1} − x_i)/(2H),
+/// since at θ_i + δ, x = x_i + 2u_i δ and τ = a u_i + b x + c. Backward: the largest controllable
+/// x_i (the 2-variable LP max_x); forward: the largest admissible u_i. Returns x_0 … x_K (empty:
+/// no admissible law); the law's time is Σ 2H/(√x_i + √x_{i+1}).
+inline std::vector<double> topp_knot_law(const TwoLinkArm& arm, const Circle& c, const ToppLimits& L, int K, int M) {
+  using namespace topp_detail;
+  const PathDynamics p = circle_path(arm, c, K * M);
+  const double H = p.theta_end / K, hf = H / M;
+  auto rows_part = [&](int i) {
+    std::vector<Eigen::Vector3d> r;
+    for (int f = 0; f <= M; ++f) {
+      const size_t g = static_cast<size_t>(i * M + f);
+      const double d = f * hf;
+      for (int j = 0; j < p.a[g].size(); ++j) {
+        const double a = p.a[g][j], b = p.b[g][j], cc = p.c[g][j];
+        if (std::isfinite(L.tau_max[j])) {
+          r.emplace_back(b, a + 2 * b * d, L.tau_max[j] - cc);
+          r.emplace_back(-b, -(a + 2 * b * d), L.tau_max[j] + cc);
+        }
+        if (std::isfinite(L.v_max[j])) {
+          const double q2 = p.dq[g][j] * p.dq[g][j];
+          r.emplace_back(q2, 2 * q2 * d, L.v_max[j] * L.v_max[j]);
+        }
+      }
+      r.emplace_back(-1.0, -2 * d, 0.0);  // x ≥ 0 inside the part
+    }
+    r.emplace_back(-1.0, 0.0, 0.0);
+    r.emplace_back(1.0, 0.0, 1e12);
+    return r;
+  };
+  std::vector<double> Kc(static_cast<size_t>(K) + 1, 0.0);
+  for (int i = K; i-- > 1;) {
+    auto r = rows_part(i);
+    r.emplace_back(1.0, 2 * H, Kc[static_cast<size_t>(i) + 1]);
+    Kc[static_cast<size_t>(i)] = max_x(r);
+    if (Kc[static_cast<size_t>(i)] < 0) return {};
+  }
+  std::vector<double> x(static_cast<size_t>(K) + 1, 0.0);
+  for (int i = 0; i + 1 < K; ++i) {
+    auto r = rows_part(i);
+    r.emplace_back(1.0, 2 * H, Kc[static_cast<size_t>(i) + 1]);
+    double uhi = kInf;
+    for (const auto& row : r)
+      if (row[1] > 1e-15) uhi = std::min(uhi, (row[2] - row[0] * x[static_cast<size_t>(i)]) / row[1]);
+    x[static_cast<size_t>(i) + 1] = std::clamp(x[static_cast<size_t>(i)] + 2 * H * uhi, 0.0, Kc[static_cast<size_t>(i) + 1]);
+    if (!(x[static_cast<size_t>(i) + 1] > 0)) return {};
+  }
+  return x;
+}
+
 }  // namespace refdyn::test

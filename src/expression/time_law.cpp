@@ -50,7 +50,28 @@ bool uses_identifier(const std::string& text, const std::string& name) {
   return !identifier_positions(text, name).empty();
 }
 
-TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments) : Tp_(std::move(task_duration)), d_(std::move(segments)) {
+TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments)
+    : TimeLaw(TimeLawForm::segments, std::move(task_duration), std::move(segments)) {}
+
+TimeLaw::TimeLaw(TimeLawForm form, Number task_duration, std::vector<Number> values)
+    : form_(form), Tp_(std::move(task_duration)), d_(std::move(values)) {
+  if (form_ == TimeLawForm::knot_speeds) {
+    if (!std::isfinite(Tp_.value) || !(Tp_.value > 0))
+      throw Error(expected_got("time_law task_duration", "> 0 [s]", fmt(Tp_.value)));
+    if (d_.empty())
+      throw Error("time_law knot_speeds: expected a list of K - 1 >= 1 task speeds > 0 at the inner knots, got an empty list");
+    const size_t K = d_.size() + 1;
+    const double dtau = Tp_.value / static_cast<double>(K);
+    m_.assign(K + 1, 0.0);
+    for (size_t i = 0; i < d_.size(); ++i) {
+      if (!std::isfinite(d_[i].value) || !(d_[i].value > 0))
+        throw Error(expected_got("time_law knot speed " + std::to_string(i + 1), "a task speed > 0", fmt(d_[i].value)));
+      m_[i + 1] = d_[i].value;
+    }
+    knots_.assign(1, 0.0);
+    for (size_t i = 0; i < K; ++i) knots_.push_back(knots_.back() + 2 * dtau / (m_[i] + m_[i + 1]));
+    return;
+  }
   if (!std::isfinite(Tp_.value) || !(Tp_.value > 0))
     throw Error(expected_got("time_law task_duration", "> 0 [s]", fmt(Tp_.value)));
   if (d_.empty()) throw Error("time_law segments: expected a list of at least one duration > 0 [s], got an empty list");
@@ -73,9 +94,18 @@ TimeLaw::TimeLaw(Number task_duration, std::vector<Number> segments) : Tp_(std::
 TimeLawValue TimeLaw::eval(double t) const {
   if (t < 0) return {0, 0, 0, 0};  // at t = 0 itself: the first part (right-sided, as at every knot)
   if (t >= knots_.back()) return {Tp_.value, 0, 0, 0};
-  const size_t K = d_.size();
+  const size_t K = knots_.size() - 1;
   size_t i = static_cast<size_t>(std::upper_bound(knots_.begin(), knots_.end(), t) - knots_.begin());  // t in [t_{i-1}, t_i)
   i = std::clamp<size_t>(i, 1, K);
+  if (form_ == TimeLawForm::knot_speeds) {  // constant s̈ on the part
+    const double dtau = Tp_.value / static_cast<double>(K), h = t - knots_[i - 1];
+    const double va = m_[i - 1], vb = m_[i], a = (vb * vb - va * va) / (2 * dtau);
+    TimeLawValue v;
+    v.s = std::min(Tp_.value, dtau * static_cast<double>(i - 1) + h * (va + 0.5 * a * h));
+    v.ds = va + a * h;
+    v.dds = a;
+    return v;
+  }
   const double h = d_[i - 1].value, dtau = Tp_.value / static_cast<double>(K);
   const double u = (t - knots_[i - 1]) / h;
   const double ma = m_[i - 1] * h, mb = m_[i] * h;  // slopes in τ per unit u
@@ -99,15 +129,45 @@ bool TimeLaw::has_texts() const {
   return any;
 }
 
-std::string TimeLaw::symbolic_text() const {
-  const size_t K = d_.size();
-  const std::string dtau = "(" + symbolic_number(Tp_) + "/" + std::to_string(K) + ")";
-  auto knot = [&](size_t i) {  // t_i as the sum of the durations' texts
-    if (i == 0) return std::string("0");
-    std::string s;
+std::string TimeLaw::knot_text(size_t i) const {
+  if (i == 0) return "0";
+  std::string s;
+  if (form_ == TimeLawForm::segments) {
     for (size_t j = 0; j < i; ++j) s += (j ? " + " : "") + symbolic_number(d_[j]);
     return "(" + s + ")";
-  };
+  }
+  const size_t K = d_.size() + 1;
+  const std::string dtau = "(" + symbolic_number(Tp_) + "/" + std::to_string(K) + ")";
+  for (size_t j = 0; j < i; ++j) {  // δ_j = 2Δτ/(v_j + v_{j+1}), v_0 = v_K = 0
+    std::string den;
+    if (j > 0) den = symbolic_number(d_[j - 1]);
+    if (j + 1 < K) den += (den.empty() ? "" : " + ") + symbolic_number(d_[j]);
+    s += (j ? " + " : "") + std::string("2*") + dtau + "/(" + den + ")";
+  }
+  return "(" + s + ")";
+}
+
+std::string TimeLaw::end_text() const { return knot_text(static_cast<size_t>(segments())); }
+
+std::string TimeLaw::symbolic_text() const {
+  if (form_ == TimeLawForm::knot_speeds) {
+    const size_t K = d_.size() + 1;
+    const std::string dtau = "(" + symbolic_number(Tp_) + "/" + std::to_string(K) + ")";
+    auto v = [&](size_t i) { return i == 0 || i == K ? std::string() : symbolic_number(d_[i - 1]); };
+    std::string out = symbolic_number(Tp_);
+    for (size_t i = K; i >= 1; --i) {  // part i: t in [t_{i-1}, t_i), s = τ_{i-1} + v_{i-1} u + a u²/2
+      const std::string u = "(t - " + knot_text(i - 1) + ")", va = v(i - 1), vb = v(i);
+      std::string seg = std::to_string(i - 1) + "*" + dtau;
+      if (!va.empty()) seg += " + " + va + "*" + u;
+      const std::string dv2 = vb.empty() ? "-" + va + "^2" : va.empty() ? vb + "^2" : "(" + vb + "^2 - " + va + "^2)";
+      seg += " + " + dv2 + "/(4*" + dtau + ")*" + u + "^2";
+      out = "if(t < " + knot_text(i) + ", " + seg + ", " + out + ")";
+    }
+    return "if(t < 0, 0, " + out + ")";
+  }
+  const size_t K = d_.size();
+  const std::string dtau = "(" + symbolic_number(Tp_) + "/" + std::to_string(K) + ")";
+  auto knot = [&](size_t i) { return knot_text(i); };  // t_i as the sum of the durations' texts
   auto slope = [&](size_t i) {  // m_i (0 at both ends)
     if (i == 0 || i == K) return std::string("0");
     const std::string a = symbolic_number(d_[i - 1]), b = symbolic_number(d_[i]);
@@ -137,7 +197,8 @@ class Retimed final : public TimeFunction {
             v.dddf * s.ds * s.ds * s.ds + 3 * v.ddf * s.ds * s.dds + v.df * s.ddds};
   }
   std::string describe() const override {
-    return f_->describe() + " on the time law (" + std::to_string(law_->segments()) + " segments, task time " +
+    return f_->describe() + " on the time law (" + std::to_string(law_->segments()) +
+           (law_->form() == TimeLawForm::knot_speeds ? " parts with knot speeds" : " segments") + ", task time " +
            fmt(law_->task_duration()) + " s in " + fmt(law_->end_time()) + " s)";
   }
   std::optional<SymbolicForm> symbolic() const override {

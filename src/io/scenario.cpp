@@ -635,7 +635,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (root["optimize"] || std::any_of(root.entries.begin(), root.entries.end(), [](const auto& e) { return e.key == "optimize"; }))
     s.optimize = read_optimize(c, root["optimize"], root.key_location("optimize"));
   if (const SpecValue& tl = root["time_law"]) {
-    c.keys(tl, "time_law", {"task_duration", "segments"});
+    c.keys(tl, "time_law", {"task_duration", "segments", "knot_speeds"});
     s.time_law = tl;
   }
   if (const SpecValue& lim = root["limits"]) {

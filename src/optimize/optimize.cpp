@@ -102,7 +102,8 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     s.upper.push_back(hi);
     s.start.push_back(x0);
   }
-  s.metric_names = metric_names(base.model);
+  const int parts = base.time_law_knots.empty() ? 0 : static_cast<int>(base.time_law_knots.size()) - 1;
+  s.metric_names = metric_names(base.model, parts);
   s.maximize = o.maximize;
   s.objective = compile(c, o.objective_value, std::string("optimize.objective.") + (o.maximize ? "maximize" : "minimize"),
                         o.objective, s.metric_names, s.variables);
@@ -117,8 +118,13 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
         s.constraints.push_back({what + "(" + jn + ")", metric + "(" + jn + ")", -1, limit,
                                  limit != 0 ? std::abs(limit) : 1.0, upper});
       };
-      add("velocity", "peak_speed", l.velocity, true);
-      add("effort", "peak_effort", l.effort, true);
+      if (parts == 0) {
+        add("velocity", "peak_speed", l.velocity, true);
+        add("effort", "peak_effort", l.effort, true);
+      } else {  // under a time law: one constraint per part (the TOPP-RA constraints), not one maximum
+        for (int i = 1; i <= parts; ++i) add("velocity_part" + std::to_string(i), "peak_speed_part" + std::to_string(i), l.velocity, true);
+        for (int i = 1; i <= parts; ++i) add("effort_part" + std::to_string(i), "peak_effort_part" + std::to_string(i), l.effort, true);
+      }
       add("upper", "q_max", l.upper, true);
       add("lower", "q_min", l.lower, false);
     }
@@ -263,7 +269,7 @@ class Evaluator {
       if (!plan.summary.ok()) {
         r.reason = std::string("plan ") + to_string(plan.summary.status) + ": " + plan.summary.message;
       } else {
-        const std::vector<Metric> metrics = plan_metrics(problem->model, plan, problem->residual_from);
+        const std::vector<Metric> metrics = plan_metrics(problem->model, plan, problem->residual_from, problem->time_law_knots);
         std::vector<double> args(nm + nv, 0.0);
         for (size_t i = 0; i < nm; ++i) {
           auto it = std::find_if(metrics.begin(), metrics.end(), [&](const Metric& m) { return m.name == s_.metric_names[i]; });

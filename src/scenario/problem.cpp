@@ -287,32 +287,45 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
 
 namespace {
 
-/// time_law: {task_duration, segments: [d1, …, dK]} → c.time_law (docs/scenario.md "time_law").
+/// time_law: {task_duration, segments: [d1, …, dK]} or {task_duration, knot_speeds: [v1, …, v_{K−1}]}
+/// → c.time_law (docs/scenario.md "time_law").
 void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
   const SpecValue& tl = spec.time_law;
   if (!tl) return;
-  c.keys(tl, "time_law", {"task_duration", "segments"});
+  c.keys(tl, "time_law", {"task_duration", "segments", "knot_speeds"});
   const Quantity Tp = c.quantity(c.need(tl, "task_duration", "time_law"), "time_law.task_duration");
   if (!(Tp.value > 0))
     c.fail(tl["task_duration"], "time_law.task_duration", "expected the task's duration > 0 [s], got " + fmt(Tp.value));
-  const SpecValue& seg = c.need(tl, "segments", "time_law");
+  if (tl["segments"] && tl["knot_speeds"])
+    c.fail(tl["knot_speeds"], "time_law.knot_speeds",
+           "segments and knot_speeds are two forms of the time law and exclude each other; keep one");
+  const bool speeds = static_cast<bool>(tl["knot_speeds"]);
+  const std::string key = speeds ? "knot_speeds" : "segments";
+  const SpecValue& seg = speeds ? tl["knot_speeds"] : c.need(tl, "segments", "time_law");
   if (!seg.is_list() || seg.size() == 0)
-    c.fail(seg, "time_law.segments",
-           "expected a list of K > 0 durations [d1, d2, …] (the real time of each of K equal parts of task time), got " +
+    c.fail(seg, "time_law." + key,
+           (speeds ? std::string("expected a list of K - 1 > 0 task speeds [v1, v2, …] (ṡ at the inner knots i·Tp/K), got ")
+                   : std::string("expected a list of K > 0 durations [d1, d2, …] (the real time of each of K equal parts of task time), got ")) +
                (seg.is_list() ? std::string("an empty list") : seg.describe()));
   std::vector<Number> d;
   for (size_t i = 0; i < seg.size(); ++i) {
-    const std::string k = "time_law.segments[" + std::to_string(i) + "]";
+    const std::string k = "time_law." + key + "[" + std::to_string(i) + "]";
     const Quantity q = c.quantity(seg[i], k);
-    if (!(q.value > 0)) c.fail(seg[i], k, "expected a duration > 0 [s], got " + fmt(q.value) + (q.literal ? "" : " (" + q.text + ")"));
+    if (!(q.value > 0))
+      c.fail(seg[i], k, (speeds ? "expected a task speed > 0, got " : "expected a duration > 0 [s], got ") + fmt(q.value) +
+                            (q.literal ? "" : " (" + q.text + ")"));
     d.push_back(q.number());
   }
   try {
-    c.time_law = std::make_shared<const TimeLaw>(Tp.number(), std::move(d));
+    c.time_law = std::make_shared<const TimeLaw>(speeds ? TimeLawForm::knot_speeds : TimeLawForm::segments, Tp.number(),
+                                                 std::move(d));
   } catch (const Error& e) {
     c.fail(tl, "time_law", e.what());
   }
 }
+
+/// integrator.t1: end — the end of the scenario's time law (docs/scenario.md "time_law").
+bool t1_is_end(const SpecValue& t1) { return t1 && t1.is_scalar() && t1.text == "end"; }
 
 /// constraints: (URDF <mimic> couplings first) and forces, each named before it is published.
 void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
@@ -548,7 +561,13 @@ void build_integrator(const SpecReader& c, const ScenarioSpec& spec, Problem& s)
     }
     if (in.step) o.step = c.number(in.step, "integrator.step");
     if (in.t0) o.t0 = c.number(in.t0, "integrator.t0");
-    if (in.t1) o.t1 = c.number(in.t1, "integrator.t1");
+    if (t1_is_end(in.t1)) {
+      if (!c.time_law)
+        c.fail(in.t1, "integrator.t1", "'end' is the end of the scenario's time_law, and this scenario has none (hint: write t1 as a time [s])");
+      o.t1 = c.time_law->end_time();
+    } else if (in.t1) {
+      o.t1 = c.number(in.t1, "integrator.t1");
+    }
     if (in.rtol) o.rtol = c.number(in.rtol, "integrator.rtol");
     if (in.atol) o.atol = c.number(in.atol, "integrator.atol");
     if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
@@ -788,7 +807,8 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     s->texts.parameters.emplace_back(name, set != spec.parameter_values.end() ? symbolic_number(set->second.value) : value.text);
   }
   s->texts.t0 = spec.integrator.t0.text;
-  s->texts.t1 = spec.integrator.t1.text;
+  s->texts.t1 = t1_is_end(spec.integrator.t1) && c.time_law ? c.time_law->end_text() : spec.integrator.t1.text;
+  if (c.time_law) s->time_law_knots = c.time_law->knots();
   build_constraints_and_forces(c, spec, *s);
   if (c.time_law && c.retimed == 0)
     c.fail(spec.time_law, "time_law",

@@ -3,6 +3,7 @@
 
 #include "refdyn/common/error.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace refdyn {
@@ -33,16 +34,20 @@ void peak_abs(const std::vector<Eigen::VectorXd>& series, int j, long offset, Me
 
 }  // namespace
 
-std::vector<std::string> metric_names(const Model& model) {
+std::vector<std::string> metric_names(const Model& model, int parts) {
   std::vector<std::string> out{"t_end"};
   for (const char* base : {"peak_speed", "peak_acceleration", "peak_effort", "q_min", "q_max", "final_q", "final_qd"})
     for (int j = 0; j < model.nq; ++j) out.push_back(std::string(base) + "(" + model.joint_name[j] + ")");
   out.push_back("effort_energy");
   out.push_back("max_residual");
+  for (int i = 1; i <= parts; ++i)
+    for (const char* base : {"peak_speed_part", "peak_effort_part"})
+      for (int j = 0; j < model.nq; ++j) out.push_back(std::string(base) + std::to_string(i) + "(" + model.joint_name[j] + ")");
   return out;
 }
 
-std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double residual_from) {
+std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double residual_from,
+                                 const std::vector<double>& part_knots) {
   if (plan.t.empty()) throw Error("the plan has no samples: its metrics are not defined");
   const int n = model.nq;
   const long last = static_cast<long>(plan.t.size()) - 1;
@@ -110,6 +115,36 @@ std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double re
     }
   }
   out.push_back(res);
+  // per part of the time law: the samples with t_{i-1} <= t <= t_i (the nearest one if none)
+  for (size_t i = 1; i < part_knots.size(); ++i) {
+    const double ta = part_knots[i - 1], tb = part_knots[i];
+    long k0 = static_cast<long>(std::lower_bound(plan.t.begin(), plan.t.end(), ta) - plan.t.begin());
+    long k1 = static_cast<long>(std::upper_bound(plan.t.begin(), plan.t.end(), tb) - plan.t.begin()) - 1;
+    if (k0 > k1) {  // no sample inside: the nearest one
+      long k = std::min(k0, last);
+      if (k > 0 && std::abs(plan.t[k - 1] - 0.5 * (ta + tb)) < std::abs(plan.t[k] - 0.5 * (ta + tb))) --k;
+      k0 = k1 = k;
+    }
+    auto part = [&](const char* base, MetricKind kind, const std::vector<Eigen::VectorXd>& series, long offset) {
+      for (int j = 0; j < n; ++j) {
+        Metric m = make(std::string(base) + std::to_string(i) + "(" + model.joint_name[j] + ")", kind, j);
+        m.value = 0;
+        m.sample = k0;
+        m.sign = 1;
+        for (long k = k0; k <= k1 && k < static_cast<long>(series.size()); ++k) {
+          const double v = series[static_cast<size_t>(k)][j + offset];
+          if (std::isfinite(v) && (k == k0 || std::abs(v) > m.value)) {
+            m.value = std::abs(v);
+            m.sample = k;
+            m.sign = v < 0 ? -1.0 : 1.0;
+          }
+        }
+        out.push_back(m);
+      }
+    };
+    part("peak_speed_part", MetricKind::PeakSpeed, plan.x, n);
+    part("peak_effort_part", MetricKind::PeakEffort, plan.actuator_effort, 0);
+  }
   return out;
 }
 

@@ -11,6 +11,14 @@
 /// (inside Fritsch–Carlson's monotone region), s is monotone and C¹ by construction,
 /// s(0) = 0, s(Σd) = Tp exactly; s = 0 before 0 and s = Tp
 /// after Σd. s̈ and s⃛ are piecewise (s̈ may jump at the knots).
+///
+/// The second form (TimeLawForm::knot_speeds, `time_law: {task_duration, knot_speeds}`) is the
+/// TOPP-RA discretisation: the same K equal parts of task time, the task speed ṡ = v_i given at
+/// the knots τ_i = i·Tp/K (0 < i < K; v_0 = v_K = 0, rest to rest) and s̈ constant on each part,
+///   a_i = (v_{i+1}² − v_i²)/(2Δτ),   part duration δ_i = 2Δτ/(v_i + v_{i+1}),
+/// so s is piecewise quadratic, C¹, monotone (ṡ between v_i and v_{i+1} ≥ 0) and
+/// s(δ_0 + … + δ_{K−1}) = Tp by construction; s̈ may jump at every knot (bang-bang profiles are
+/// represented exactly up to the knot grid) and s⃛ = 0.
 /// time_law_function(f, law) is f(s(t)) with exact derivatives by the chain rule.
 
 #include "refdyn/expression/symbolic_form.hpp"
@@ -26,25 +34,41 @@ struct TimeLawValue {
   double s = 0, ds = 0, dds = 0, ddds = 0;  ///< s(t), ṡ, s̈, s⃛
 };
 
+enum class TimeLawForm {
+  segments,     ///< the real duration d_i of each part (cubic Hermite s)
+  knot_speeds,  ///< the task speed v_i at the inner knots (piecewise quadratic s, TOPP-RA)
+};
+
 class TimeLaw {
  public:
   /// Throws Error for task_duration ≤ 0, no segments, or a segment ≤ 0 or not finite.
   TimeLaw(Number task_duration, std::vector<Number> segments);
+  /// form segments: as above; form knot_speeds: `values` are v_1 … v_{K−1} (K − 1 ≥ 1 of them),
+  /// each > 0 and finite (Error otherwise).
+  TimeLaw(TimeLawForm form, Number task_duration, std::vector<Number> values);
+  TimeLawForm form() const { return form_; }
   TimeLawValue eval(double t) const;
   double task_duration() const { return Tp_; }
   double end_time() const { return knots_.back(); }  ///< Σ d_i
-  int segments() const { return static_cast<int>(d_.size()); }
+  int segments() const { return static_cast<int>(knots_.size()) - 1; }  ///< K (both forms)
   const std::vector<double>& knots() const { return knots_; }  ///< t_0 = 0, t_1, …, t_K
-  /// Knot slope m_i (i = 0..K).
+  /// Knot slope m_i = ṡ(t_i) (i = 0..K); for the knot_speeds form v_i.
   double slope(int i) const { return m_[i]; }
-  /// s(t) as a text of the expression language in t: a chain of if(t < t_i, cubic_i, …) with the
-  /// durations and Tp written as their scenario texts (parameter names stay symbols).
+  /// s(t) as a text of the expression language in t: a chain of if(t < t_i, piece_i, …) with the
+  /// durations (or knot speeds) and Tp written as their scenario texts (parameter names stay
+  /// symbols); for knot_speeds the knot times t_i are written as sums of 2Δτ/(v_j + v_{j+1}).
   std::string symbolic_text() const;
+  /// The text of end_time(): d1 + … + dK, or Σ 2Δτ/(v_i + v_{i+1}) (scenario texts kept).
+  std::string end_text() const;
   bool has_texts() const;
 
  private:
+  /// t_i (i = 0..K) as a text
+  std::string knot_text(size_t i) const;
+
+  TimeLawForm form_ = TimeLawForm::segments;
   Number Tp_;
-  std::vector<Number> d_;
+  std::vector<Number> d_;  ///< segments: d_1 … d_K; knot_speeds: v_1 … v_{K−1}
   std::vector<double> knots_, m_;
 };
 using TimeLawPtr = std::shared_ptr<const TimeLaw>;

@@ -91,6 +91,9 @@ struct Problem {
   Eigen::VectorXd initial_dq, initial_dqd;  ///< the projection's correction (zeros if none)
   IntegratorOptions integrator;
   double residual_from = 0.0;               ///< report max residual over t >= this
+  /// The knot times t_0 = 0, t_1, …, t_K of the scenario's time law (empty: none); the parts
+  /// of the per-part metrics (simulate/metrics.hpp).
+  std::vector<double> time_law_knots;
   /// The plan stops (status ResidualExceeded, exit 4) at the first sample with t >= residual_from
   /// whose constraint residual max |Phi| exceeds this: beyond it the plan no longer meets its
   /// task (`integrator.residual_tolerance`, docs/scenario.md).

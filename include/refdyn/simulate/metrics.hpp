@@ -13,6 +13,10 @@
 ///   final_q(j), final_qd(j) q_j and q̇_j at the last sample
 ///   effort_energy          ∫ τᵀτ dt (trapezoid over the samples) [N² m² s]
 ///   max_residual           the largest constraint residual max |Φ| after residual_from
+/// With the knot times t_0 < t_1 < … < t_K of a time law (Problem::time_law_knots), per part
+/// i = 1…K the peaks over the samples with t_{i−1} ≤ t ≤ t_i (the nearest sample when the part
+/// holds none):
+///   peak_speed_part<i>(j), peak_effort_part<i>(j)   e.g. peak_effort_part3(q1)
 #include "refdyn/simulate/trajectory.hpp"
 #include "refdyn/multibody/model.hpp"
 
@@ -36,9 +40,12 @@ struct Metric {
 
 /// Every metric of `plan` (all kinds, every joint of `model`), in the order above per joint.
 /// `residual_from`: the plan's residual window. Throws Error for an empty plan.
-std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double residual_from = 0.0);
+/// `part_knots`: the time law's knot times (empty: no per-part metrics).
+std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double residual_from = 0.0,
+                                 const std::vector<double>& part_knots = {});
 
-/// The metric names plan_metrics gives for `model` (for "did you mean" before any plan).
-std::vector<std::string> metric_names(const Model& model);
+/// The metric names plan_metrics gives for `model` (for "did you mean" before any plan), with
+/// the per-part metrics of `parts` parts.
+std::vector<std::string> metric_names(const Model& model, int parts = 0);
 
 }  // namespace refdyn
