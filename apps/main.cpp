@@ -95,7 +95,7 @@ void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   c.optimize->add_option("file", a.file, "Scenario file (YAML) with an optimize: section")->required();
   c.optimize->add_option("-o,--output", a.out_dir, "Output folder")->capture_default_str();
   c.optimize->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
-  c.optimize->add_option("--method", a.method, "slsqp | mma | cobyla | bobyqa (default: the scenario's optimize.method)");
+  c.optimize->add_option("--method", a.method, "slsqp | mma | cobyla | bobyqa | phase_plane (default: the scenario's optimize.method)");
   c.optimize->add_option("--budget", a.budget, "Most plan evaluations (default: the scenario's optimize.budget)")
       ->check(CLI::PositiveNumber);
   add_input_options(c.optimize, a);

@@ -584,7 +584,7 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
     }
   }
   if (const SpecValue& m = op["method"]) {
-    o.method = c.choice(m, "optimize.method", {"slsqp", "mma", "cobyla", "bobyqa"});
+    o.method = c.choice(m, "optimize.method", {"slsqp", "mma", "cobyla", "bobyqa", "phase_plane"});
     o.method_value = m;
   }
   if (const SpecValue& t = op["tolerance"]) {

@@ -5,6 +5,8 @@
 #include "refdyn/common/text.hpp"
 #include "refdyn/io/csv.hpp"
 #include "refdyn/io/variants.hpp"
+#include "refdyn/optimize/phase_plane.hpp"
+#include "refdyn/expression/time_law.hpp"
 #include "refdyn/simulate/metrics.hpp"
 #include "refdyn/symbolic/sensitivity.hpp"
 
@@ -21,7 +23,7 @@
 namespace refdyn {
 
 namespace {
-const std::vector<std::string> kMethods{"slsqp", "mma", "cobyla", "bobyqa"};
+const std::vector<std::string> kMethods{"slsqp", "mma", "cobyla", "bobyqa", "phase_plane"};
 }
 
 const char* to_string(OptimizeMethod m) {
@@ -30,6 +32,7 @@ const char* to_string(OptimizeMethod m) {
     case OptimizeMethod::Mma: return "mma";
     case OptimizeMethod::Cobyla: return "cobyla";
     case OptimizeMethod::Bobyqa: return "bobyqa";
+    case OptimizeMethod::PhasePlane: return "phase_plane";
   }
   return "?";
 }
@@ -37,7 +40,7 @@ const char* to_string(OptimizeMethod m) {
 OptimizeMethod optimize_method(const std::string& name) {
   for (size_t i = 0; i < kMethods.size(); ++i)
     if (kMethods[i] == name) return static_cast<OptimizeMethod>(i);
-  throw Error("unknown optimization method '" + name + "' (expected one of slsqp, mma, cobyla, bobyqa)" +
+  throw Error("unknown optimization method '" + name + "' (expected one of slsqp, mma, cobyla, bobyqa, phase_plane)" +
               did_you_mean(name, kMethods));
 }
 
@@ -352,6 +355,138 @@ class Evaluator {
   std::map<std::vector<double>, size_t> cache_;
 };
 
+std::string trimmed(const std::string& t) {
+  const size_t a = t.find_first_not_of(" \t"), b = t.find_last_not_of(" \t");
+  return a == std::string::npos ? std::string() : t.substr(a, b - a + 1);
+}
+
+/// method: phase_plane (optimize/phase_plane.hpp). Checks that the section asks what it answers,
+/// plans the task in its own time (no law, t1 = task_duration, the initial velocity projected),
+/// runs TOPP-RA on the law's knots and plans the answer. When refdyn's plan of the answer exceeds
+/// a limit (between the path samples the limits were imposed at, or by the integration error
+/// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
+/// again (at most 8 times). Every plan is a row of the history.
+std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev) {
+  const OptimizeSpec& o = *spec.optimize;
+  const SpecReader c = parameter_reader(spec);
+  const SpecValue& tl = spec.time_law;
+  if (!tl.is_map() || !tl["knot_speeds"])
+    c.fail(o.method_value, "optimize.method",
+           "phase_plane retimes a time law of the knot_speeds form (time_law: {task_duration, knot_speeds: [v1, …]}), "
+           "and this scenario has " + std::string(tl ? "the segments form" : "no time_law") + " (docs/optimize.md)");
+  if (o.maximize || trimmed(o.objective) != "t_end")
+    c.fail(o.objective_value, "optimize.objective",
+           "phase_plane minimizes t_end (the end of the time law), not '" + o.objective + "'; for another objective use slsqp or cobyla");
+  if (!o.feasible)
+    c.fail(o.value["constraints"] ? o.value["constraints"] : o.method_value, "optimize.constraints",
+           "phase_plane needs constraints: {feasible: true}: the joints' effort and speed limits are what it retimes against");
+  if (!o.bounds.empty())
+    c.fail(o.bounds[0].value, o.bounds[0].key,
+           "phase_plane takes no bounds on metrics, only the joints' limits (feasible: true); use slsqp or cobyla");
+  const SpecValue& ks = tl["knot_speeds"];
+  const size_t K = ks.size() + 1;
+  std::vector<size_t> var_of(ks.size());
+  std::vector<bool> used(s.variables.size(), false);
+  for (size_t i = 0; i < ks.size(); ++i) {
+    const std::string name = trimmed(ks[i].text);
+    const auto it = std::find(s.variables.begin(), s.variables.end(), name);
+    if (it == s.variables.end())
+      c.fail(ks[i], "time_law.knot_speeds[" + std::to_string(i) + "]",
+             "phase_plane chooses every knot speed, and '" + ks[i].text +
+                 "' is not a variable of optimize.variables (hint: make it a parameter and add - {name: " + name +
+                 ", lower: 0.01, upper: 10})");
+    var_of[i] = static_cast<size_t>(it - s.variables.begin());
+    used[var_of[i]] = true;
+  }
+  for (size_t k = 0; k < used.size(); ++k)
+    if (!used[k])
+      c.fail(o.variables[k].value["name"], o.variables[k].key + ".name",
+             "phase_plane chooses only the knot speeds of the time law, and '" + s.variables[k] + "' is not one of them");
+  const SpecValue& Tp = tl["task_duration"];
+  for (const auto& v : s.variables)
+    if (uses_identifier(Tp.text, v))
+      c.fail(Tp, "time_law.task_duration", "phase_plane keeps the task's own duration: it must not use the variable '" + v + "'");
+
+  // The task in its own time.
+  ScenarioSpec own = spec_at(spec, s.variables, s.start);
+  own.time_law = SpecValue{};
+  own.integrator.t1 = SpecValue::scalar(Tp.text, Tp.where);
+  own.initial.project = true;
+  std::unique_ptr<Problem> problem;
+  Plan plan;
+  try {
+    problem = build_problem(own);
+    auto planner = problem->make_planner();
+    plan = plan_problem(*problem, *planner);
+  } catch (const Error& e) {
+    throw Error(spec.file + ": optimize.method: phase_plane plans the task in its own time (no time law) and that failed: " + e.what());
+  }
+  if (!plan.summary.ok())
+    throw Error(spec.file + ": optimize.method: phase_plane plans the task in its own time (no time law) and that plan " +
+                to_string(plan.summary.status) + ": " + plan.summary.message);
+  const Model& m = problem->model;
+  if (plan.phi.empty() || plan.phi.front().size() < m.nq)
+    c.fail(o.method_value, "optimize.method",
+           "phase_plane needs a path fixed by the constraints (as many rows as coordinates), and here " +
+               std::to_string(plan.phi.empty() ? 0 : plan.phi.front().size()) + " rows leave " + std::to_string(m.nq) +
+               " coordinates free; use slsqp or cobyla");
+  PathDynamics path;
+  try {
+    path = path_dynamics(m, plan);
+  } catch (const Error& e) {
+    c.fail(o.method_value, "optimize.method", e.what());
+  }
+  PhasePlaneLimits limits{Eigen::VectorXd(m.nq), Eigen::VectorXd(m.nq)};
+  bool any = false;
+  for (int j = 0; j < m.nq; ++j) {
+    limits.effort[j] = m.limits[static_cast<size_t>(j)].effort;
+    limits.speed[j] = m.limits[static_cast<size_t>(j)].velocity;
+    any = any || std::isfinite(limits.effort[j]) || std::isfinite(limits.speed[j]);
+  }
+  if (!any)
+    c.fail(o.method_value, "optimize.method",
+           "phase_plane retimes against the joints' effort and speed limits, and no joint has one (model: limits: {effort, velocity})");
+  std::vector<double> lo(K + 1, 0.0), hi(K + 1, 0.0);
+  for (size_t i = 0; i < var_of.size(); ++i) {
+    lo[i + 1] = s.lower[var_of[i]] > 0 ? s.lower[var_of[i]] * s.lower[var_of[i]] : 0.0;
+    hi[i + 1] = s.upper[var_of[i]] * s.upper[var_of[i]];
+  }
+  const double task = path.tau.back() - path.tau.front();
+  double mu = 1, first = 0;
+  for (int round = 0;; ++round) {
+    const PhasePlaneLimits L{limits.effort * mu, limits.speed * mu};
+    std::vector<double> x;
+    try {
+      x = phase_plane_knot_law(path, static_cast<int>(K), L, lo, hi);
+    } catch (const Error& e) {
+      return std::string("phase plane: ") + e.what();
+    }
+    if (round == 0) first = knot_law_duration(x, task);
+    std::vector<double> v(s.variables.size());
+    for (size_t i = 0; i < var_of.size(); ++i)
+      v[var_of[i]] = std::clamp(std::sqrt(x[i + 1]), s.lower[var_of[i]], s.upper[var_of[i]]);
+    const OptimizeEvaluation& r = ev.at(v.data()).row;
+    const std::string head = "phase plane (TOPP-RA) on " + std::to_string(K) + " parts, limits imposed at " +
+                             std::to_string(path.tau.size()) + " path samples: the fastest law " + fmt(first) + " s";
+    if (r.feasible)
+      return head + (mu < 1 ? "; refdyn's plan of it exceeded the limits, so they were lowered to " + fmt(mu) +
+                                  " of the joints' (" + std::to_string(round + 1) + " plans): " + fmt(r.objective) + " s"
+                            : "; refdyn's plan of it is within the limits");
+    if (!r.ok) return head + "; its plan failed: " + r.reason;
+    double excess = 0;
+    for (size_t i = 0; i < s.constraints.size(); ++i) {
+      const OptimizeConstraint& cn = s.constraints[i];
+      if (cn.metric.rfind("peak_", 0) == 0) excess = std::max(excess, r.constraints[i]);
+      else if (r.constraints[i] > 0)
+        return head + "; the path itself leaves the range of a joint (" + cn.name + "): no time law keeps it within";
+    }
+    if (round == 8 || !(excess > 0))
+      return head + "; refdyn's plan of it still exceeds a limit by " + fmt(100 * excess) + " % after " +
+             std::to_string(round + 1) + " plans";
+    mu *= 1 - excess - 1e-4;
+  }
+}
+
 const char* result_name(nlopt::result r) {
   switch (r) {
     case nlopt::SUCCESS: return "success";
@@ -366,32 +501,15 @@ const char* result_name(nlopt::result r) {
   }
 }
 
-}  // namespace
-
-OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  OptimizeResult out;
-  {
-    const auto base = build_problem(spec_at(spec, {}, {}));
-    out.setup = check_optimize(spec, *base);
-  }
-  if (!options.method.empty()) try {
-      out.setup.method = optimize_method(options.method);
-    } catch (const Error& e) {
-      throw Error(std::string("--method: ") + e.what());
-    }
-  OptimizeSetup& s = out.setup;
-  if (options.budget > 0) s.budget = options.budget;
-  const unsigned n = static_cast<unsigned>(s.variables.size());
-  const unsigned m = static_cast<unsigned>(s.constraints.size());
-  Evaluator ev(spec, s, options, s.budget);
-
+/// The NLopt optimizer of the method, bounds, tolerances, budget, objective and constraints.
+nlopt::opt make_nlopt(const OptimizeSetup& s, unsigned n, unsigned m, Evaluator& ev) {
   nlopt::algorithm alg = nlopt::LD_SLSQP;
   switch (s.method) {
     case OptimizeMethod::Slsqp: alg = nlopt::LD_SLSQP; break;
     case OptimizeMethod::Mma: alg = nlopt::LD_MMA; break;
     case OptimizeMethod::Cobyla: alg = nlopt::LN_COBYLA; break;
     case OptimizeMethod::Bobyqa: alg = m ? nlopt::AUGLAG : nlopt::LN_BOBYQA; break;
+    case OptimizeMethod::PhasePlane: break;  // not NLopt (run_phase_plane)
   }
   nlopt::opt opt(alg, n);
   if (alg == nlopt::AUGLAG) {  // BOBYQA has no nonlinear constraints: the augmented Lagrangian around it
@@ -416,18 +534,47 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
           static_cast<Evaluator*>(data)->constraints(mm, result, nn, x, grad);
         },
         &ev, std::vector<double>(m, 0.0));
+  return opt;
+}
+
+}  // namespace
+
+OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  OptimizeResult out;
+  {
+    const auto base = build_problem(spec_at(spec, {}, {}));
+    out.setup = check_optimize(spec, *base);
+  }
+  if (!options.method.empty()) try {
+      out.setup.method = optimize_method(options.method);
+    } catch (const Error& e) {
+      throw Error(std::string("--method: ") + e.what());
+    }
+  OptimizeSetup& s = out.setup;
+  if (options.budget > 0) s.budget = options.budget;
+  const unsigned n = static_cast<unsigned>(s.variables.size());
+  const unsigned m = static_cast<unsigned>(s.constraints.size());
+  Evaluator ev(spec, s, options, s.budget);
+
 
   OptimizeSummary& sum = out.summary;
   sum.method = to_string(s.method);
   sum.maximize = s.maximize;
   sum.variables = s.variables;
   for (const auto& c : s.constraints) sum.constraint_names.push_back(c.name);
-  std::vector<double> x = s.start;
-  double f = 0;
   nlopt::result res = nlopt::FAILURE;
   try {
-    res = opt.optimize(x, f);
-    sum.message = "NLopt: " + std::string(result_name(res));
+    if (s.method == OptimizeMethod::PhasePlane) {
+      sum.message = run_phase_plane(spec, s, ev);
+      res = nlopt::SUCCESS;  // failure when no plan of it is feasible (below)
+    } else {
+      nlopt::opt opt = make_nlopt(s, n, m, ev);
+      std::vector<double> x = s.start;
+      double f = 0;
+      res = opt.optimize(x, f);
+      sum.message = "NLopt: " + std::string(result_name(res));
+    }
   } catch (const nlopt::forced_stop&) {
     res = nlopt::FORCED_STOP;
   } catch (const nlopt::roundoff_limited&) {
@@ -458,6 +605,7 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
     if (!best || (s.maximize ? r.objective > best->objective : r.objective < best->objective)) best = &r;
   }
   sum.feasible = best != nullptr;
+  if (s.method == OptimizeMethod::PhasePlane && !sum.feasible && sum.status == "success") sum.status = "failure";
   if (!best) {
     double least = std::numeric_limits<double>::infinity();
     for (const auto& r : sum.history) {

@@ -10,7 +10,8 @@
 /// secants δ_i = Δτ/d_i (Fritsch–Carlson). Since then m_{i−1}/δ_i ≤ 3 and m_i/δ_i ≤ 3 on every part
 /// (inside Fritsch–Carlson's monotone region), s is monotone and C¹ by construction,
 /// s(0) = 0, s(Σd) = Tp exactly; s = 0 before 0 and s = Tp
-/// after Σd. s̈ and s⃛ are piecewise (s̈ may jump at the knots).
+/// after Σd. s̈ and s⃛ are piecewise (s̈ may jump at the knots; at a knot the part after it is
+/// taken, except at the end Σd, where the last part's left limit is: the final deceleration).
 ///
 /// The second form (TimeLawForm::knot_speeds, `time_law: {task_duration, knot_speeds}`) is the
 /// TOPP-RA discretisation: the same K equal parts of task time, the task speed ṡ = v_i given at

@@ -24,9 +24,10 @@
 
 namespace refdyn {
 
-enum class OptimizeMethod { Slsqp, Mma, Cobyla, Bobyqa };
+/// PhasePlane: the fastest knot-speed time law by TOPP-RA (optimize/phase_plane.hpp), no NLopt.
+enum class OptimizeMethod { Slsqp, Mma, Cobyla, Bobyqa, PhasePlane };
 const char* to_string(OptimizeMethod m);
-/// "slsqp" | "mma" | "cobyla" | "bobyqa"; Error otherwise (with "did you mean").
+/// "slsqp" | "mma" | "cobyla" | "bobyqa" | "phase_plane"; Error otherwise (with "did you mean").
 OptimizeMethod optimize_method(const std::string& name);
 /// Gradient-based (needs the plan's sensitivities).
 inline bool uses_gradients(OptimizeMethod m) { return m == OptimizeMethod::Slsqp || m == OptimizeMethod::Mma; }
