@@ -106,7 +106,11 @@ int run_optimize(const std::string& file, const std::string& out_dir, bool quiet
   if (!quiet) {
     std::printf("optimize '%s' (%s): %s, %ld plans, %.3f s\n", spec.name.c_str(), s.method.c_str(), s.status.c_str(),
                 s.evaluations, s.wall_time);
-    for (size_t i = 0; i < s.variables.size(); ++i) std::printf("  %s = %s\n", s.variables[i].c_str(), fmt(s.best_x[i]).c_str());
+    const size_t shown = s.variables.size() <= 12 ? s.variables.size() : 8;  // a long list: optimized.yaml has it
+    for (size_t i = 0; i < shown; ++i) std::printf("  %s = %s\n", s.variables[i].c_str(), fmt(s.best_x[i]).c_str());
+    if (shown < s.variables.size())
+      std::printf("  … and %zu more variables (optimized.yaml)\n", s.variables.size() - shown);
+    if (!s.message.empty()) std::printf("  %s\n", s.message.c_str());
     std::printf("  objective = %s (feasible)\nresults in %s (optimized.yaml, optimization.csv, plan.csv, feasibility.json, "
                 "summary.json)\n", fmt(s.best_objective).c_str(), out_dir.c_str());
   }

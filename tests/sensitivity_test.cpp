@@ -157,6 +157,34 @@ TEST(Sensitivity, FinalTimeWrittenWithAParameterMovesEverySample) {
   check_against_differences(y, {"T"});
 }
 
+// The two routes to each RK4 stage's q̈, ż and λ: the plan's stored stages (plan.stages, the
+// fast route) and evaluating the reference dynamics again (a plan without them): the same
+// sensitivities (bit for bit here: the same stage states and the same arithmetic).
+TEST(Sensitivity, StoredStagesGiveWhatEvaluatingTheDynamicsGives) {
+  const Planned p = plan_with(io::parse_scenario(paper_with_duration(), "p.yaml"));
+  ASSERT_GT(p.plan.stages.extra_size, 0);
+  ASSERT_EQ(p.plan.stages.extra.size(), static_cast<size_t>(p.plan.stages.steps) * 4 * p.plan.stages.extra_size);
+  SensitivityOptions o;
+  o.parameters = {"Td", "dz"};
+  (void)plan_sensitivity(*p.problem, p.plan, o);  // compiles the tapes (not timed below)
+  const PlanSensitivity fast = plan_sensitivity(*p.problem, p.plan, o);
+  Plan without = p.plan;
+  without.stages.extra.clear();
+  without.stages.extra_size = 0;
+  const PlanSensitivity slow = plan_sensitivity(*p.problem, without, o);
+  ASSERT_EQ(fast.t.size(), slow.t.size());
+  ASSERT_EQ(fast.t.size(), p.plan.t.size());
+  double worst = 0;
+  for (size_t k = 0; k < fast.t.size(); ++k) {
+    const double scale = 1 + slow.dx[k].cwiseAbs().maxCoeff();
+    worst = std::max(worst, (fast.dx[k] - slow.dx[k]).cwiseAbs().maxCoeff() / scale);
+    worst = std::max(worst, (fast.deffort[k] - slow.deffort[k]).cwiseAbs().maxCoeff() / (1 + slow.deffort[k].cwiseAbs().maxCoeff()));
+  }
+  std::printf("stored stages against evaluated dynamics: worst relative difference %.3g over %zu samples (%.3f s vs %.3f s)\n",
+              worst, fast.t.size(), fast.seconds, slow.seconds);
+  EXPECT_LT(worst, 1e-9);
+}
+
 TEST(Sensitivity, BadRequestsAreRefusedWithAHint) {
   const ScenarioSpec spec = io::parse_scenario(paper_with_duration(), "p.yaml");
   const Planned base = plan_with(spec);

@@ -366,13 +366,17 @@ std::string trimmed(const std::string& t) {
 /// a limit (between the path samples the limits were imposed at, or by the integration error
 /// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
 /// again (at most 8 times). Every plan is a row of the history.
-std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev) {
+std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli) {
   const OptimizeSpec& o = *spec.optimize;
   const SpecReader c = parameter_reader(spec);
+  // What is wrong with the method: located at optimize.method, or said of --method.
+  auto fail_method = [&](const std::string& msg) {
+    if (from_cli) throw Error("--method phase_plane: " + msg);
+    c.fail(o.method_value, "optimize.method", msg);
+  };
   const SpecValue& tl = spec.time_law;
   if (!tl.is_map() || !tl["knot_speeds"])
-    c.fail(o.method_value, "optimize.method",
-           "phase_plane retimes a time law of the knot_speeds form (time_law: {task_duration, knot_speeds: [v1, …]}), "
+    fail_method("phase_plane retimes a time law of the knot_speeds form (time_law: {task_duration, knot_speeds: [v1, …]}), "
            "and this scenario has " + std::string(tl ? "the segments form" : "no time_law") + " (docs/optimize.md)");
   if (o.maximize || trimmed(o.objective) != "t_end")
     c.fail(o.objective_value, "optimize.objective",
@@ -419,22 +423,21 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
     auto planner = problem->make_planner();
     plan = plan_problem(*problem, *planner);
   } catch (const Error& e) {
-    throw Error(spec.file + ": optimize.method: phase_plane plans the task in its own time (no time law) and that failed: " + e.what());
+    fail_method(std::string("phase_plane plans the task in its own time (no time law) and that failed: ") + e.what());
   }
   if (!plan.summary.ok())
-    throw Error(spec.file + ": optimize.method: phase_plane plans the task in its own time (no time law) and that plan " +
+    fail_method(std::string("phase_plane plans the task in its own time (no time law) and that plan ") +
                 to_string(plan.summary.status) + ": " + plan.summary.message);
   const Model& m = problem->model;
   if (plan.phi.empty() || plan.phi.front().size() < m.nq)
-    c.fail(o.method_value, "optimize.method",
-           "phase_plane needs a path fixed by the constraints (as many rows as coordinates), and here " +
+    fail_method("phase_plane needs a path fixed by the constraints (as many rows as coordinates), and here " +
                std::to_string(plan.phi.empty() ? 0 : plan.phi.front().size()) + " rows leave " + std::to_string(m.nq) +
                " coordinates free; use slsqp or cobyla");
   PathDynamics path;
   try {
     path = path_dynamics(m, plan);
   } catch (const Error& e) {
-    c.fail(o.method_value, "optimize.method", e.what());
+    fail_method(e.what());
   }
   PhasePlaneLimits limits{Eigen::VectorXd(m.nq), Eigen::VectorXd(m.nq)};
   bool any = false;
@@ -444,8 +447,7 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
     any = any || std::isfinite(limits.effort[j]) || std::isfinite(limits.speed[j]);
   }
   if (!any)
-    c.fail(o.method_value, "optimize.method",
-           "phase_plane retimes against the joints' effort and speed limits, and no joint has one (model: limits: {effort, velocity})");
+    fail_method("phase_plane retimes against the joints' effort and speed limits, and no joint has one (model: limits: {effort, velocity})");
   std::vector<double> lo(K + 1, 0.0), hi(K + 1, 0.0);
   for (size_t i = 0; i < var_of.size(); ++i) {
     lo[i + 1] = s.lower[var_of[i]] > 0 ? s.lower[var_of[i]] * s.lower[var_of[i]] : 0.0;
@@ -566,7 +568,7 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
   nlopt::result res = nlopt::FAILURE;
   try {
     if (s.method == OptimizeMethod::PhasePlane) {
-      sum.message = run_phase_plane(spec, s, ev);
+      sum.message = run_phase_plane(spec, s, ev, !options.method.empty());
       res = nlopt::SUCCESS;  // failure when no plan of it is feasible (below)
     } else {
       nlopt::opt opt = make_nlopt(s, n, m, ev);

@@ -121,13 +121,15 @@ class PlanRecorder {
 /// stage s of step k is stored at (4k + s) · 3n, whatever the call order.
 class StageRecorder {
  public:
-  StageRecorder(ReferenceStages& st, const IntegratorOptions& o, int n)
-      : st_(st), on_(o.method == IntegratorMethod::RK4), per_stage_(3 * static_cast<size_t>(n)) {
+  StageRecorder(ReferenceStages& st, const IntegratorOptions& o, int n, int extra = 0)
+      : st_(st), on_(o.method == IntegratorMethod::RK4), per_stage_(3 * static_cast<size_t>(n)),
+        extra_(static_cast<size_t>(extra)) {
     if (!on_) return;
     const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
     st_.t0 = o.t0;
     st_.h = (o.t1 - o.t0) / nsteps;
     st_.n = n;
+    st_.extra_size = extra;
   }
   bool on() const { return on_; }
   /// Where this stage's 3n values go (grows the storage as needed).
@@ -136,18 +138,27 @@ class StageRecorder {
     if (st_.data.size() < at + per_stage_) st_.data.resize(std::max(at + per_stage_, 2 * st_.data.size()));
     return st_.data.data() + at;
   }
+  /// Where this stage's extra values go ([ż, λ]; null when none are kept).
+  double* extra_slot(const Stage& stage) {
+    if (extra_ == 0) return nullptr;
+    const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * extra_;
+    if (st_.extra.size() < at + extra_) st_.extra.resize(std::max(at + extra_, 2 * st_.extra.size()));
+    return st_.extra.data() + at;
+  }
   /// Keeps the stages of the steps the plan kept.
   void finish(long steps) {
     if (!on_) return;
     st_.steps = steps;
     st_.data.resize(static_cast<size_t>(steps) * 4 * per_stage_);
     st_.data.shrink_to_fit();
+    st_.extra.resize(static_cast<size_t>(steps) * 4 * extra_);
+    st_.extra.shrink_to_fit();
   }
 
  private:
   ReferenceStages& st_;
   bool on_;
-  size_t per_stage_;
+  size_t per_stage_, extra_;
 };
 
 /// A run that stopped on a singular or ill-conditioned system: whether the constraint Jacobian A
@@ -261,13 +272,19 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   const int n = rd.nq();
   Plan plan;
   PlanRecorder recorder(rd, plan, record);
-  StageRecorder stages(plan.stages, options, n);
+  const int nz = rd.num_force_states(), m = rd.num_constraints();
+  StageRecorder stages(plan.stages, options, n, nz + m);
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
     rd.derivative(t, x, dx);
     if (stages.on()) {
       double* s = stages.slot(stage);
       std::copy(x.data(), x.data() + 2 * n, s);
       std::copy(dx.data() + n, dx.data() + 2 * n, s + 2 * n);
+      if (double* e = stages.extra_slot(stage)) {
+        std::copy(dx.data() + 2 * n, dx.data() + 2 * n + nz, e);
+        const Eigen::VectorXd& lam = rd.lambda();
+        for (int r = 0; r < m; ++r) e[nz + r] = r < lam.size() ? lam[r] : 0.0;
+      }
     }
   };
   double worst = 0;

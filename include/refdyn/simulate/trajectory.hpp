@@ -18,6 +18,12 @@ struct ReferenceStages {
   int n = 0;
   std::vector<double> data;        ///< per step, per stage (4), [q̂, q̂̇, q̂̈] (3n doubles)
   const double* stage(long step, int s) const { return data.data() + ((step * 4 + s) * 3 * n); }
+  /// Per step, per stage, [ż, λ] (extra_size = nz + m doubles; plans of acceleration-level
+  /// problems, else 0): with `data`, everything the sensitivities (symbolic/sensitivity.hpp) need
+  /// of a stage, so that they do not evaluate the reference dynamics again.
+  int extra_size = 0;
+  std::vector<double> extra;
+  const double* stage_extra(long step, int s) const { return extra.data() + ((step * 4 + s) * extra_size); }
 };
 
 /// A recorded motion, one entry per output sample. What is recorded depends on the recorder:
