@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -183,6 +185,63 @@ TEST(Sensitivity, StoredStagesGiveWhatEvaluatingTheDynamicsGives) {
   std::printf("stored stages against evaluated dynamics: worst relative difference %.3g over %zu samples (%.3f s vs %.3f s)\n",
               worst, fast.t.size(), fast.seconds, slow.seconds);
   EXPECT_LT(worst, 1e-9);
+}
+
+// Under a time law the knots move with the knot speeds, and s̈ jumps there: the derivative of
+// the state gets the jump term (f⁻ − f⁺) ∂t_k/∂p at every knot. A rotor turned through Θ by
+// q = Θ s(t)/Tp on a 4-part knot-speed law has a closed form: q(t) = Θ s(t)/Tp, q̇ = Θ ṡ/Tp, with
+// s piecewise quadratic through the knots; its derivative in v_j at the grid's moving sample
+// times t_j(p) (t1 = end moves them) is differentiated here (central differences of the closed
+// form, which is smooth in p) and compared with the plan's sensitivities.
+TEST(Sensitivity, UnderAKnotSpeedLawTheMovingKnotsAreFollowed) {
+  const std::string yaml =
+      "name: rotor\nparameters:\n  Theta: 2\n  Tp: 1\n  v1: 0.9\n  v2: 1.6\n  v3: 1.1\n"
+      "model:\n  gravity: [0, 0, -9.81]\n  links:\n"
+      "    - {name: arm, joint: q1, parent: base, type: revolute, axis: [0, 0, 1], mass: 3, com: [0.25, 0, 0],\n"
+      "       inertia: [0.001, 0.0625, 0.0625]}\n"
+      "constraints:\n  - {name: turn, kind: joint_trajectory, joint: q1, function: Theta*t/Tp}\n"
+      "time_law: {task_duration: Tp, knot_speeds: [v1, v2, v3]}\n"
+      "partition:\n  independent: []\n"
+      "baumgarte: {alpha: 100, beta: 50}\n"
+      "initial:\n  q: {q1: 0}\n  qd: {q1: 0}\n"
+      "integrator: {method: rk4, step: 1e-4, t0: 0, t1: end}\n";
+  const Planned base = plan_with(io::parse_scenario(yaml, "rotor.yaml"));
+  SensitivityOptions opt;
+  opt.parameters = {"v1", "v2", "v3"};
+  const PlanSensitivity s = plan_sensitivity(*base.problem, base.plan, opt);
+  const size_t N = base.plan.t.size() - 1;  // steps (every step is a sample)
+  // The closed form: the state at the j-th grid time t_j = j·t_end/N of the law with speeds v.
+  auto state = [&](const std::array<double, 3>& v3, size_t j) {
+    const double Theta = 2, Tp = 1, dtau = Tp / 4;
+    const double v[5] = {0, v3[0], v3[1], v3[2], 0};
+    double knots[5] = {0, 0, 0, 0, 0};
+    for (int i = 0; i < 4; ++i) knots[i + 1] = knots[i] + 2 * dtau / (v[i] + v[i + 1]);
+    const double t = static_cast<double>(j) * knots[4] / static_cast<double>(N);
+    int i = 0;
+    while (i < 3 && t >= knots[i + 1]) ++i;
+    const double h = t - knots[i], a = (v[i + 1] * v[i + 1] - v[i] * v[i]) / (2 * dtau);
+    const double sv = std::min(Tp, i * dtau + v[i] * h + 0.5 * a * h * h), ds = v[i] + a * h;
+    return Eigen::Vector2d(Theta * sv / Tp, Theta * ds / Tp);
+  };
+  const std::array<double, 3> v0{0.9, 1.6, 1.1};
+  double worst = 0, scale = 0;
+  for (size_t j : {N / 5, N / 3, N / 2, 2 * N / 3, 9 * N / 10, N}) {
+    for (int k = 0; k < 3; ++k) {
+      std::array<double, 3> up = v0, down = v0;
+      const double e = 1e-6;
+      up[static_cast<size_t>(k)] += e;
+      down[static_cast<size_t>(k)] -= e;
+      const Eigen::Vector2d fd = (state(up, j) - state(down, j)) / (2 * e);
+      const Eigen::Vector2d an = s.dx[j].col(k).head(2);
+      worst = std::max(worst, (an - fd).cwiseAbs().maxCoeff());
+      scale = std::max(scale, fd.cwiseAbs().maxCoeff());
+    }
+  }
+  std::printf("rotor on a knot-speed law: worst |∂x/∂v − closed form| = %.3g (largest derivative %.3g)\n", worst, scale);
+  // First order in the step where a knot falls inside one (measured 3e-5 relative at 1e-4 s;
+  // without the jump term 9e-3, and with the knots' absolute motion instead of the motion
+  // relative to the moving grid 1e-2).
+  EXPECT_LT(worst, 2e-4 * scale);
 }
 
 TEST(Sensitivity, BadRequestsAreRefusedWithAHint) {

@@ -808,7 +808,10 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   }
   s->texts.t0 = spec.integrator.t0.text;
   s->texts.t1 = t1_is_end(spec.integrator.t1) && c.time_law ? c.time_law->end_text() : spec.integrator.t1.text;
-  if (c.time_law) s->time_law_knots = c.time_law->knots();
+  if (c.time_law) {
+    s->time_law_knots = c.time_law->knots();
+    for (size_t i = 0; i < s->time_law_knots.size(); ++i) s->time_law_knot_texts.push_back(c.time_law->knot_text(i));
+  }
   build_constraints_and_forces(c, spec, *s);
   if (c.time_law && c.retimed == 0)
     c.fail(spec.time_law, "time_law",

@@ -34,6 +34,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <list>
 #include <mutex>
 #include <numbers>
@@ -504,6 +505,27 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   // The RK4 map x⁺ = x + h/6 (k₁ + 2k₂ + 2k₃ + k₄), stages at t + c h, differentiated as it is,
   // with h = (t1 − t0)/nsteps and the stage times moving when t1 does.
   const Eigen::RowVectorXd dh = out.dt_end / static_cast<double>(nsteps);
+  // The time law's knots inside (t0, t1): there s̈ jumps, and the knots move with the parameters
+  // (∂t_k/∂p from their texts). The RK4 map, differentiated with its stages on their (moving)
+  // grid, does not see a discontinuity move past them; the solution of the ODE does: at a moving
+  // jump of the right-hand side, S⁺ = S⁻ + (f⁻ − f⁺) ∂t_k/∂p (the sensitivity jump condition),
+  // here with the knot's motion relative to the grid's, applied in the step that holds t_k with
+  // the state interpolated there. Without it the derivatives were off by ~1 % on a knot-speed
+  // law (tests/sensitivity_test.cpp, UnderAKnotSpeedLawTheMovingKnotsAreFollowed).
+  struct Knot {
+    double t;
+    Eigen::RowVectorXd dt;
+  };
+  std::vector<Knot> knots;
+  for (size_t i = 0; i < problem.time_law_knots.size() && i < problem.time_law_knot_texts.size(); ++i) {
+    const double tk = problem.time_law_knots[i];
+    if (tk > t0 && tk < o.t1) {
+      Knot kn{tk, text_derivative(problem, problem.time_law_knot_texts[i], D, np)};
+      if (!kn.dt.isZero(0)) knots.push_back(std::move(kn));
+    }
+  }
+  size_t next_knot = 0;
+  Eigen::VectorXd f_before(nx), f_after(nx), xk(nx);
   static constexpr double c[4] = {0.0, 0.5, 0.5, 1.0}, w[4] = {1.0, 2.0, 2.0, 1.0};
   Eigen::MatrixXd Kst[4], Sacc(nx, np);
   Eigen::VectorXd kst[4], xs(nx), xacc(nx);
@@ -530,9 +552,19 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
       xacc += w[st] * kst[st];
       Sacc += w[st] * Kst[st];
     }
+    const double tn = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
+    for (; next_knot < knots.size() && knots[next_knot].t <= tn; ++next_knot) {
+      const Knot& kn = knots[next_knot];
+      if (kn.t <= t) continue;
+      xk = x + ((kn.t - t) / h) * ((h / 6.0) * xacc);  // the state at t_k (linear in the step)
+      rd->derivative(std::nextafter(kn.t, -std::numeric_limits<double>::infinity()), xk, f_before);
+      rd->derivative(kn.t, xk, f_after);
+      // Relative to the grid: the stage times move too (time_rate), and the map's derivative
+      // already follows the solution along them; only the knot's motion past them is a jump.
+      S += (f_before - f_after) * (kn.dt - time_rate(kn.t));
+    }
     x += (h / 6.0) * xacc;
     S += (h / 6.0) * Sacc + (1.0 / 6.0) * xacc * dh;
-    const double tn = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
     sampled = (k + 1) % every == 0 || k + 1 == nsteps;
     if (sampled) record(tn, x, S, k + 1);
   }

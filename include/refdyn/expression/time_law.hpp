@@ -62,10 +62,10 @@ class TimeLaw {
   /// The text of end_time(): d1 + … + dK, or Σ 2Δτ/(v_i + v_{i+1}) (scenario texts kept).
   std::string end_text() const;
   bool has_texts() const;
+  /// t_i (i = 0..K) as a text of the scenario's texts (d1 + d2, or sums of 2Δτ/(v_j + v_{j+1})).
+  std::string knot_text(size_t i) const;
 
  private:
-  /// t_i (i = 0..K) as a text
-  std::string knot_text(size_t i) const;
 
   TimeLawForm form_ = TimeLawForm::segments;
   Number Tp_;
