@@ -15,9 +15,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <numbers>
-#include <sstream>
 #include <string>
 
 using namespace refdyn;
@@ -26,13 +24,6 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string source_path(const std::string& rel) { return std::string(REFDYN_SOURCE_DIR) + "/" + rel; }
-
-std::string slurp(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 std::string replaced(std::string s, const std::string& from, const std::string& to) {
   const size_t at = s.find(from);
@@ -46,7 +37,7 @@ const char* kExample = "examples/planar_2r_circle/retime_speeds.yaml";
 /// The 2R circle of the example planned in its own time (no time law, t1 = Tp, the initial
 /// velocity projected onto the path).
 Plan task_time_plan(std::unique_ptr<Problem>& problem) {
-  std::string yaml = slurp(source_path(kExample));
+  std::string yaml = test::read_file(source_path(kExample));
   yaml = yaml.substr(0, yaml.find("\noptimize:") + 1);
   const size_t a = yaml.find("\ntime_law:"), b = yaml.find("\npartition:");
   yaml = yaml.substr(0, a + 1) + yaml.substr(b + 1);
@@ -172,7 +163,7 @@ TEST(PhasePlaneOptimize, RotorBangBangMatchesTheClosedForm) {
 TEST(PhasePlaneOptimize, RetimedCircleWithin2PercentOfTheTimeOptimum) {
   const double inf = std::numeric_limits<double>::infinity();
   for (double vmax : {inf, 2.5}) {
-    std::string yaml = slurp(source_path(kExample));
+    std::string yaml = test::read_file(source_path(kExample));
     if (std::isfinite(vmax)) yaml = replaced(yaml, "vmax: 100 ", "vmax: " + fmt(vmax) + " ");
     const ScenarioSpec spec = io::parse_scenario(yaml, "retime_speeds.yaml");
     const OptimizeResult r = optimize_scenario(spec);
@@ -221,7 +212,7 @@ TEST(PhasePlaneOptimize, RefusesWhatItCannotRetime) {
   refuse(replaced(ok, "    - {name: v3, lower: 0.01, upper: 100}\n", ""), "v3");
   refuse(replaced(ok, "time_law: {task_duration: Tp, knot_speeds: [v1, v2, v3]}\n",
                   "time_law: {task_duration: Tp, segments: [v1, v2, v3]}\n"), "knot_speeds");
-  const std::string paper = slurp(source_path("examples/paper/duration.yaml"));
+  const std::string paper = test::read_file(source_path("examples/paper/duration.yaml"));
   refuse(replaced(paper, "method: cobyla", "method: phase_plane"), "time_law");
 }
 
@@ -232,11 +223,11 @@ TEST(PhasePlaneOptimize, CliWritesAFeasibleOptimizedScenario) {
   const std::string cmd = std::string(REFDYN_CLI) + " optimize '" + source_path(kExample) + "' -o '" + out.string() + "' -q";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   ASSERT_TRUE(fs::exists(out / "optimized.yaml"));
-  const std::string feas = slurp((out / "feasibility.json").string());
+  const std::string feas = test::read_file((out / "feasibility.json").string());
   EXPECT_NE(feas.find("\"feasible\": true"), std::string::npos) << feas.substr(0, 300);
   const std::string again = (out / "again").string();
   const std::string plan = std::string(REFDYN_CLI) + " plan '" + (out / "optimized.yaml").string() + "' -o '" + again + "' -q";
   EXPECT_EQ(std::system(plan.c_str()), 0) << plan;
-  EXPECT_NE(slurp(again + "/feasibility.json").find("\"feasible\": true"), std::string::npos);
+  EXPECT_NE(test::read_file(again + "/feasibility.json").find("\"feasible\": true"), std::string::npos);
   fs::remove_all(out);
 }

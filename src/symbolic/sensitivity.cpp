@@ -521,7 +521,11 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
     const double tk = problem.time_law_knots[i];
     if (tk > t0 && tk < o.t1) {
       Knot kn{tk, text_derivative(problem, problem.time_law_knot_texts[i], D, np)};
-      if (!kn.dt.isZero(0)) knots.push_back(std::move(kn));
+      if (!kn.dt.isZero(0)) {
+        out.knot_t.push_back(tk);
+        out.knot_dt.push_back(kn.dt - time_rate(tk));
+        knots.push_back(std::move(kn));
+      }
     }
   }
   size_t next_knot = 0;
@@ -602,6 +606,14 @@ Eigen::MatrixXd metric_gradients(const Problem& problem, const Plan& plan, const
           const Eigen::VectorXd &a = plan.actuator_effort[j], &b = plan.actuator_effort[j + 1];
           g += dt * (a.transpose() * s.deffort[j] + b.transpose() * s.deffort[j + 1]);
           g += 0.5 * (a.squaredNorm() + b.squaredNorm()) * dt / (t1 - t0) * s.dt_end;
+        }
+        // A knot moving past the samples moves the jump of |τ|² with it: (|τ⁻|² − |τ⁺|²) times
+        // its motion relative to the grid (the samples on either side; first order in the step).
+        for (size_t q = 0; q < s.knot_t.size(); ++q) {
+          const auto it = std::upper_bound(plan.t.begin(), plan.t.begin() + K, s.knot_t[q]);
+          const long j = static_cast<long>(it - plan.t.begin());
+          if (j <= 0 || j >= K || j >= static_cast<long>(plan.actuator_effort.size())) continue;
+          g += (plan.actuator_effort[j - 1].squaredNorm() - plan.actuator_effort[j].squaredNorm()) * s.knot_dt[q];
         }
         G.row(i) = g;
         break;

@@ -38,3 +38,15 @@ def test_optimize_overrides_and_errors():
         refdyn.optimize(DURATION, method="nelder")
     with pytest.raises(ValueError):
         refdyn.optimize(DURATION, budget=0)
+
+
+def test_phase_plane_retimes_the_circle():
+    """method: phase_plane (docs/optimize.md, "Time-optimal retiming"): the 2R circle's 128-part
+    knot-speed law within the limits, a few plans, the feasible optimum within 2 % of T* = 0.906705 s."""
+    r = refdyn.optimize(SOURCE_DIR / "examples" / "planar_2r_circle" / "retime_speeds.yaml")
+    assert r["method"] == "phase_plane" and r["feasible"] and r["status"] == "success"
+    assert len(r["best"]) == 127 and r["evaluations"] <= 9
+    assert 0.906705 < r["objective"] < 1.02 * 0.906705
+    assert "TOPP-RA" in r["message"]
+    with pytest.raises(refdyn.Error, match="knot_speeds form"):
+        refdyn.optimize(DURATION, method="phase_plane")
