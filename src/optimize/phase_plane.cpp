@@ -61,8 +61,8 @@ struct Row {
 std::vector<Row> part_rows(const PathDynamics& p, double t0, double delta, const PhasePlaneLimits& L) {
   std::vector<Row> rows;
   const double t1 = t0 + delta, eps = 1e-9 * delta;
-  for (size_t k = 0; k < p.tau.size(); ++k) {
-    if (p.tau[k] < t0 - eps || p.tau[k] > t1 + eps) continue;
+  const size_t k0 = static_cast<size_t>(std::lower_bound(p.tau.begin(), p.tau.end(), t0 - eps) - p.tau.begin());
+  for (size_t k = k0; k < p.tau.size() && p.tau[k] <= t1 + eps; ++k) {
     const double l = std::clamp((p.tau[k] - t0) / delta, 0.0, 1.0);
     for (int j = 0; j < p.a[k].size(); ++j) {
       // effort = a (x_{i+1} − x_i)/(2Δ) + b ((1 − l) x_i + l x_{i+1}) + c
