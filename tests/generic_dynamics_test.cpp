@@ -85,6 +85,11 @@ TEST(GenericDynamics, DoubleEqualsTheFastKernels) {
           Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
               mb::mass_matrix(B, P).data(), n, n);
       EXPECT_LE((Mg - M).cwiseAbs().maxCoeff(), 1e-12 * scale_of(M));
+      // the composite-rigid-body algorithm over the same scalar (the generator's M)
+      const Eigen::MatrixXd Mc =
+          Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+              mb::crba(B, P).data(), n, n);
+      EXPECT_LE((Mc - M).cwiseAbs().maxCoeff(), 1e-12 * scale_of(M));
 
       // poses and point kinematics
       forward_kinematics(model, data, q);

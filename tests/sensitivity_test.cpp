@@ -3,11 +3,13 @@
 // a derived parameter and the initial height follow), the waiter tray (acceleration-level row,
 // the swing and its period) and the unicycle (nonholonomic, material and programmed rows, the
 // speed in the initial velocity too). Metrics and the state at samples, relative 1e-5.
+#include "refdyn/common/text.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/scenario/problem.hpp"
 #include "refdyn/simulate/metrics.hpp"
 #include "refdyn/symbolic/sensitivity.hpp"
 #include "test_support.hpp"
+#include "topp_reference.hpp"
 
 #include <gtest/gtest.h>
 
@@ -193,19 +195,23 @@ TEST(Sensitivity, StoredStagesGiveWhatEvaluatingTheDynamicsGives) {
 // s piecewise quadratic through the knots; its derivative in v_j at the grid's moving sample
 // times t_j(p) (t1 = end moves them) is differentiated here (central differences of the closed
 // form, which is smooth in p) and compared with the plan's sensitivities.
+/// A rotor turned by Θ in task time Tp on a time law (`law`: the time_law's form and list over
+/// the parameters v1, v2, v3), rest to rest, ending at the law's end (`t1: end`).
+std::string rotor_on_a_law(const std::string& law, double step = 1e-4) {
+  return "name: rotor\nparameters:\n  Theta: 2\n  Tp: 1\n  v1: 0.9\n  v2: 1.6\n  v3: 1.1\n"
+         "model:\n  gravity: [0, 0, -9.81]\n  links:\n"
+         "    - {name: arm, joint: q1, parent: base, type: revolute, axis: [0, 0, 1], mass: 3, com: [0.25, 0, 0],\n"
+         "       inertia: [0.001, 0.0625, 0.0625]}\n"
+         "constraints:\n  - {name: turn, kind: joint_trajectory, joint: q1, function: Theta*t/Tp}\n"
+         "time_law: {task_duration: Tp, " + law + "}\n"
+         "partition:\n  independent: []\n"
+         "baumgarte: {alpha: 100, beta: 50}\n"
+         "initial:\n  q: {q1: 0}\n  qd: {q1: 0}\n"
+         "integrator: {method: rk4, step: " + fmt(step) + ", t0: 0, t1: end}\n";
+}
+
 TEST(Sensitivity, UnderAKnotSpeedLawTheMovingKnotsAreFollowed) {
-  const std::string yaml =
-      "name: rotor\nparameters:\n  Theta: 2\n  Tp: 1\n  v1: 0.9\n  v2: 1.6\n  v3: 1.1\n"
-      "model:\n  gravity: [0, 0, -9.81]\n  links:\n"
-      "    - {name: arm, joint: q1, parent: base, type: revolute, axis: [0, 0, 1], mass: 3, com: [0.25, 0, 0],\n"
-      "       inertia: [0.001, 0.0625, 0.0625]}\n"
-      "constraints:\n  - {name: turn, kind: joint_trajectory, joint: q1, function: Theta*t/Tp}\n"
-      "time_law: {task_duration: Tp, knot_speeds: [v1, v2, v3]}\n"
-      "partition:\n  independent: []\n"
-      "baumgarte: {alpha: 100, beta: 50}\n"
-      "initial:\n  q: {q1: 0}\n  qd: {q1: 0}\n"
-      "integrator: {method: rk4, step: 1e-4, t0: 0, t1: end}\n";
-  const Planned base = plan_with(io::parse_scenario(yaml, "rotor.yaml"));
+  const Planned base = plan_with(io::parse_scenario(rotor_on_a_law("knot_speeds: [v1, v2, v3]"), "rotor.yaml"));
   SensitivityOptions opt;
   opt.parameters = {"v1", "v2", "v3"};
   const PlanSensitivity s = plan_sensitivity(*base.problem, base.plan, opt);
@@ -276,6 +282,131 @@ TEST(Sensitivity, UnderAKnotSpeedLawTheMovingKnotsAreFollowed) {
   // without the jump term 9e-3, and with the knots' absolute motion instead of the motion
   // relative to the moving grid 1e-2).
   EXPECT_LT(worst, 2e-4 * scale);
+}
+
+// A parameter's column does not depend on which other parameters are requested with it. Under
+// `t1: end` the whole grid moves with every parameter of the law, so every knot moves relative
+// to it, also a knot whose own time does not depend on the requested parameter (the knot t1 =
+// 2Δτ/v1 when only v3 is requested): each needs its jump term. Before this was followed, d/dv3
+// requested alone differed from d/dv3 requested with v1 (the 2R circle's d peak_effort/dv16:
+// −1.74 alone, +0.170 with v5; exact +0.169). Both forms of the law, state and metrics. (The
+// segments form also needs the law's end to be the last part's left limit whatever the rounding
+// of t1 against the knot's text: TimeLaw::symbolic_text.)
+TEST(Sensitivity, UnderATimeLawEveryParameterSubsetGivesTheSameColumns) {
+  for (const std::string law : {"knot_speeds: [v1, v2, v3]", "segments: [v1, v2, v3, v2]"}) {
+    SCOPED_TRACE(law);
+    const Planned base = plan_with(io::parse_scenario(rotor_on_a_law(law, 5e-4), "rotor.yaml"));
+    SensitivityOptions all;
+    all.parameters = {"v1", "v2", "v3"};
+    const PlanSensitivity full = plan_sensitivity(*base.problem, base.plan, all);
+    const Eigen::MatrixXd G = metric_gradients(*base.problem, base.plan, full, base.metrics);
+    ASSERT_GT(G.cwiseAbs().maxCoeff(), 0.0);
+    const std::vector<std::vector<std::string>> subsets = {{"v1"}, {"v2"}, {"v3"}, {"v3", "v1"}, {"v2", "v3"}};
+    for (const auto& subset : subsets) {
+      SensitivityOptions opt;
+      opt.parameters = subset;
+      const PlanSensitivity part = plan_sensitivity(*base.problem, base.plan, opt);
+      const Eigen::MatrixXd Gp = metric_gradients(*base.problem, base.plan, part, base.metrics);
+      ASSERT_EQ(part.dx.size(), full.dx.size());
+      for (size_t c = 0; c < subset.size(); ++c) {
+        const long k = subset[c][1] - '1';  // the column of v1, v2, v3 in the full request
+        double worst = 0, scale = 0;
+        for (size_t j = 0; j < full.dx.size(); ++j) {
+          worst = std::max(worst, (part.dx[j].col(static_cast<long>(c)) - full.dx[j].col(k)).cwiseAbs().maxCoeff());
+          scale = std::max(scale, full.dx[j].col(k).cwiseAbs().maxCoeff());
+        }
+        EXPECT_LE(worst, 1e-9 * scale) << subset[c] << " requested with " << subset.size() - 1 << " other(s)";
+        for (long i = 0; i < G.rows(); ++i)
+          EXPECT_NEAR(Gp(i, static_cast<long>(c)), G(i, k), 1e-9 * std::max(1.0, std::abs(G(i, k))))
+              << base.metrics[static_cast<size_t>(i)].name << ", " << subset[c];
+      }
+    }
+  }
+}
+
+// The 2R circle of examples/planar_2r_circle on a 16-part knot-speed law: ∂ peak_effort(q2)/∂v_i
+// against the closed form along the path (tests/topp_reference.hpp: hand-written 2R dynamics on
+// the closed-form inverse kinematics, the law's s, ṡ, s̈ in closed form; no refdyn code), with the
+// parameter requested alone and with others. The peak is differentiated at the plan's argmax
+// sample k* (the envelope rule): the closed form's effort at t_k* = k*·t_end(v)/N.
+TEST(Sensitivity, TheRetimedCircleMatchesTheClosedFormAloneAndInSubsets) {
+  const int K = 16;
+  const double Tp = 2.0, dtau = Tp / K;
+  std::vector<double> v0(K + 1, 0.0);
+  for (int i = 1; i < K; ++i) v0[static_cast<size_t>(i)] = 0.9 + 0.5 * std::sin(std::numbers::pi * i / K) + 0.05 * (i % 3);
+  std::string params, names;
+  for (int i = 1; i < K; ++i) {
+    params += "  v" + std::to_string(i) + ": " + fmt(v0[static_cast<size_t>(i)]) + "\n";
+    names += (i > 1 ? ", v" : "v") + std::to_string(i);
+  }
+  const std::string yaml =
+      "name: circle\nparameters:\n  L1: 0.5\n  L2: 0.4\n  m1: 2.0\n  m2: 1.5\n  cx: 0.6\n  cy: 0.2\n  R: 0.15\n"
+      "  Tp: 2\n" + params +
+      "  ex0: cx + R\n  ey0: cy\n  q20: acos((ex0^2 + ey0^2 - L1^2 - L2^2)/(2*L1*L2))\n"
+      "  q10: atan2(ey0, ex0) - atan2(L2*sin(q20), L1 + L2*cos(q20))\n"
+      "model:\n  gravity: [0, -9.81, 0]\n  links:\n"
+      "    - {name: upper, joint: q1, parent: base, type: revolute, axis: [0, 0, 1],\n"
+      "       mass: m1, com: [L1/2, 0, 0], inertia: [0.001, m1*L1^2/12, m1*L1^2/12]}\n"
+      "    - {name: fore, joint: q2, parent: upper, type: revolute, axis: [0, 0, 1], origin: {xyz: [L1, 0, 0]},\n"
+      "       mass: m2, com: [L2/2, 0, 0], inertia: [0.001, m2*L2^2/12, m2*L2^2/12]}\n"
+      "  points:\n    E: {link: fore, position: [L2, 0, 0]}\n"
+      "constraints:\n"
+      "  - {name: ex, kind: point_coordinate, point: E, axis: x, function: cx + R*cos(2*pi*t/Tp)}\n"
+      "  - {name: ey, kind: point_coordinate, point: E, axis: y, function: cy + R*sin(2*pi*t/Tp)}\n"
+      "time_law: {task_duration: Tp, knot_speeds: [" + names + "]}\n"
+      "partition:\n  independent: []\n"
+      "baumgarte: {alpha: 100, beta: 50}\n"
+      "initial:\n  q: {q1: q10, q2: q20}\n  qd: {q1: 0, q2: 0}\n"
+      "integrator: {method: rk4, step: 2e-4, t0: 0, t1: end}\n";
+  const Planned base = plan_with(io::parse_scenario(yaml, "circle.yaml"));
+  long metric = -1;
+  for (size_t i = 0; i < base.metrics.size(); ++i)
+    if (base.metrics[i].name == "peak_effort(q2)") metric = static_cast<long>(i);
+  ASSERT_GE(metric, 0);
+  const Metric& peak = base.metrics[static_cast<size_t>(metric)];
+  const size_t N = base.plan.t.size() - 1;  // every step a sample
+  // The closed form: q2's effort at the grid time t_k = k·t_end(v)/N of the law with speeds v.
+  const test::TwoLinkArm arm;
+  const test::Circle circle;
+  auto effort = [&](const std::vector<double>& v, long k) {
+    std::vector<double> knots(K + 1, 0.0);
+    for (int i = 0; i < K; ++i)
+      knots[static_cast<size_t>(i) + 1] = knots[static_cast<size_t>(i)] + 2 * dtau / (v[static_cast<size_t>(i)] + v[static_cast<size_t>(i) + 1]);
+    const double t = static_cast<double>(k) * knots[K] / static_cast<double>(N);
+    int i = 0;
+    while (i < K - 1 && t >= knots[static_cast<size_t>(i) + 1]) ++i;
+    const double vi = v[static_cast<size_t>(i)], vn = v[static_cast<size_t>(i) + 1];
+    const double h = t - knots[static_cast<size_t>(i)], a = (vn * vn - vi * vi) / (2 * dtau);
+    const double s = i * dtau + vi * h + 0.5 * a * h * h, sd = vi + a * h;
+    const double w = 2 * std::numbers::pi / Tp;  // θ = w s
+    Eigen::Vector2d q, dq, ddq;
+    test::circle_ik(arm, circle, w * s, q, dq, ddq);
+    const Eigen::Vector2d qd = dq * (w * sd), qdd = dq * (w * a) + ddq * (w * sd) * (w * sd);
+    return arm.inverse_dynamics(q, qd, qdd)[1];
+  };
+  EXPECT_NEAR(peak.value, std::abs(effort(v0, peak.sample)), 2e-3 * peak.value) << "the plan's peak vs the closed form";
+  const std::vector<std::vector<std::string>> requests = {{"v8"}, {"v3", "v8"}, {"v15"}};
+  double worst = 0;
+  for (const auto& request : requests) {
+    SensitivityOptions opt;
+    opt.parameters = request;
+    const PlanSensitivity s = plan_sensitivity(*base.problem, base.plan, opt);
+    const Eigen::MatrixXd G = metric_gradients(*base.problem, base.plan, s, base.metrics);
+    for (size_t c = 0; c < request.size(); ++c) {
+      const size_t i = static_cast<size_t>(std::stoi(request[c].substr(1)));
+      std::vector<double> up = v0, down = v0;
+      up[i] += 1e-6;
+      down[i] -= 1e-6;
+      const double closed = peak.sign * (effort(up, peak.sample) - effort(down, peak.sample)) / 2e-6;
+      const double got = G(metric, static_cast<long>(c));
+      std::printf("  d peak_effort(q2)/d%s with %zu requested: %.6f (closed form %.6f)\n", request[c].c_str(),
+                  request.size(), got, closed);
+      worst = std::max(worst, std::abs(got - closed) / std::abs(closed));
+      // RK4 at 2e-4 s with the knots inside steps (first order there) and Baumgarte terms.
+      EXPECT_NEAR(got, closed, 1e-2 * std::abs(closed)) << request[c] << " of " << request.size();
+    }
+  }
+  std::printf("retimed circle: worst relative difference to the closed form %.2e\n", worst);
 }
 
 TEST(Sensitivity, BadRequestsAreRefusedWithAHint) {

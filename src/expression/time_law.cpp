@@ -152,6 +152,18 @@ std::string TimeLaw::knot_text(size_t i) const {
   return "(" + s + ")";
 }
 
+namespace {
+/// The condition of the last part, "if(t <= t_K", taken with a relative margin of 1e-12: at the
+/// law's end the value of t (the integrator's t1, the knots summed in one order) and the text of
+/// t_K (summed by the compiled expression in another) may differ in the last bit, and the end
+/// must be the last part's left limit either way, as the numeric law takes it (eval: s̈ of the
+/// final deceleration at t_K). Without the margin the branch at t1 followed the rounding: a time
+/// law's sensitivities at the final sample changed with the compiled term order (seen as columns
+/// that depended on which other parameters were requested, segments form). Past t_K by less than
+/// the margin the last part's polynomial differs from rest by O(margin²).
+std::string last_part_condition(const std::string& knot) { return "if(t <= (1 + 1e-12)*" + knot; }
+}  // namespace
+
 std::string TimeLaw::end_text() const { return knot_text(static_cast<size_t>(segments())); }
 
 std::string TimeLaw::symbolic_text() const {
@@ -166,7 +178,7 @@ std::string TimeLaw::symbolic_text() const {
       if (!va.empty()) seg += " + " + va + "*" + u;
       const std::string dv2 = vb.empty() ? "-" + va + "^2" : va.empty() ? vb + "^2" : "(" + vb + "^2 - " + va + "^2)";
       seg += " + " + dv2 + "/(4*" + dtau + ")*" + u + "^2";
-      out = std::string(i == K ? "if(t <= " : "if(t < ") + knot_text(i) + ", " + seg + ", " + out + ")";
+      out = (i == K ? last_part_condition(knot_text(i)) : "if(t < " + knot_text(i)) + ", " + seg + ", " + out + ")";
     }
     return "if(t < 0, 0, " + out + ")";
   }
@@ -186,7 +198,7 @@ std::string TimeLaw::symbolic_text() const {
     std::string seg = std::to_string(i - 1) + "*" + dtau + " + " + dtau + "*" + u + "^2*(3 - 2*" + u + ")";
     if (i > 1) seg += " + " + h + "*" + slope(i - 1) + "*" + u + "*(" + u + " - 1)^2";
     if (i < K) seg += " + " + h + "*" + slope(i) + "*" + u + "^2*(" + u + " - 1)";
-    out = std::string(i == K ? "if(t <= " : "if(t < ") + knot(i) + ", " + seg + ", " + out + ")";
+    out = (i == K ? last_part_condition(knot(i)) : "if(t < " + knot(i)) + ", " + seg + ", " + out + ")";
   }
   return "if(t < 0, 0, " + out + ")";
 }

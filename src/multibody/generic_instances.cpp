@@ -21,7 +21,8 @@ namespace refdyn::multibody {
                                     NewtonEulerWork<S>&, std::vector<S>&);                                       \
   template std::vector<S> inverse_dynamics<S>(const Bodies<S>&, const Poses<S>&, const Vec3&, const S*, const S*, \
                                               bool);                                                            \
-  template std::vector<S> mass_matrix<S>(const Bodies<S>&, const Poses<S>&);
+  template std::vector<S> mass_matrix<S>(const Bodies<S>&, const Poses<S>&);                                   \
+  template std::vector<S> crba<S>(const Bodies<S>&, const Poses<S>&);
 
 REFDYN_MULTIBODY_INSTANTIATE(double)
 REFDYN_MULTIBODY_INSTANTIATE(Dual<1>)

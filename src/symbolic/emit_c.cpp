@@ -164,7 +164,7 @@ struct CBlocks {
       for (const TS& x : v) r.push_back(x.id);
       return r;
     };
-    M = ids(symbolic_detail::crba(bodies, poses));
+    M = ids(multibody::crba(bodies, poses));
     c = ids(inverse_dynamics(bodies, poses, S.model.gravity, n ? qd.data() : nullptr, static_cast<const TS*>(nullptr), false));
     g = ids(inverse_dynamics(bodies, poses, S.model.gravity, static_cast<const TS*>(nullptr), static_cast<const TS*>(nullptr), true));
     cg = ids(inverse_dynamics(bodies, poses, S.model.gravity, n ? qd.data() : nullptr, static_cast<const TS*>(nullptr), true));

@@ -213,8 +213,10 @@ SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec,
   for (const ModelNumbers::Point& p : spec.points) {
     const int k = model.point_index(p.name);
     const Vec3s pos = p.position ? v3(*p.position) : zero3();
-    if (p.link == "world" || p.link == "base") {
+    if (p.link == "world") {
       out.points[k] = {-1, pos};
+    } else if (p.link == "base") {  // fixed in the world at the base pose (as build_model)
+      out.points[k] = {-1, add(mul(base.R, pos), base.p)};
     } else {
       const int li = link_index.at(p.link);
       const Pose& X = link_in_body[li];

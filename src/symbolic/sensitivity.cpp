@@ -512,18 +512,22 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   // here with the knot's motion relative to the grid's, applied in the step that holds t_k with
   // the state interpolated there. Without it the derivatives were off by ~1 % on a knot-speed
   // law (tests/sensitivity_test.cpp, UnderAKnotSpeedLawTheMovingKnotsAreFollowed).
+  // Every knot whose motion relative to the grid is not zero counts, also one whose own time
+  // does not depend on the requested parameters: under `t1: end` the grid moves with every
+  // knot speed (time_rate), so such a knot moves relative to it (tests/sensitivity_test.cpp,
+  // UnderATimeLawEveryParameterSubsetGivesTheSameColumns).
   struct Knot {
     double t;
-    Eigen::RowVectorXd dt;
+    Eigen::RowVectorXd rel;  ///< ∂t_k/∂p − ∂t_grid(t_k)/∂p
   };
   std::vector<Knot> knots;
   for (size_t i = 0; i < problem.time_law_knots.size() && i < problem.time_law_knot_texts.size(); ++i) {
     const double tk = problem.time_law_knots[i];
     if (tk > t0 && tk < o.t1) {
-      Knot kn{tk, text_derivative(problem, problem.time_law_knot_texts[i], D, np)};
-      if (!kn.dt.isZero(0)) {
+      Knot kn{tk, text_derivative(problem, problem.time_law_knot_texts[i], D, np) - time_rate(tk)};
+      if (!kn.rel.isZero(0)) {
         out.knot_t.push_back(tk);
-        out.knot_dt.push_back(kn.dt - time_rate(tk));
+        out.knot_dt.push_back(kn.rel);
         knots.push_back(std::move(kn));
       }
     }
@@ -565,7 +569,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
       rd->derivative(kn.t, xk, f_after);
       // Relative to the grid: the stage times move too (time_rate), and the map's derivative
       // already follows the solution along them; only the knot's motion past them is a jump.
-      S += (f_before - f_after) * (kn.dt - time_rate(kn.t));
+      S += (f_before - f_after) * kn.rel;
     }
     x += (h / 6.0) * xacc;
     S += (h / 6.0) * Sacc + (1.0 / 6.0) * xacc * dh;

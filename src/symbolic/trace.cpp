@@ -62,9 +62,17 @@ int Tape::add(int a, int b) {
   // constants gathered: (x + c1) + c2 → x + (c1 + c2)
   if (node(a).op == Op::Const) std::swap(a, b);
   if (node(b).op == Op::Const && node(a).op == Op::Add) {
-    const Node& s = node(a);
-    if (node(s.args[0]).op == Op::Const) return add(s.args[1], constant(node(s.args[0]).value + node(b).value));
-    if (node(s.args[1]).op == Op::Const) return add(s.args[0], constant(node(s.args[1]).value + node(b).value));
+    // Operands copied, not referenced: constant() may grow nodes_ and move every Node.
+    const int s0 = node(a).args[0], s1 = node(a).args[1];
+    const double cb = node(b).value;
+    if (node(s0).op == Op::Const) {
+      const int c = constant(node(s0).value + cb);
+      return add(s1, c);
+    }
+    if (node(s1).op == Op::Const) {
+      const int c = constant(node(s1).value + cb);
+      return add(s0, c);
+    }
   }
   if (a > b) std::swap(a, b);
   return intern(binary(Op::Add, a, b));
@@ -550,60 +558,6 @@ std::string text_of(const Tape& t, int id, int level, std::map<int, std::string>
 std::string expression_text(const Tape& tape, int id) {
   std::map<int, std::string> memo;
   return text_of(tape, id, 0, memo);
-}
-
-// ---- the composite-rigid-body algorithm ------------------------------------------------------
-
-std::vector<TS> crba(const multibody::Bodies<TS>& bodies, const multibody::Poses<TS>& poses) {
-  using namespace multibody;
-  const int n = bodies.size();
-  std::vector<TS> mc(n), M(static_cast<std::size_t>(n) * n);
-  std::vector<Vec3T<TS>> hc(n);
-  std::vector<Mat3T<TS>> Ic(n);
-  for (int i = 0; i < n; ++i) {
-    mc[i] = bodies.bodies[i].m;
-    hc[i] = bodies.bodies[i].h;
-    Ic[i] = bodies.bodies[i].I;
-  }
-  // composite inertias, leaves to root, each in its body's frame
-  for (int i = n; i-- > 0;) {
-    const int par = bodies.bodies[i].parent;
-    if (par < 0) continue;
-    PoseT<TS> X;
-    X.R = poses.local_R[i];
-    X.p = poses.local_p[i];
-    Vec3T<TS> h = hc[i];
-    Mat3T<TS> I = Ic[i];
-    transform_inertia(X, mc[i], h, I);
-    mc[par] = mc[par] + mc[i];
-    hc[par] = add(hc[par], h);
-    Ic[par] = add(Ic[par], I);
-  }
-  // column j: the force on the composite body j under a unit joint-j acceleration (at rest),
-  // carried to the root
-  for (int j = 0; j < n; ++j) {
-    const Body<TS>& B = bodies.bodies[j];
-    const Vec3T<TS>& u = B.axis;
-    Vec3T<TS> f, nn;
-    if (B.type == JointType::Revolute) {
-      f = cross(u, hc[j]);
-      nn = mul(Ic[j], u);
-    } else {
-      f = scale(u, mc[j]);
-      nn = cross(hc[j], u);
-    }
-    M[static_cast<std::size_t>(j) * n + j] = B.type == JointType::Revolute ? dot(u, nn) : dot(u, f);
-    for (int i = j; bodies.bodies[i].parent >= 0;) {
-      const Vec3T<TS> fp = mul(poses.local_R[i], f);
-      nn = add(mul(poses.local_R[i], nn), cross(poses.local_p[i], fp));
-      f = fp;
-      i = bodies.bodies[i].parent;
-      const Body<TS>& A = bodies.bodies[i];
-      M[static_cast<std::size_t>(i) * n + j] = M[static_cast<std::size_t>(j) * n + i] =
-          A.type == JointType::Revolute ? dot(A.axis, nn) : dot(A.axis, f);
-    }
-  }
-  return M;
 }
 
 }  // namespace refdyn::symbolic_detail

@@ -134,9 +134,6 @@ std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>
 /// `^` for powers, abs, min, max, step, clamp and if() for the piecewise functions.
 std::string expression_text(const Tape& tape, int id);
 
-/// M (row-major n×n) by the composite-rigid-body algorithm in body frames on TS.
-std::vector<TS> crba(const multibody::Bodies<TS>& bodies, const multibody::Poses<TS>& poses);
-
 }  // namespace refdyn::symbolic_detail
 
 namespace refdyn::multibody {

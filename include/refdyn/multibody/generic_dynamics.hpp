@@ -90,4 +90,65 @@ std::vector<S> mass_matrix(const Bodies<S>& bodies, const Poses<S>& poses) {
   return M;
 }
 
+/// M(q), row-major n×n, by the composite-rigid-body algorithm (Featherstone's CRBA) in body
+/// frames: the composite inertias (m, h, I) of every subtree, leaves to root, each carried into
+/// its parent's frame by transform_inertia; then column j is the force (f, n) on composite body j
+/// under a unit joint-j acceleration at rest (f = u × h, n = I u for a revolute joint; f = m u,
+/// n = h × u for a prismatic one), carried to the root: M_ij = u_iᵀ n (revolute i) or u_iᵀ f
+/// (prismatic i) for every ancestor i of j. No velocities, no gravity: the straight code the
+/// generator records on its tape (src/symbolic/emit_c.cpp), checked against mass_matrix and the
+/// fast kernels (tests/generic_dynamics_test.cpp) and, on the tape, against the engine
+/// (tests/symbolic_tape_test.cpp).
+template <class S>
+std::vector<S> crba(const Bodies<S>& bodies, const Poses<S>& poses) {
+  const int n = bodies.size();
+  std::vector<S> mc(n), M(static_cast<std::size_t>(n) * n, from_double<S>(0.0));
+  std::vector<Vec3T<S>> hc(n);
+  std::vector<Mat3T<S>> Ic(n);
+  for (int i = 0; i < n; ++i) {
+    mc[i] = bodies.bodies[i].m;
+    hc[i] = bodies.bodies[i].h;
+    Ic[i] = bodies.bodies[i].I;
+  }
+  // composite inertias, leaves to root, each in its body's frame
+  for (int i = n; i-- > 0;) {
+    const int par = bodies.bodies[i].parent;
+    if (par < 0) continue;
+    PoseT<S> X;
+    X.R = poses.local_R[i];
+    X.p = poses.local_p[i];
+    Vec3T<S> h = hc[i];
+    Mat3T<S> I = Ic[i];
+    transform_inertia(X, mc[i], h, I);
+    mc[par] = mc[par] + mc[i];
+    hc[par] = add(hc[par], h);
+    Ic[par] = add(Ic[par], I);
+  }
+  // column j: the force on the composite body j under a unit joint-j acceleration (at rest),
+  // carried to the root
+  for (int j = 0; j < n; ++j) {
+    const Body<S>& B = bodies.bodies[j];
+    const Vec3T<S>& u = B.axis;
+    Vec3T<S> f, nn;
+    if (B.type == JointType::Revolute) {
+      f = cross(u, hc[j]);
+      nn = mul(Ic[j], u);
+    } else {
+      f = scale(u, mc[j]);
+      nn = cross(hc[j], u);
+    }
+    M[static_cast<std::size_t>(j) * n + j] = B.type == JointType::Revolute ? dot(u, nn) : dot(u, f);
+    for (int i = j; bodies.bodies[i].parent >= 0;) {
+      const Vec3T<S> fp = mul(poses.local_R[i], f);
+      nn = add(mul(poses.local_R[i], nn), cross(poses.local_p[i], fp));
+      f = fp;
+      i = bodies.bodies[i].parent;
+      const Body<S>& A = bodies.bodies[i];
+      M[static_cast<std::size_t>(i) * n + j] = M[static_cast<std::size_t>(j) * n + i] =
+          A.type == JointType::Revolute ? dot(A.axis, nn) : dot(A.axis, f);
+    }
+  }
+  return M;
+}
+
 }  // namespace refdyn::multibody
