@@ -6,11 +6,13 @@
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
 #include "refdyn/optimize/optimize.hpp"
+#include "refdyn/common/json.hpp"
 #include "refdyn/common/text.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -190,6 +192,112 @@ TEST(OptimizedYaml, ReplacesValuesInTheParametersSectionKeepingComments) {
   EXPECT_THROW(optimized_yaml("parameters:\n  a: 1\n", {"Td"}, {1}), Error);
 }
 
+// Issue 34, item 5: optimized.yaml is written from the locations the reader recorded: only the
+// variables' values change, in place (a name elsewhere in the text, in a comment or in another
+// section is left alone); a quoted value loses its quotes; a list variable's elements are
+// replaced inside the list, whatever its layout, so the compact form stays compact.
+TEST(OptimizedYaml, RewritesTheRecordedLocationsAndListsInPlace) {
+  const std::string in =
+      "parameters:\n  a: 1   # Td: 5 here is a comment\n  Td: \"5\"   # quoted\n"
+      "  v: [0.5, 0.5,   # two on this line\n      0.5]\n  w:\n    - 1\n    - 2   # block list\n"
+      "model: {Td: 5, v: [0.5]}\n";
+  const std::string out = optimized_yaml(in, {"Td", "v[1]", "v[2]", "v[3]", "w[2]"}, {4.25, 1.5, 0.125, 2, 3.75});
+  EXPECT_EQ(out,
+            "parameters:\n  a: 1   # Td: 5 here is a comment\n  Td: 4.25  # quoted\n"
+            "  v: [1.5, 0.125,   # two on this line\n      2]\n  w:\n    - 1\n    - 3.75 # block list\n"
+            "model: {Td: 5, v: [0.5]}\n");
+  // what cannot be rewritten in place is an error, not a guess
+  EXPECT_THROW(optimized_yaml(in, {"v[4]"}, {1}), Error);
+  EXPECT_THROW(optimized_yaml(in, {"a[1]"}, {1}), Error);
+  EXPECT_THROW(optimized_yaml("parameters:\n  Td: >\n    5\n", {"Td"}, {1}), Error);
+}
+
+// Issue 34, item 6: a list parameter is one vector variable of optimize: with one bound for all
+// or a list of bounds; bad bounds are one located error (file:line, key).
+TEST(OptimizeListVariable, BoundsAndStartOfAVectorVariable) {
+  const std::string text = slurp(source_path("examples/planar_2r_circle/retime_speeds.yaml"));
+  const std::string var = "    - {name: v, lower: 0.05, upper: 10}";
+  ASSERT_NE(text.find(var), std::string::npos);
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(text.find(var)), '\n'));
+  const std::string at = "retime_speeds.yaml:" + std::to_string(line) + ":";
+  auto with = [&](const std::string& v) {
+    std::string t = text;
+    return t.replace(t.find(var), var.size(), v);
+  };
+  auto setup = [&](const std::string& v) {
+    const ScenarioSpec spec = io::parse_scenario(with(v), "retime_speeds.yaml");
+    return check_optimize(spec, *build_problem(spec_at(spec, {}, {})));
+  };
+  {
+    const OptimizeSetup s = setup(var);
+    ASSERT_EQ(s.variables.size(), 127u);
+    EXPECT_EQ(s.variables.front(), "v[1]");
+    EXPECT_EQ(s.variables.back(), "v[127]");
+    ASSERT_EQ(s.lists.size(), 1u);
+    EXPECT_EQ(s.lists[0].size, 127u);
+    for (size_t i = 0; i < 127; ++i) EXPECT_TRUE(s.lower[i] == 0.05 && s.upper[i] == 10 && s.start[i] == 0.5) << i;
+  }
+  {  // a list of bounds, one per element
+    std::string lo = "[", st = "[";
+    for (int i = 1; i <= 127; ++i) lo += std::string(i > 1 ? ", " : "") + (i == 64 ? "0.2" : "0.05"), st += std::string(i > 1 ? ", " : "") + (i == 2 ? "0.7" : "0.5");
+    const OptimizeSetup s = setup("    - {name: v, lower: " + lo + "], upper: 10, start: " + st + "]}");
+    EXPECT_EQ(s.lower[63], 0.2);
+    EXPECT_EQ(s.lower[62], 0.05);
+    EXPECT_EQ(s.start[1], 0.7);
+  }
+  auto bad = [&](const std::string& v, const std::vector<std::string>& needles) {
+    test::expect_error_mentioning([&] { (void)setup(v); }, needles);
+  };
+  bad("    - {name: v, lower: [0.05, 0.05], upper: 10}", {at, "optimize.variables[0].lower", "127", "a list of 2"});
+  bad("    - {name: v, lower: 0.05, upper: [10]}", {at, "optimize.variables[0].upper", "127", "a list of 1"});
+  bad("    - {name: v, lower: 11, upper: 10}", {at, "optimize.variables[0].lower", "above upper"});
+  {
+    std::string up = "[";
+    for (int i = 1; i <= 127; ++i) up += std::string(i > 1 ? ", " : "") + (i == 5 ? "0.01" : "10");
+    bad("    - {name: v, lower: 0.05, upper: " + up + "]}", {at, "optimize.variables[0].lower[4]", "above upper = 0.01"});
+  }
+  bad("    - {name: v, lower: 0.05, upper: 10, start: 20}", {at, "optimize.variables[0].start", "outside"});
+  bad("    - {name: v, lower: 1, upper: 10}", {"retime_speeds.yaml:", "optimize.variables[0].start", "outside", "hint: give start:"});
+  bad("    - {name: v, lower: 0.05, upper: 10}\n    - {name: v, lower: 0.05, upper: 10}", {"optimize.variables[1].name", "twice"});
+  bad("    - {name: Tp, lower: [1], upper: 3}", {at, "optimize.variables[0]", "one value"});
+  // the gradient methods need sensitivities, which a list's elements do not have
+  test::expect_error_mentioning(
+      [&] {
+        std::string t = text;
+        t.replace(t.find("method: phase_plane"), 19, "method: slsqp");
+        const ScenarioSpec spec = io::parse_scenario(t, "retime_speeds.yaml");
+        (void)check_optimize(spec, *build_problem(spec_at(spec, {}, {})));
+      },
+      {at, "optimize.variables[0].name", "slsqp", "list parameter"});
+  // spec_at sets elements of the list (the others keep their values)
+  const ScenarioSpec spec = io::parse_scenario(text, "retime_speeds.yaml");
+  const ScenarioSpec c = spec_at(spec, {"v[2]", "Tp"}, {0.75, 2});
+  ASSERT_EQ(c.list_values.count("v"), 1u);
+  EXPECT_EQ(c.list_values.at("v")[1], 0.75);
+  EXPECT_EQ(c.list_values.at("v")[0], 0.5);
+  EXPECT_THROW(spec_at(spec, {"v[128]"}, {1}), Error);
+}
+
+// The command on bad input of the compact form: exit 2, one located line, nothing written.
+TEST(OptimizeListVariable, CliBadInputExits2AndWritesNothing) {
+  const fs::path dir = fs::temp_directory_path() / ("refdyn_optimize_list_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::string text = slurp(source_path("examples/planar_2r_circle/retime_speeds.yaml"));
+  text.replace(text.find("lower: 0.05, upper: 10}"), 23, "lower: [0.05, 0.1], upper: 10}");
+  { std::ofstream(dir / "bad.yaml") << text; }
+  const std::string cmd = std::string(REFDYN_CLI) + " optimize " + (dir / "bad.yaml").string() + " -o " +
+                          (dir / "out").string() + " -q 2>" + (dir / "err.txt").string();
+  const int rc = std::system(cmd.c_str());
+  EXPECT_EQ(WEXITSTATUS(rc), 2);
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  const std::string err = slurp((dir / "err.txt").string());
+  EXPECT_NE(err.find("bad.yaml:"), std::string::npos) << err;
+  EXPECT_NE(err.find("optimize.variables[0].lower"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  fs::remove_all(dir);
+}
+
 // The command: its files, and exit 4 with optimization.csv when no point is feasible.
 TEST(OptimizeCommand, WritesTheOptimumAndExits4WithoutAFeasiblePoint) {
   const fs::path dir = fs::temp_directory_path() / ("refdyn_optimize_test_" + std::to_string(::getpid()));
@@ -199,7 +307,21 @@ TEST(OptimizeCommand, WritesTheOptimumAndExits4WithoutAFeasiblePoint) {
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   for (const char* f : {"optimized.yaml", "optimization.csv", "plan.csv", "feasibility.json", "summary.json"})
     EXPECT_TRUE(fs::exists(dir / "a" / f)) << f;
-  EXPECT_NE(slurp((dir / "a" / "summary.json").string()).find("\"optimization\""), std::string::npos);
+  {  // wall_time_s is the whole command's time, and the phases are reported (issue 34)
+    const JsonValue j = parse_json(slurp((dir / "a" / "summary.json").string()), "summary.json");
+    const JsonValue& o = j["optimization"];
+    const JsonValue& ph = o["phases_s"];
+    double top = 0;
+    for (const char* p : {"load", "setup", "optimizer", "final_plan", "write"}) {
+      ASSERT_TRUE(ph.contains(p)) << p;
+      EXPECT_GE(ph[p].get<double>(), 0.0) << p;
+      top += ph[p].get<double>();
+    }
+    EXPECT_LE(ph["plans"].get<double>(), ph["optimizer"].get<double>());
+    const double wall = o["wall_time_s"].get<double>();
+    EXPECT_LE(top, wall * (1 + 1e-9));
+    EXPECT_GT(top, 0.9 * wall);  // the phases are where the command's time went
+  }
   // refdyn report draws the optimization's history from optimization.csv.
   const std::string rep = cli + " report " + (dir / "a").string() + " -q";
   ASSERT_EQ(std::system(rep.c_str()), 0);

@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -192,6 +193,21 @@ TEST(PhasePlaneOptimize, RetimedCircleWithin2PercentOfTheTimeOptimum) {
   }
 }
 
+// Issue 34, item 6: the compact form (one list parameter v, one vector variable) and the old
+// form (127 parameters v1 … v127, 127 variables) are the same problem: the same knot speeds and
+// the same t_end, to the bit, in the same number of plans.
+TEST(PhasePlaneOptimize, CompactAndOldFormsGiveTheSameRetiming) {
+  const OptimizeResult a = optimize_scenario(io::load_scenario(source_path(kExample)));
+  const OptimizeResult b = optimize_scenario(io::load_scenario(source_path("tests/data/good/retime_speeds_old_form.yaml")));
+  ASSERT_TRUE(a.summary.feasible) << a.summary.message;
+  ASSERT_TRUE(b.summary.feasible) << b.summary.message;
+  EXPECT_EQ(a.summary.best_x, b.summary.best_x);
+  EXPECT_EQ(a.summary.best_objective, b.summary.best_objective);
+  EXPECT_EQ(a.summary.evaluations, b.summary.evaluations);
+  EXPECT_EQ(a.summary.variables.front(), "v[1]");
+  EXPECT_EQ(b.summary.variables.front(), "v1");
+}
+
 // Misuse: a scenario without a knot-speed law, an objective other than t_end, variables that are
 // not the knot speeds — one located line, exit 2, nothing written.
 TEST(PhasePlaneOptimize, RefusesWhatItCannotRetime) {
@@ -210,6 +226,12 @@ TEST(PhasePlaneOptimize, RefusesWhatItCannotRetime) {
   refuse(replaced(ok, "{minimize: t_end}", "{minimize: effort_energy}"), "phase_plane minimizes t_end");
   refuse(replaced(ok, "    feasible: true\n", "    feasible: false\n"), "feasible: true");
   refuse(replaced(ok, "    - {name: v3, lower: 0.01, upper: 100}\n", ""), "v3");
+  // the compact form: the list is not a variable, or another variable besides it
+  const std::string compact = test::read_file(source_path(kExample));
+  refuse(replaced(compact, "{name: v, lower: 0.05, upper: 10}", "{name: Tp, lower: 1, upper: 3}"),
+         "time_law.knot_speeds: phase_plane chooses every knot speed, and the list parameter 'v'");
+  refuse(replaced(compact, "    - {name: v, lower: 0.05, upper: 10}", "    - {name: v, lower: 0.05, upper: 10}\n    - {name: R, lower: 0.1, upper: 0.2}"),
+         "'R' is not one of them");
   refuse(replaced(ok, "time_law: {task_duration: Tp, knot_speeds: [v1, v2, v3]}\n",
                   "time_law: {task_duration: Tp, segments: [v1, v2, v3]}\n"), "knot_speeds");
   const std::string paper = test::read_file(source_path("examples/paper/duration.yaml"));
@@ -223,6 +245,15 @@ TEST(PhasePlaneOptimize, CliWritesAFeasibleOptimizedScenario) {
   const std::string cmd = std::string(REFDYN_CLI) + " optimize '" + source_path(kExample) + "' -o '" + out.string() + "' -q";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   ASSERT_TRUE(fs::exists(out / "optimized.yaml"));
+  {  // written back in the compact form: the same lines, the list's values replaced in place
+    const std::string in = test::read_file(source_path(kExample)), opt = test::read_file((out / "optimized.yaml").string());
+    EXPECT_EQ(std::count(opt.begin(), opt.end(), '\n'), std::count(in.begin(), in.end(), '\n'));
+    EXPECT_NE(opt.find("\n  v: ["), std::string::npos);
+    EXPECT_NE(opt.find("  knot_speeds: v                # the list parameter above"), std::string::npos);
+    EXPECT_EQ(opt.find("v1:"), std::string::npos);
+    EXPECT_EQ(opt.substr(0, opt.find("\n  v: [")), in.substr(0, in.find("\n  v: [")));
+    EXPECT_EQ(opt.substr(opt.find("  # Start at E")), in.substr(in.find("  # Start at E")));
+  }
   const std::string feas = test::read_file((out / "feasibility.json").string());
   EXPECT_NE(feas.find("\"feasible\": true"), std::string::npos) << feas.substr(0, 300);
   const std::string again = (out / "again").string();

@@ -17,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -316,7 +317,85 @@ TEST(TimeLawKnotSpeeds, BadLawsThrow) {
 }
 
 namespace {
-const std::string kSpeedsExample = std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/retime_speeds.yaml";
+/// The knot-speed example in the old form: 127 scalar parameters v1 … v127 listed by name (the
+/// example itself is in the compact form, one list parameter v).
+const std::string kSpeedsExample = std::string(REFDYN_SOURCE_DIR) + "/tests/data/good/retime_speeds_old_form.yaml";
+const std::string kCompactExample = std::string(REFDYN_SOURCE_DIR) + "/examples/planar_2r_circle/retime_speeds.yaml";
+
+/// The 1-based line of the first occurrence of `part` in `text`.
+int line_of(const std::string& text, const std::string& part) {
+  const size_t at = text.find(part);
+  EXPECT_NE(at, std::string::npos) << part;
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(std::min(at, text.size())), '\n'));
+}
+}
+
+// Issue 34, item 6: the compact form (knot_speeds: v, a list parameter) builds the same law as
+// the old form (127 scalar parameters listed by name), to the bit: the same knots and the same
+// law at every knot and between knots.
+TEST(TimeLawKnotSpeeds, CompactFormIsTheSameLawAsTheOldForm) {
+  const auto old_form = io::load_problem(kSpeedsExample);
+  const auto compact = io::load_problem(kCompactExample);
+  ASSERT_EQ(compact->time_law_knots.size(), 129u);
+  EXPECT_EQ(compact->time_law_knots, old_form->time_law_knots);
+  EXPECT_EQ(compact->integrator.t1, old_form->integrator.t1);
+  // a list parameter's elements are numbers to the symbolic layer: the end's text has no v
+  EXPECT_EQ(compact->texts.t1.find("v"), std::string::npos) << compact->texts.t1.substr(0, 80);
+  // and a list with other values (an optimize candidate) is the law of those values
+  const std::string text = test::read_file(kCompactExample);
+  std::string list = "v: [";
+  for (int i = 1; i <= 127; ++i) list += fmt(0.3 + 0.01 * i) + (i < 127 ? ", " : "]\n  old_v: [");
+  const std::string varied = replaced(text, "v: [", list);
+  const auto p = io::parse_problem(varied, "varied.yaml");
+  const double dtau = 2.0 / 128;
+  double end = 2 * dtau / 0.31 + 2 * dtau / (0.3 + 0.01 * 127);
+  for (int i = 1; i < 127; ++i) end += 2 * dtau / ((0.3 + 0.01 * i) + (0.3 + 0.01 * (i + 1)));
+  EXPECT_NEAR(p->integrator.t1, end, 1e-12 * end);
+}
+
+// The segments form takes a list parameter too: segments: d.
+TEST(TimeLawScenario, SegmentsFromAListParameter) {
+  std::string text = example_text();
+  const std::string seg = "segments: [d1, d2, d3, d4, d5, d6, d7, d8, d9, d10, d11, d12, d13, d14, d15, d16]";
+  ASSERT_NE(text.find(seg), std::string::npos);
+  const auto a = io::parse_problem(text, "retime.yaml");
+  text = replaced(text, seg, "segments: dl");
+  text = replaced(text, "\nmodel:", "\n  dl: [d1, d2, d3, d4, d5, d6, d7, d8, d9, d10, d11, d12, d13, d14, d15, d16]\nmodel:");
+  const auto b = io::parse_problem(text, "retime.yaml");
+  EXPECT_EQ(a->time_law_knots, b->time_law_knots);
+}
+
+// Issue 34, bad input of the compact form: one located error line (file:line, key).
+TEST(TimeLawKnotSpeeds, CompactFormBadInputIsOneLocatedError) {
+  const std::string base = test::read_file(kCompactExample);
+  const std::string src = "retime_speeds.yaml";
+  auto expect_bad = [&](const std::string& yaml, const std::vector<std::string>& needles) {
+    test::expect_error_mentioning([&] { (void)io::parse_problem(yaml, src); }, needles);
+  };
+  const std::string first = "v: [0.5, 0.5, 0.5,";
+  // a knot speed ≤ 0 inside the law: the element's own line and index
+  {
+    const std::string yaml = replaced(base, "      0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5,\n      0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5,\n      0.5, 0.5, 0.5,",
+                                      "      0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5,\n      0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5,\n      0.5, 0.5, -0.1,");
+    const int line = line_of(base, first) + 3;
+    expect_bad(yaml, {"retime_speeds.yaml:" + std::to_string(line) + ":", "parameters.v[50]", "knot speed", "> 0", "-0.1"});
+    expect_bad(replaced(base, first, "v: [0.5, 0, 0.5,"),
+               {"retime_speeds.yaml:" + std::to_string(line_of(base, first)) + ":", "parameters.v[1]", "> 0"});
+  }
+  // an empty list, or one beyond the bound on list parameters
+  expect_bad(replaced(base, "  v: [", "  v: []\n  w: ["), {"retime_speeds.yaml:" + std::to_string(line_of(base, first)) + ":", "parameters.v", "empty"});
+  {
+    std::string huge = "v: [";
+    for (size_t i = 0; i <= kMaxListParameter; ++i) huge += i ? ",1" : "1";
+    expect_bad(replaced(base, "v: [", huge + "]\n  w: ["), {"retime_speeds.yaml:", "parameters.v", "at most 100000", "100001"});
+  }
+  // knot_speeds naming a parameter that is no list, or no parameter
+  expect_bad(replaced(base, "knot_speeds: v ", "knot_speeds: Tp "), {"retime_speeds.yaml:", "time_law.knot_speeds", "one value"});
+  expect_bad(replaced(base, "knot_speeds: v ", "knot_speeds: vv "), {"retime_speeds.yaml:", "time_law.knot_speeds", "no parameter", "did you mean 'v'"});
+  // an element that is not a number
+  expect_bad(replaced(base, first, "v: [0.5, speed, 0.5,"), {"retime_speeds.yaml:", "parameters.v[1]"});
+  // a variant cannot set a list parameter to one number
+  expect_bad(replaced(base, "\noptimize:", "\nvariants: {sweep: {v: [1, 2]}}\noptimize:"), {"retime_speeds.yaml:", "variants.sweep.v", "list parameter"});
 }
 
 TEST(TimeLawKnotSpeeds, TheExampleEndsAtTheLawsEndAndBadInputIsOneLocatedError) {

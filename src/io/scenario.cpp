@@ -107,7 +107,7 @@ SpecValue to_spec(const YAML::Node& n, const std::string& file, const std::strin
            "the file expands to more than " + std::to_string(kMaxSpecValues) +
                " values (YAML aliases repeated inside aliases?); a scenario is far smaller");
   SpecValue v;
-  v.where = {file, n.Mark().is_null() ? 0 : n.Mark().line + 1};
+  v.where = {file, n.Mark().is_null() ? 0 : n.Mark().line + 1, n.Mark().is_null() ? 0 : n.Mark().column + 1};
   switch (n.Type()) {
     case YAML::NodeType::Undefined:
     case YAML::NodeType::Null:
@@ -652,6 +652,12 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
     s.output_points = pts;
   }
   return s;
+}
+
+SpecValue parse_yaml_tree(const std::string& text, const std::string& source) {
+  const SpecReader c(source, {});
+  long budget = kMaxSpecValues;
+  return to_spec(load_yaml(c, text, source), source, "", c, budget, text);
 }
 
 ScenarioSpec load_scenario(const std::string& path, std::size_t max_input_bytes) {

@@ -32,6 +32,8 @@ std::vector<Variant> expand_variants(const ScenarioSpec& spec) {
     const std::string key = gkey + "." + name;
     if (std::find(names.begin(), names.end(), name) == names.end())
       c.fail(g[name], key, "no parameter '" + name + "' to vary (a variant sets parameters of the scenario)" + did_you_mean(name, names));
+    if (c.lists.count(name))
+      c.fail(g[name], key, "'" + name + "' is a list parameter: a variant sets one number, not a list (vary a scalar parameter)");
     for (const auto& a : axes)
       if (a.first == name) c.fail(g[name], key, "the parameter '" + name + "' is varied twice");
     count *= static_cast<double>(values.size());

@@ -4,6 +4,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/io/csv.hpp"
+#include "refdyn/io/scenario.hpp"
 #include "refdyn/io/variants.hpp"
 #include "refdyn/optimize/phase_plane.hpp"
 #include "refdyn/expression/time_law.hpp"
@@ -13,6 +14,7 @@
 #include <nlopt.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -51,7 +53,10 @@ std::shared_ptr<const Expression> compile(const SpecReader& c, const SpecValue& 
                                           const std::string& text, const std::vector<std::string>& metrics,
                                           const std::vector<std::string>& variables) {
   std::vector<std::string> vars = metrics;
-  vars.insert(vars.end(), variables.begin(), variables.end());
+  for (const auto& v : variables) {  // a list's elements v[i] are no names of the language: placeholders
+    const size_t b = v.find('[');
+    vars.push_back(b == std::string::npos ? v : "__" + v.substr(0, b) + "_" + v.substr(b + 1, v.size() - b - 2));
+  }
   std::map<std::string, double> params = c.params;
   for (const auto& v : variables) params.erase(v);
   for (const auto& m : metrics) params.erase(m);
@@ -74,6 +79,31 @@ std::shared_ptr<const Expression> compile(const SpecReader& c, const SpecValue& 
   }
 }
 
+/// A list variable's element name "v[3]" → "v" and 2 (0-based); else "" (a scalar variable).
+std::string list_element(const std::string& name, size_t& element) {
+  const size_t b = name.find('[');
+  if (b == std::string::npos || b == 0 || name.back() != ']' || b + 2 >= name.size()) return {};
+  size_t k = 0;
+  for (size_t i = b + 1; i + 1 < name.size(); ++i) {
+    if (!std::isdigit(static_cast<unsigned char>(name[i])) || k > 1'000'000'000) return {};
+    k = 10 * k + static_cast<size_t>(name[i] - '0');
+  }
+  if (k == 0) return {};
+  element = k - 1;
+  return name.substr(0, b);
+}
+
+/// slsqp and mma differentiate the plan by the parameters' symbols, and a list parameter's
+/// elements are numbers to the symbolic layer: refused where the list variable is named.
+void check_list_gradients(const OptimizeSetup& s, const SpecReader& c, const OptimizeSpec& o) {
+  if (!uses_gradients(s.method) || s.lists.empty()) return;
+  for (const auto& v : o.variables)
+    if (v.name == s.lists.front().name)
+      c.fail(v.value["name"], v.key + ".name",
+             std::string(to_string(s.method)) + " needs the plan's sensitivities, and the elements of the list parameter '" + v.name +
+                 "' have none (they are numbers to the symbolic layer); use method: phase_plane (knot speeds), cobyla or bobyqa");
+}
+
 }  // namespace
 
 OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
@@ -89,8 +119,56 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     if (std::find(names.begin(), names.end(), v.name) == names.end())
       c.fail(at, v.key + ".name",
              "no parameter '" + v.name + "' to optimize (variables are parameters of the scenario)" + did_you_mean(v.name, names));
-    if (std::find(s.variables.begin(), s.variables.end(), v.name) != s.variables.end())
+    if (std::find(s.variables.begin(), s.variables.end(), v.name) != s.variables.end() ||
+        std::find(s.variables.begin(), s.variables.end(), v.name + "[1]") != s.variables.end())
       c.fail(at, v.key + ".name", "the parameter '" + v.name + "' is a variable twice");
+    const auto list = c.lists.find(v.name);
+    if (list != c.lists.end()) {  // a list parameter: one vector variable, its elements named v[1] … v[n]
+      const size_t n = list->second.size();
+      // lower, upper, start: one number for every element, or a list of n numbers
+      auto numbers = [&](const SpecValue& b, const std::string& k) {
+        std::vector<double> out;
+        if (b.is_list()) {
+          if (b.size() != n)
+            c.fail(b, k,
+                   "expected one number for every element or a list of " + std::to_string(n) + " (the length of '" + v.name +
+                       "'), got a list of " + std::to_string(b.size()) + " (hint: write one number for all)");
+          for (size_t i = 0; i < n; ++i) out.push_back(c.number(b[i], k + "[" + std::to_string(i) + "]"));
+        } else {
+          out.assign(n, c.number(b, k));
+        }
+        return out;
+      };
+      const std::vector<double> lo = numbers(v.lower, v.key + ".lower"), hi = numbers(v.upper, v.key + ".upper");
+      std::vector<double> x0;
+      if (v.start) x0 = numbers(v.start, v.key + ".start");
+      else
+        for (const Quantity& q : list->second) x0.push_back(q.value);
+      for (size_t i = 0; i < n; ++i) {
+        const std::string el = "[" + std::to_string(i) + "]";
+        const SpecValue& lv = v.lower.is_list() ? v.lower[i] : v.lower;
+        if (lo[i] > hi[i])
+          c.fail(lv, v.key + ".lower" + (v.lower.is_list() || v.upper.is_list() ? el : ""),
+                 "lower = " + fmt(lo[i]) + " is above upper = " + fmt(hi[i]) +
+                     (v.lower.is_list() || v.upper.is_list() ? " (element " + std::to_string(i) + " of '" + v.name + "')" : ""));
+        if (x0[i] < lo[i] || x0[i] > hi[i]) {
+          const std::string msg = "start = " + fmt(x0[i]) + " (element " + std::to_string(i) + " of '" + v.name +
+                                  "') is outside [" + fmt(lo[i]) + ", " + fmt(hi[i]) + "]";
+          if (!v.start) c.fail(list->second[i].where, v.key + ".start", msg + " (the parameter's value; hint: give start:)");
+          c.fail(v.start.is_list() ? v.start[i] : v.start, v.key + ".start" + (v.start.is_list() ? el : ""), msg);
+        }
+        s.variables.push_back(v.name + "[" + std::to_string(i + 1) + "]");
+        s.variable_where.push_back(at.where);
+        s.lower.push_back(lo[i]);
+        s.upper.push_back(hi[i]);
+        s.start.push_back(x0[i]);
+      }
+      s.lists.push_back({v.name, s.variables.size() - n, n});
+      continue;
+    }
+    for (const auto* b : {&v.lower, &v.upper, &v.start})
+      if (b->is_list())
+        c.fail(*b, v.key, "'" + v.name + "' is a parameter with one value: its lower, upper and start are single numbers, got a list");
     const double lo = c.number(v.lower, v.key + ".lower"), hi = c.number(v.upper, v.key + ".upper");
     if (lo > hi) c.fail(v.lower, v.key + ".lower", "lower = " + fmt(lo) + " is above upper = " + fmt(hi));
     double x0 = c.params.at(v.name);
@@ -105,6 +183,7 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     s.upper.push_back(hi);
     s.start.push_back(x0);
   }
+  check_list_gradients(s, c, o);
   const int parts = base.time_law_knots.empty() ? 0 : static_cast<int>(base.time_law_knots.size()) - 1;
   s.metric_names = metric_names(base.model, parts);
   s.maximize = o.maximize;
@@ -174,8 +253,32 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
 ScenarioSpec spec_at(const ScenarioSpec& spec, const std::vector<std::string>& variables, const std::vector<double>& x) {
   io::Variant v;
   v.name = "candidate";
-  for (size_t i = 0; i < variables.size(); ++i) v.values.emplace_back(variables[i], x[i]);
+  std::map<std::string, std::vector<double>> lists;
+  for (size_t i = 0; i < variables.size(); ++i) {
+    size_t element = 0;
+    const std::string base = list_element(variables[i], element);
+    if (base.empty()) {
+      v.values.emplace_back(variables[i], x[i]);
+      continue;
+    }
+    auto it = std::find_if(spec.parameters.begin(), spec.parameters.end(), [&](const auto& p) { return p.first == base; });
+    if (it == spec.parameters.end() || !it->second.is_list() || element >= it->second.size())
+      throw Error("optimize: no list parameter element '" + variables[i] + "' to set");
+    std::vector<double>& l = lists[base];
+    if (l.empty()) l.assign(it->second.size(), std::numeric_limits<double>::quiet_NaN());
+    l[element] = x[i];
+  }
   ScenarioSpec s = io::variant_spec(spec, v);
+  for (auto& [name, values] : lists) {
+    if (std::any_of(values.begin(), values.end(), [](double e) { return std::isnan(e); })) {
+      // the elements not set keep their written values
+      const SpecReader c = parameter_reader(spec);
+      const std::vector<Quantity>& written = c.lists.at(name);
+      for (size_t k = 0; k < values.size(); ++k)
+        if (std::isnan(values[k])) values[k] = written[k].value;
+    }
+    s.list_values[name] = std::move(values);
+  }
   s.optimize.reset();
   return s;
 }
@@ -366,7 +469,11 @@ std::string trimmed(const std::string& t) {
 /// a limit (between the path samples the limits were imposed at, or by the integration error
 /// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
 /// again (at most 8 times). Every plan is a row of the history.
-std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli) {
+std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli,
+                            std::vector<std::pair<std::string, double>>& phases) {
+  auto since = [](std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
   const OptimizeSpec& o = *spec.optimize;
   const SpecReader c = parameter_reader(spec);
   // What is wrong with the method: located at optimize.method, or said of --method.
@@ -388,30 +495,46 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
     c.fail(o.bounds[0].value, o.bounds[0].key,
            "phase_plane takes no bounds on metrics, only the joints' limits (feasible: true); use slsqp or cobyla");
   const SpecValue& ks = tl["knot_speeds"];
-  const size_t K = ks.size() + 1;
-  std::vector<size_t> var_of(ks.size());
+  std::vector<size_t> var_of;
   std::vector<bool> used(s.variables.size(), false);
-  for (size_t i = 0; i < ks.size(); ++i) {
-    const std::string name = trimmed(ks[i].text);
-    const auto it = std::find(s.variables.begin(), s.variables.end(), name);
-    if (it == s.variables.end())
-      c.fail(ks[i], "time_law.knot_speeds[" + std::to_string(i) + "]",
-             "phase_plane chooses every knot speed, and '" + ks[i].text +
-                 "' is not a variable of optimize.variables (hint: make it a parameter and add - {name: " + name +
-                 ", lower: 0.01, upper: 10})");
-    var_of[i] = static_cast<size_t>(it - s.variables.begin());
-    used[var_of[i]] = true;
+  if (ks.is_scalar()) {  // the compact form: knot_speeds: v, a list parameter, one vector variable
+    const std::string name = trimmed(ks.text);
+    const auto it = std::find_if(s.lists.begin(), s.lists.end(), [&](const auto& l) { return l.name == name; });
+    if (it == s.lists.end())
+      c.fail(ks, "time_law.knot_speeds",
+             "phase_plane chooses every knot speed, and the list parameter '" + name +
+                 "' is not a variable of optimize.variables (hint: add - {name: " + name + ", lower: 0.05, upper: 10})");
+    for (size_t i = 0; i < it->size; ++i) var_of.push_back(it->first + i);
+  } else {
+    for (size_t i = 0; i < ks.size(); ++i) {
+      const std::string name = trimmed(ks[i].text);
+      const auto it = std::find(s.variables.begin(), s.variables.end(), name);
+      if (it == s.variables.end())
+        c.fail(ks[i], "time_law.knot_speeds[" + std::to_string(i) + "]",
+               "phase_plane chooses every knot speed, and '" + ks[i].text +
+                   "' is not a variable of optimize.variables (hint: make it a parameter and add - {name: " + name +
+                   ", lower: 0.01, upper: 10})");
+      var_of.push_back(static_cast<size_t>(it - s.variables.begin()));
+    }
   }
+  const size_t K = var_of.size() + 1;
+  for (size_t i : var_of) used[i] = true;
   for (size_t k = 0; k < used.size(); ++k)
-    if (!used[k])
-      c.fail(o.variables[k].value["name"], o.variables[k].key + ".name",
-             "phase_plane chooses only the knot speeds of the time law, and '" + s.variables[k] + "' is not one of them");
+    if (!used[k]) {
+      size_t el = 0;
+      std::string name = list_element(s.variables[k], el);
+      if (name.empty()) name = s.variables[k];
+      const auto v = std::find_if(o.variables.begin(), o.variables.end(), [&](const auto& x) { return x.name == name; });
+      c.fail(v->value["name"], v->key + ".name",
+             "phase_plane chooses only the knot speeds of the time law, and '" + name + "' is not one of them");
+    }
   const SpecValue& Tp = tl["task_duration"];
   for (const auto& v : s.variables)
     if (uses_identifier(Tp.text, v))
       c.fail(Tp, "time_law.task_duration", "phase_plane keeps the task's own duration: it must not use the variable '" + v + "'");
 
   // The task in its own time.
+  const auto path_start = std::chrono::steady_clock::now();
   ScenarioSpec own = spec_at(spec, s.variables, s.start);
   own.time_law = SpecValue{};
   own.integrator.t1 = SpecValue::scalar(Tp.text, Tp.where);
@@ -439,6 +562,8 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   } catch (const Error& e) {
     fail_method(e.what());
   }
+  phases.emplace_back("path", since(path_start));
+  phases.emplace_back("topp_ra", 0.0);
   PhasePlaneLimits limits{Eigen::VectorXd(m.nq), Eigen::VectorXd(m.nq)};
   bool any = false;
   for (int j = 0; j < m.nq; ++j) {
@@ -458,11 +583,13 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   for (int round = 0;; ++round) {
     const PhasePlaneLimits L{limits.effort * mu, limits.speed * mu};
     std::vector<double> x;
+    const auto topp_start = std::chrono::steady_clock::now();
     try {
       x = phase_plane_knot_law(path, static_cast<int>(K), L, lo, hi);
     } catch (const Error& e) {
       return std::string("phase plane: ") + e.what();
     }
+    phases.back().second += since(topp_start);
     if (round == 0) first = knot_law_duration(x, task);
     std::vector<double> v(s.variables.size());
     for (size_t i = 0; i < var_of.size(); ++i)
@@ -548,12 +675,14 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
     const auto base = build_problem(spec_at(spec, {}, {}));
     out.setup = check_optimize(spec, *base);
   }
+  const double setup_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!options.method.empty()) try {
       out.setup.method = optimize_method(options.method);
     } catch (const Error& e) {
       throw Error(std::string("--method: ") + e.what());
     }
   OptimizeSetup& s = out.setup;
+  if (!options.method.empty()) check_list_gradients(s, parameter_reader(spec), *spec.optimize);
   if (options.budget > 0) s.budget = options.budget;
   const unsigned n = static_cast<unsigned>(s.variables.size());
   const unsigned m = static_cast<unsigned>(s.constraints.size());
@@ -566,9 +695,11 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
   sum.variables = s.variables;
   for (const auto& c : s.constraints) sum.constraint_names.push_back(c.name);
   nlopt::result res = nlopt::FAILURE;
+  sum.phases.emplace_back("setup", setup_time);
+  const auto search_start = std::chrono::steady_clock::now();
   try {
     if (s.method == OptimizeMethod::PhasePlane) {
-      sum.message = run_phase_plane(spec, s, ev, !options.method.empty());
+      sum.message = run_phase_plane(spec, s, ev, !options.method.empty(), sum.phases);
       res = nlopt::SUCCESS;  // failure when no plan of it is feasible (below)
     } else {
       nlopt::opt opt = make_nlopt(s, n, m, ev);
@@ -589,6 +720,12 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
     sum.message = std::string("NLopt: ") + e.what();
   }
   if (!ev.fatal.empty()) throw Error(ev.fatal);
+  {
+    double plans = 0;
+    for (const auto& p : ev.points_) plans += p.row.seconds;
+    sum.phases.emplace_back("plans", plans);
+    sum.phases.emplace_back("optimizer", std::chrono::duration<double>(std::chrono::steady_clock::now() - search_start).count());
+  }
   sum.status = result_name(res);
   if (ev.stopped) {
     sum.status = "stopped";
@@ -644,6 +781,9 @@ JsonValue OptimizeSummary::to_json() const {
   j["feasible"] = feasible;
   j["constraints"] = constraint_names;
   j["wall_time_s"] = wall_time;
+  JsonValue ph = JsonValue::object();
+  for (const auto& [name, seconds] : phases) ph[name] = seconds;
+  j["phases_s"] = ph;
   return j;
 }
 
@@ -664,57 +804,66 @@ std::string optimization_csv(const OptimizeSummary& s) {
   return o.str();
 }
 
-std::string optimized_yaml(const std::string& text, const std::vector<std::string>& names, const std::vector<double>& values) {
-  std::vector<std::string> lines;
-  {
-    std::istringstream in(text);
-    std::string l;
-    while (std::getline(in, l)) lines.push_back(l);
-  }
-  std::vector<bool> done(names.size(), false);
-  bool in_block = false;
-  for (auto& l : lines) {
-    if (!l.empty() && l[0] != ' ' && l[0] != '\t' && l[0] != '#') {
-      in_block = false;
-      if (l.rfind("parameters:", 0) == 0) {
-        in_block = true;
-        // Flow style: parameters: {a: 1, b: 2}
-        for (size_t i = 0; i < names.size(); ++i) {
-          const std::regex re("([{,]\\s*" + names[i] + "\\s*:\\s*)([^,}#]*[^,}#\\s])");
-          std::smatch mm;
-          if (std::regex_search(l, mm, re)) {
-            l = l.substr(0, static_cast<size_t>(mm.position(2))) + fmt(values[i]) +
-                l.substr(static_cast<size_t>(mm.position(2) + mm.length(2)));
-            done[i] = true;
-          }
-        }
-      }
-      continue;
+std::string optimized_yaml(const std::string& text, const SpecValue& root, const std::vector<std::string>& names,
+                           const std::vector<double>& values) {
+  const SpecValue& params = root["parameters"];
+  std::vector<size_t> line_start{0};
+  for (size_t i = 0; i < text.size(); ++i)
+    if (text[i] == '\n') line_start.push_back(i + 1);
+  struct Edit {
+    size_t at, length;
+    std::string with;
+  };
+  std::vector<Edit> edits;
+  edits.reserve(names.size());
+  for (size_t i = 0; i < names.size(); ++i) {
+    size_t element = 0;
+    const std::string list = list_element(names[i], element);
+    const SpecValue& p = params[list.empty() ? names[i] : list];
+    const SpecValue& v = list.empty() ? p : p[element];
+    if (!v.is_scalar() || (!list.empty() && !p.is_list()))
+      throw Error("optimized.yaml: the parameter '" + names[i] + "' was not found as a value in the parameters: section");
+    const SourceLocation& w = v.where;
+    if (w.line < 1 || static_cast<size_t>(w.line) > line_start.size() || w.column < 1)
+      throw Error("optimized.yaml: the parameter '" + names[i] + "' has no recorded location");
+    const size_t at = line_start[static_cast<size_t>(w.line - 1)] + static_cast<size_t>(w.column - 1);
+    const size_t eol = std::min(text.find('\n', at), text.size());
+    size_t length = 0;
+    if (at < text.size() && (text[at] == '"' || text[at] == '\'') && text.find(text[at], at + 1) < eol)
+      length = text.find(text[at], at + 1) + 1 - at;  // a quoted value: the quotes go too
+    else if (text.compare(at, v.text.size(), v.text) == 0 && at + v.text.size() <= eol)
+      length = v.text.size();
+    else
+      throw Error(w.file + ":" + std::to_string(w.line) + ": parameters." + names[i] +
+                  ": optimized.yaml rewrites values in place, and this one is not a plain one-line value (hint: write it as a number)");
+    std::string with = fmt(values[i]);
+    // keep a comment where it was: pad or shrink the spaces between the value and a '#'
+    size_t after = at + length, c = after;
+    while (c < eol && (text[c] == ' ' || text[c] == '\t')) ++c;
+    if (c < eol && text[c] == '#' && c > after) {
+      const long pad = static_cast<long>(c - at) - static_cast<long>(with.size());
+      with += std::string(static_cast<size_t>(std::max(1L, pad)), ' ');
+      length = c - at;
     }
-    if (!in_block) continue;
-    for (size_t i = 0; i < names.size(); ++i) {
-      if (done[i]) continue;
-      const std::regex re("^(\\s+" + names[i] + "\\s*:\\s*)([^#]*[^#\\s])(\\s*(#.*)?)$");
-      std::smatch mm;
-      if (std::regex_match(l, mm, re)) {
-        std::string tail = mm[3].str();
-        const std::string nv = fmt(values[i]);
-        // keep a comment where it was: pad or shrink the spaces before it
-        if (mm[4].matched) {
-          const long pad = static_cast<long>(mm[2].length()) - static_cast<long>(nv.size()) +
-                           static_cast<long>(tail.size() - mm[4].length());
-          tail = std::string(static_cast<size_t>(std::max(1L, pad)), ' ') + mm[4].str();
-        }
-        l = mm[1].str() + nv + tail;
-        done[i] = true;
-      }
-    }
+    edits.push_back({at, length, std::move(with)});
   }
+  std::sort(edits.begin(), edits.end(), [](const Edit& x, const Edit& y) { return x.at < y.at; });
   std::string out;
-  for (const auto& l : lines) out += l + "\n";
-  for (size_t i = 0; i < names.size(); ++i)
-    if (!done[i]) throw Error("optimized.yaml: the parameter '" + names[i] + "' was not found as 'name: value' in the parameters: section");
+  out.reserve(text.size() + 16 * edits.size());
+  size_t pos = 0;
+  for (const Edit& e : edits) {
+    if (e.at < pos) throw Error("optimized.yaml: two variables share one value in the text");
+    out.append(text, pos, e.at - pos);
+    out += e.with;
+    pos = e.at + e.length;
+  }
+  out.append(text, pos, std::string::npos);
+  if (!out.empty() && out.back() != '\n') out += '\n';
   return out;
+}
+
+std::string optimized_yaml(const std::string& text, const std::vector<std::string>& names, const std::vector<double>& values) {
+  return optimized_yaml(text, io::parse_yaml_tree(text, "optimized.yaml"), names, values);
 }
 
 }  // namespace refdyn

@@ -280,6 +280,28 @@ SpecReader parameter_reader(const ScenarioSpec& spec) {
     if (name == "pi" || name == "e" || name == "deg" || name == "t")
       c.fail(value, "parameters." + name, "'" + name + "' is a reserved name (a constant or the time); choose another name");
     const auto set = spec.parameter_values.find(name);
+    if (value.is_list()) {  // a list parameter: each element a number or an expression of the parameters before it
+      const std::string key = "parameters." + name;
+      if (set != spec.parameter_values.end())
+        c.fail(value, key, "'" + name + "' is a list parameter and cannot be set to one number (" + set->second.text + ")");
+      if (value.size() == 0)
+        c.fail(value, key, "expected a list of numbers [x1, x2, …] (a list parameter), got an empty list");
+      if (value.size() > kMaxListParameter)
+        c.fail(value, key,
+               "a list parameter holds at most " + std::to_string(kMaxListParameter) + " values, got " +
+                   std::to_string(value.size()) + " (a time law of that many parts is beyond any plan; use fewer knots)");
+      std::vector<Quantity>& out = c.lists[name];
+      const auto lv = spec.list_values.find(name);
+      if (lv != spec.list_values.end() && lv->second.size() != value.size())
+        c.fail(value, key, "set to " + std::to_string(lv->second.size()) + " values where the list has " + std::to_string(value.size()));
+      for (size_t i = 0; i < value.size(); ++i) {
+        if (lv != spec.list_values.end())
+          out.push_back(Quantity{lv->second[i], fmt(lv->second[i]), value[i].where, true});
+        else
+          out.push_back(c.quantity(value[i], key + "[" + std::to_string(i) + "]"));
+      }
+      continue;
+    }
     c.params[name] = set != spec.parameter_values.end() ? set->second.value : c.number(value, "parameters." + name);
   }
   return c;
@@ -302,6 +324,34 @@ void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
   const bool speeds = static_cast<bool>(tl["knot_speeds"]);
   const std::string key = speeds ? "knot_speeds" : "segments";
   const SpecValue& seg = speeds ? tl["knot_speeds"] : c.need(tl, "segments", "time_law");
+  if (seg.is_scalar()) {  // the compact form: the name of a list parameter, `knot_speeds: v`
+    const auto it = c.lists.find(seg.text);
+    if (it == c.lists.end()) {
+      std::vector<std::string> lists;
+      for (const auto& l : c.lists) lists.push_back(l.first);
+      c.fail(seg, "time_law." + key,
+             "expected a list [" + std::string(speeds ? "v1, v2, …" : "d1, d2, …") + "] or the name of a list parameter, and '" +
+                 seg.text + "' is " + (c.params.count(seg.text) ? "a parameter with one value" : "no parameter") +
+                 " (hint: parameters: {" + seg.text + ": [" + (speeds ? "0.5, 0.5, …" : "0.1, 0.1, …") + "]})" +
+                 did_you_mean(seg.text, lists));
+    }
+    std::vector<Number> d;
+    for (size_t i = 0; i < it->second.size(); ++i) {
+      const Quantity& q = it->second[i];
+      if (!(q.value > 0))
+        c.fail(q.where, "parameters." + seg.text + "[" + std::to_string(i) + "]",
+               (speeds ? "a knot speed of time_law.knot_speeds must be > 0, got " : "a duration of time_law.segments must be > 0 [s], got ") +
+                   fmt(q.value) + (q.literal ? "" : " (" + q.text + ")"));
+      d.push_back(q.number());
+    }
+    try {
+      c.time_law = std::make_shared<const TimeLaw>(speeds ? TimeLawForm::knot_speeds : TimeLawForm::segments, Tp.number(),
+                                                   std::move(d));
+    } catch (const Error& e) {
+      c.fail(tl, "time_law", e.what());
+    }
+    return;
+  }
   if (!seg.is_list() || seg.size() == 0)
     c.fail(seg, "time_law." + key,
            (speeds ? std::string("expected a list of K - 1 > 0 task speeds [v1, v2, …] (ṡ at the inner knots i·Tp/K), got ")
@@ -803,6 +853,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   read_time_law(c, spec);
   std::unique_ptr<Problem> s = build_model_section(c, spec);
   for (const auto& [name, value] : spec.parameters) {
+    if (value.is_list()) continue;  // a list parameter's elements are numbers to the symbolic layer
     const auto set = spec.parameter_values.find(name);
     s->texts.parameters.emplace_back(name, set != spec.parameter_values.end() ? symbolic_number(set->second.value) : value.text);
   }

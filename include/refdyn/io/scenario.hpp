@@ -28,6 +28,9 @@ std::string read_text_file(const std::string& path, const std::string& what,
 ScenarioSpec parse_scenario(const std::string& yaml, const std::string& source_name,
                             std::size_t max_input_bytes = kDefaultMaxInputBytes);
 /// Reads and parses a scenario file.
+/// The file as written (YAML → SpecValue, every value with its line and column), without
+/// reading any section: what parse_scenario keeps as ScenarioSpec::root.
+SpecValue parse_yaml_tree(const std::string& yaml, const std::string& source_name);
 ScenarioSpec load_scenario(const std::string& path, std::size_t max_input_bytes = kDefaultMaxInputBytes);
 
 /// load_scenario + build_problem (the base scenario; a `variants:` section is checked too, see

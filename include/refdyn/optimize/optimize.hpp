@@ -45,7 +45,14 @@ struct OptimizeConstraint {
 /// The `optimize:` section checked against the scenario: every number evaluated, every name
 /// bound, the expressions compiled over (metric names…, variable names…) with derivative order 1.
 struct OptimizeSetup {
+  /// Every scalar variable; a list parameter `v` of n values is n of them, named v[1] … v[n].
   std::vector<std::string> variables;
+  /// The list variables: name, index of their first element in `variables`, length.
+  struct ListVariable {
+    std::string name;
+    size_t first = 0, size = 0;
+  };
+  std::vector<ListVariable> lists;
   std::vector<SourceLocation> variable_where;
   std::vector<double> lower, upper, start;
   OptimizeMethod method = OptimizeMethod::Slsqp;
@@ -99,7 +106,13 @@ struct OptimizeSummary {
   bool feasible = false;                ///< best_x is feasible
   bool stopped = false;                 ///< OptimizeOptions::stop was set
   std::vector<OptimizeEvaluation> history;
+  /// Seconds: optimize_scenario's own time; `refdyn optimize` sets it to the whole command's
+  /// (reading the file to writing the outputs).
   double wall_time = 0;
+  /// Where the time went, in order (seconds): optimize_scenario adds setup (build + check), path and
+  /// topp_ra (phase_plane), plans (every candidate's build + plan + metrics) and optimizer (the
+  /// whole search, plans included); `refdyn optimize` adds load, check, final_plan and write.
+  std::vector<std::pair<std::string, double>> phases;
   JsonValue to_json() const;            ///< summary.json's "optimization" object
 };
 
@@ -119,8 +132,15 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
 /// optimization.csv: index, the variables, objective, the constraints, feasible, status, reason.
 std::string optimization_csv(const OptimizeSummary& summary);
 
-/// The scenario text with `name: value` of each variable replaced in its `parameters:` section
-/// (block or flow style; comments and the rest kept).
+/// The scenario text with the value of each variable replaced where the reader recorded it
+/// (`root`: the text as parsed, ScenarioSpec::root; line and column of each parameter's value),
+/// block or flow style; a list variable's elements (names v[1] … v[n]) in place in its list, so
+/// the compact form stays compact. Comments and the rest of the text are kept (the spaces before
+/// a comment after the value are padded or shrunk so the comment stays in its column). Error when
+/// a name is no parameter or its value is not a plain one-line value. Linear in the text's size.
+std::string optimized_yaml(const std::string& text, const SpecValue& root, const std::vector<std::string>& names,
+                           const std::vector<double>& values);
+/// The same, parsing `text` first (io::parse_yaml_tree).
 std::string optimized_yaml(const std::string& text, const std::vector<std::string>& names, const std::vector<double>& values);
 
 }  // namespace refdyn

@@ -40,6 +40,9 @@ struct Limits {
 
 /// The largest limits.max_runs a scenario may set (building 100,000 runs takes ~5 s, ~0.3 GB).
 inline constexpr long kMaxRunsCeiling = 100'000;
+/// Most values of a list parameter (`v: [0.5, …]`, docs/scenario.md "parameters"): a time law of
+/// 100,000 parts already needs more steps than limits.max_steps allows at any useful step.
+inline constexpr size_t kMaxListParameter = 100'000;
 /// Default of `integrator.residual_tolerance`: the largest constraint residual max |Phi| (metres
 /// or radians, as the constraints are written) a plan may reach before it is cut. Far above the
 /// residuals of a plan that meets its task (examples and tests: below 1e-5), far below a plan

@@ -31,6 +31,8 @@ class SpecReader {
       : params(std::move(parameters)), file_(std::move(file)) {}
   const std::string& file() const { return file_; }
   std::map<std::string, double> params;  ///< visible parameters (deg, the scenario's, a sweep's)
+  /// List parameters (`v: [0.5, 0.5, …]`), element by element (value, text, where).
+  std::map<std::string, std::vector<Quantity>> lists;
   /// The scenario's `time_law:` (none: real time is task time). function() returns every
   /// time-dependent function f as f(s(t)) and counts it in `retimed`.
   TimeLawPtr time_law;

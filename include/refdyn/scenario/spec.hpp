@@ -19,10 +19,13 @@
 
 namespace refdyn {
 
-/// Where a value was written. line is 1-based; 0 when unknown (e.g. a missing key).
+/// Where a value was written. line and column are 1-based; 0 when unknown (e.g. a missing key).
+/// The column is where the value's text starts (a quote for a quoted scalar, `[` for a flow
+/// list): optimized.yaml rewrites values in place from it (optimize/optimize.hpp).
 struct SourceLocation {
   std::string file;
   int line = 0;
+  int column = 0;
 };
 
 /// A number of the scenario as the reader made it (SpecReader::quantity): its value, the text
@@ -246,10 +249,15 @@ struct OptimizeSpec {
 struct ScenarioSpec {
   std::string file;                        ///< source name used in messages
   std::string name;
-  std::vector<std::pair<std::string, SpecValue>> parameters;  ///< in order; each may use the previous
+  /// In order; each may use the previous. A value is a number or an expression, or a list of
+  /// them (a list parameter, e.g. knot speeds `v: [0.5, 0.5, …]`: used whole by name, as in
+  /// `time_law: {knot_speeds: v}`, and as one vector variable by optimize:).
+  std::vector<std::pair<std::string, SpecValue>> parameters;
   /// Parameters set to a number by a variant (io/variants.hpp): the value is used as it is (not
   /// written back as text and evaluated again); text and where (the parameter's) for messages.
   std::map<std::string, Quantity> parameter_values;
+  /// List parameters set to numbers (an optimize: candidate's vector variable), one per element.
+  std::map<std::string, std::vector<double>> list_values;
   ModelSpec model;
   std::vector<EntrySpec> constraints;
   SpecValue constraints_value;
