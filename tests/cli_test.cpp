@@ -1091,6 +1091,40 @@ TEST(Report, PartitionChoiceAgreesBetweenCheckThePartitionLineAndTheSolverTable)
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// plan --require-feasible: exit 4 after writing the results when the verdict is not feasible.
+
+TEST(Plan, RequireFeasibleExitsFourAfterWritingTheResults) {
+  Scratch s;
+  // The minimal arm with an effort limit on the shoulder that its task exceeds.
+  std::string text = read_text(kGood);
+  const std::string j1 = "inertia: [0.01, 0.05, 0.05]}";
+  ASSERT_TRUE(contains(text, j1));
+  text.replace(text.find(j1), j1.size(), "inertia: [0.01, 0.05, 0.05], limits: {effort: 1e-6}}");
+  const fs::path infeasible = s.root() / "infeasible.yaml";
+  std::ofstream(infeasible) << text;
+
+  const fs::path plain = s.root() / "plain", strict = s.root() / "strict", good = s.root() / "good";
+  Result r = run(s, "plan " + quote(infeasible) + " -q -o " + quote(plain));
+  EXPECT_EQ(r.code, 0) << "without the flag a plan that is not feasible still exits 0" << describe(r);
+  const JsonValue verdict = parse_json(read_text(plain / "feasibility.json"), "feasibility.json");
+  ASSERT_EQ(verdict["feasible"], false) << json_text(verdict);
+
+  r = run(s, "plan " + quote(infeasible) + " -q -o " + quote(strict) + " --require-feasible");
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_EQ(count_lines(r.err), 1) << describe(r);
+  EXPECT_TRUE(contains(r.err, "the plan is not feasible (1 violation: j1 effort")) << describe(r);
+  EXPECT_TRUE(contains(r.err, "--require-feasible")) << describe(r);
+  EXPECT_TRUE(r.out.empty()) << describe(r);
+  // The outputs are written as usual, identical to the run without the flag (but for wall times).
+  for (const char* f : {"plan.csv", "feasibility.json"}) EXPECT_EQ(read_text(strict / f), read_text(plain / f)) << f;
+  EXPECT_TRUE(fs::exists(strict / "summary.json"));
+
+  r = run(s, "plan " + quote(kGood) + " -q -o " + quote(good) + " --require-feasible");
+  EXPECT_EQ(r.code, 0) << "a feasible plan passes" << describe(r);
+  EXPECT_TRUE(r.err.empty()) << describe(r);
+}
+
 // A task that fixes every coordinate (m = n): no independent coordinates, every one dependent,
 // and κ = ‖A‖₁ ‖A⁻¹‖₁ — under the Lagrange solver too (it printed "independent [], dependent []"
 // and cond 1).
