@@ -222,6 +222,17 @@ void write_sensitivity(const Problem& problem, const Plan& plan, const Sensitivi
                 options.parameters.size() == 1 ? "" : "s", s.seconds);
 }
 
+/// Why a plan is not feasible, in a few words: "2 violations: j1 effort, j3 velocity" or the
+/// reason the verdict is incomplete.
+std::string infeasibility_text(const FeasibilityReport& f) {
+  if (!f.complete) return "verdict incomplete: " + f.incomplete_reason;
+  std::string s = std::to_string(f.violations.size()) + (f.violations.size() == 1 ? " violation:" : " violations:");
+  for (size_t i = 0; i < f.violations.size() && i < 4; ++i)
+    s += (i ? ", " : " ") + f.violations[i].joint + " " + f.violations[i].quantity;
+  if (f.violations.size() > 4) s += ", …";
+  return s;
+}
+
 int plan_or_track(const std::string& file, const std::string& out_dir, bool quiet, bool track, const InputOptions& in,
                   const RunConfig& cfg) {
   std::unique_ptr<MpiSession> mpi;
@@ -297,7 +308,14 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
     if (mpi) mpi->gather_variants(summaries);
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return finish([&] {
-      return finish_family(*problem, variants, summaries, out_dir, quiet, track, folders, wall);
+      const int code = finish_family(*problem, variants, summaries, out_dir, quiet, track, folders, wall);
+      if (code != kOk || !cfg.require_feasible) return code;
+      size_t infeasible = 0;
+      for (const io::VariantSummary& s : summaries) infeasible += !s.feasible;
+      if (infeasible == 0) return code;
+      std::fprintf(stderr, "refdyn: %zu of %zu variants not feasible (variants.csv); exit %d (--require-feasible)\n",
+                   infeasible, summaries.size(), static_cast<int>(kNumerical));
+      return static_cast<int>(kNumerical);
     });
   }
   const size_t runs = track ? problem->experiments.size() : 0;
@@ -321,10 +339,12 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
   if (mpi) mpi->gather_runs(r);
   if (!sensitivity.parameters.empty()) write_sensitivity(*problem, r.plan, sensitivity, out_dir, quiet);
   return finish([&] {
-    if (!mpi) return finish_results(*problem, r, out_dir, quiet, cfg.report, run_csv);
-    const int code = finish_results(*problem, r, out_dir, quiet, false, run_csv);
-    if (cfg.report) run_report(out_dir, file, "", quiet, in);
-    return code;
+    const int code = finish_results(*problem, r, out_dir, quiet, cfg.report && !mpi, run_csv);
+    if (mpi && cfg.report) run_report(out_dir, file, "", quiet, in);
+    if (code != kOk || !cfg.require_feasible || r.feasibility.feasible()) return code;
+    std::fprintf(stderr, "refdyn: the plan is not feasible (%s; feasibility.json); exit %d (--require-feasible)\n",
+                 infeasibility_text(r.feasibility).c_str(), static_cast<int>(kNumerical));
+    return static_cast<int>(kNumerical);
   });
 }
 

@@ -14,7 +14,8 @@ enum ExitCode : int {
   kUsage = 1,           ///< bad command line
   kBadInput = 2,        ///< invalid scenario, model or option: nothing was written
   kInternal = 3,        ///< a bug: please report
-  kNumerical = 4,       ///< a run stopped early (divergence, singular partition): partial results written
+  kNumerical = 4,       ///< a run stopped early (divergence, singular partition): partial results written;
+                        ///< also: no feasible point (optimize), a plan not feasible (plan --require-feasible)
 };
 
 /// Options shared by the commands that read a scenario.
@@ -30,6 +31,9 @@ struct RunConfig {
   bool report = false;           ///< also write report.html
   /// plan --sensitivity p1,p2: forward sensitivities of the plan (sensitivity.csv, .json)
   std::string sensitivity;
+  /// plan --require-feasible: exit kNumerical (after writing the results) when the plan's
+  /// feasibility verdict (feasibility.json) is not feasible, or, for variants, any variant's.
+  bool require_feasible = false;
 };
 inline constexpr std::size_t kRunCsvAutoLimit = 100;
 /// Runs listed one by one on the terminal (and stopped runs on stderr); the rest are in the files.

@@ -89,6 +89,9 @@ void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   c.plan->add_option("--sensitivity", a.run.sensitivity,
                      "Also write the plan's forward sensitivities to the named parameters (comma-separated): "
                      "sensitivity.csv (per sample), sensitivity.json (metrics and their gradients; docs/sensitivity.md)");
+  c.plan->add_flag("--require-feasible", a.run.require_feasible,
+                   "Exit 4 (after writing the results) when the plan's feasibility verdict is not feasible "
+                   "(feasibility.json; for variants: when any variant is not feasible)");
 
   c.optimize = app.add_subcommand(
       "optimize", "Choose task parameters (the scenario's optimize: section): optimized.yaml, optimization.csv, the optimum's plan");
@@ -162,7 +165,8 @@ int main(int argc, char** argv) {
   CLI::App app{"refdyn: task-based motion planning from computationally generated reference dynamics"};
   app.footer(
       "Exit codes: 0 success; 1 bad command line; 2 invalid input (scenario, model, option): nothing written;\n"
-      "            3 internal error; 4 a run stopped early (diverged, singular partition): partial results written.\n"
+      "            3 internal error; 4 a run stopped early (diverged, singular partition): partial results written;\n"
+      "            also 4: optimize found no feasible point, plan --require-feasible planned a motion not feasible.\n"
       "Scenario format: docs/scenario.md (`refdyn kinds` lists constraint kinds, forces, controllers).\n"
       "Examples: examples/*/*.yaml.");
   app.set_version_flag("--version", std::string("refdyn ") + refdyn::version(), "Print the version and exit");

@@ -253,7 +253,7 @@ JsonValue recorded_partition(const JsonValue& summary) {
   const auto part = plan->find("partition_t0");
   if (part == plan->end() || !part->is_object()) return JsonValue();
   JsonValue o = JsonValue::object();
-  for (const char* k : {"independent", "dependent", "automatic"}) o[k] = part->value(k, JsonValue());
+  for (const char* k : {"independent", "dependent", "automatic", "used_by_solver"}) o[k] = part->value(k, JsonValue());
   o["condition_t0"] = part->value("condition", JsonValue());
   return o;
 }
@@ -266,7 +266,10 @@ JsonValue solver_json(const Problem& p) {
   o["baumgarte_alpha"] = num(ro.alpha, 17);
   o["baumgarte_beta"] = num(ro.beta, 17);
   o["beta_first_order"] = num(ro.beta_first_order, 17);
-  o["automatic_partition"] = ro.automatic_partition;
+  // How the partition was chosen (partition.independent: auto, as summary.json's "automatic")
+  // and whether it is re-chosen when κ exceeds max_condition (partition.automatic_switch).
+  o["partition_automatic"] = p.automatic_independent;
+  o["partition_switch"] = ro.automatic_partition;
   o["max_condition"] = num(ro.max_condition, 17);
   o["integrator"] = to_string(in.method);
   for (const auto& [k, v] : {std::pair<const char*, double>{"step", in.step}, {"t0", in.t0}, {"t1", in.t1},

@@ -267,7 +267,7 @@ py::dict check_dict(const io::CheckReport& r) {
   py::object part = py::none();
   if (r.has_partition)
     part = py::dict("independent"_a = r.independent, "dependent"_a = r.dependent, "automatic"_a = r.automatic_partition,
-                    "condition"_a = r.condition);
+                    "condition"_a = r.condition, "used_by_solver"_a = r.partition_used);
   d["partition"] = part;
   py::object proj = py::none();
   if (r.projected) {

@@ -969,3 +969,185 @@ TEST(Sensitivity, UnknownParameterOrAFamilyIsRejectedBeforeAnythingIsWritten) {
   EXPECT_TRUE(contains(r.err, "not for a family of variants")) << describe(r);
   EXPECT_FALSE(fs::exists(out));
 }
+
+// ---------------------------------------------------------------------------------------------
+// The partition and its condition number at t0 (issue 33, item 4): the same, real κ = cond(K_dc)
+// in check's text, summary.json and the report whatever the solver. Under the Lagrange solver
+// (the default from 7 coordinates) the KKT solve uses no partition; what is shown is the one the
+// projection solver takes, and says so.
+
+namespace {
+
+/// examples/urdf_arm_line with its URDF path made absolute, a 1 s plan and `extra` appended.
+fs::path arm_line_scenario(const Scratch& s, const std::string& name, const std::string& extra) {
+  std::string text = read_text(kSource / "examples/urdf_arm_line/urdf_arm_line.yaml");
+  auto replace = [&](const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) text.replace(at, from.size(), to);
+  };
+  replace("file: ../urdf/arm7.urdf", "file: '" + (kSource / "examples/urdf/arm7.urdf").string() + "'");
+  replace("t1: 12,", "t1: 1,");
+  const fs::path p = s.root() / name;
+  std::ofstream(p) << text << extra;
+  return p;
+}
+
+/// The number check prints after "cond(K_dc) = ", as printed.
+std::string printed_condition(const std::string& out) {
+  const std::string key = "cond(K_dc) = ";
+  const size_t a = out.find(key);
+  if (a == std::string::npos) return "";
+  return out.substr(a + key.size(), out.find(' ', a + key.size()) - a - key.size());
+}
+
+std::string sig6(double v) {
+  std::ostringstream os;  // check_text's formatting (std::ostream, 6 significant digits)
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
+  Scratch s;
+  const fs::path automatic = arm_line_scenario(s, "auto.yaml", ""),
+                 projection = arm_line_scenario(s, "projection.yaml", "\nsolver: projection\n");
+  const Result ca = run(s, "check " + quote(automatic)), cp = run(s, "check " + quote(projection));
+  ASSERT_EQ(ca.code, 0) << describe(ca);
+  ASSERT_EQ(cp.code, 0) << describe(cp);
+  const std::string ka = printed_condition(ca.out), kp = printed_condition(cp.out);
+  EXPECT_EQ(ka, kp) << describe(ca) << describe(cp);
+  ASSERT_FALSE(ka.empty()) << describe(ca);
+  EXPECT_GT(std::stod(ka), 1.0) << "a 7-coordinate arm with 3 rows is not perfectly conditioned" << describe(ca);
+  // The partition printed is the same; the Lagrange one says that its solve does not use it.
+  auto partition_line = [](const std::string& out) {
+    const size_t a = out.find("partition: independent [");
+    return a == std::string::npos ? std::string() : out.substr(a, out.find('\n', a) - a);
+  };
+  EXPECT_EQ(partition_line(ca.out), partition_line(cp.out));
+  EXPECT_FALSE(contains(partition_line(ca.out), "independent [], dependent []")) << describe(ca);
+  EXPECT_TRUE(contains(ca.out, "(solver lagrange: the KKT solve uses no partition")) << describe(ca);
+  EXPECT_FALSE(contains(cp.out, "uses no partition")) << describe(cp);
+
+  // summary.json and the report record the same numbers as check printed.
+  std::map<std::string, JsonValue> recorded;
+  for (const auto& [name, file] : {std::pair<std::string, fs::path>{"auto", automatic}, {"projection", projection}}) {
+    const fs::path dir = s.root() / ("out_" + name);
+    const Result r = run(s, "plan " + quote(file) + " -q -o " + quote(dir) + " --report");
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const JsonValue summary = parse_json(read_text(dir / "summary.json"), "summary.json");
+    const JsonValue& part = summary["plan"]["partition_t0"];
+    ASSERT_TRUE(part.is_object()) << name << ": " << json_text(summary["plan"]);
+    EXPECT_EQ(sig6(part["condition"].get<double>()), ka) << name;
+    EXPECT_EQ(part["used_by_solver"], name == "projection") << name;
+    EXPECT_EQ(part["automatic"], true) << name;
+    const JsonValue data = report_data(dir / "report.html");
+    ASSERT_TRUE(data.is_object()) << name;
+    const JsonValue& shown = data["scenario"]["partition"];
+    EXPECT_EQ(shown["condition_t0"], part["condition"]) << name;
+    EXPECT_EQ(shown["independent"], part["independent"]) << name;
+    EXPECT_EQ(shown["used_by_solver"], part["used_by_solver"]) << name;
+    EXPECT_EQ(data["scenario"]["solver"]["solver"], name == "projection" ? "projection" : "lagrange") << name;
+    recorded[name] = part;
+  }
+  // Bit for bit: the Lagrange plan records the projection solver's partition at t0.
+  EXPECT_EQ(recorded["auto"]["condition"], recorded["projection"]["condition"]);
+  EXPECT_EQ(recorded["auto"]["independent"], recorded["projection"]["independent"]);
+  EXPECT_EQ(recorded["auto"]["dependent"], recorded["projection"]["dependent"]);
+}
+
+// "(chosen automatically)" (the partition at t0, partition.independent: auto) and the solver
+// table's partition column (which also says whether automatic_switch re-chooses it) come from
+// the same setting; they once read "(chosen automatically)" beside "automatic partition: no".
+TEST(Report, PartitionChoiceAgreesBetweenCheckThePartitionLineAndTheSolverTable) {
+  Scratch s;
+  struct Case {
+    fs::path file;
+    bool automatic, switching;
+  };
+  const std::vector<Case> cases{{arm_line_scenario(s, "auto.yaml", ""), true, true},
+                                {arm_line_scenario(s, "auto_kept.yaml", "") , true, false},
+                                {kGood, false, false}};
+  {  // auto_kept.yaml: the same task without automatic_switch
+    std::string t = read_text(cases[1].file);
+    t.replace(t.find("  automatic_switch: true\n"), std::string("  automatic_switch: true\n").size(), "");
+    std::ofstream(cases[1].file) << t;
+  }
+  for (const Case& c : cases) {
+    const Result ch = run(s, "check " + quote(c.file));
+    ASSERT_EQ(ch.code, 0) << describe(ch);
+    EXPECT_EQ(contains(ch.out, "(chosen automatically)"), c.automatic) << describe(ch);
+    const fs::path dir = s.root() / ("out_" + c.file.stem().string());
+    const Result r = run(s, "plan " + quote(c.file) + " -q -o " + quote(dir) + " --report");
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const JsonValue data = report_data(dir / "report.html");
+    const JsonValue& sc = data["scenario"];
+    EXPECT_EQ(sc["partition"]["automatic"], c.automatic) << c.file;
+    EXPECT_EQ(sc["solver"]["partition_automatic"], c.automatic) << c.file;
+    EXPECT_EQ(sc["solver"]["partition_switch"], c.switching) << c.file;
+    EXPECT_FALSE(sc["solver"].contains("automatic_partition")) << json_text(sc["solver"]);
+    EXPECT_FALSE(contains(read_text(dir / "report.html"), "'automatic partition'")) << c.file;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// plan --require-feasible: exit 4 after writing the results when the verdict is not feasible.
+
+TEST(Plan, RequireFeasibleExitsFourAfterWritingTheResults) {
+  Scratch s;
+  // The minimal arm with an effort limit on the shoulder that its task exceeds.
+  std::string text = read_text(kGood);
+  const std::string j1 = "inertia: [0.01, 0.05, 0.05]}";
+  ASSERT_TRUE(contains(text, j1));
+  text.replace(text.find(j1), j1.size(), "inertia: [0.01, 0.05, 0.05], limits: {effort: 1e-6}}");
+  const fs::path infeasible = s.root() / "infeasible.yaml";
+  std::ofstream(infeasible) << text;
+
+  const fs::path plain = s.root() / "plain", strict = s.root() / "strict", good = s.root() / "good";
+  Result r = run(s, "plan " + quote(infeasible) + " -q -o " + quote(plain));
+  EXPECT_EQ(r.code, 0) << "without the flag a plan that is not feasible still exits 0" << describe(r);
+  const JsonValue verdict = parse_json(read_text(plain / "feasibility.json"), "feasibility.json");
+  ASSERT_EQ(verdict["feasible"], false) << json_text(verdict);
+
+  r = run(s, "plan " + quote(infeasible) + " -q -o " + quote(strict) + " --require-feasible");
+  EXPECT_EQ(r.code, 4) << describe(r);
+  EXPECT_EQ(count_lines(r.err), 1) << describe(r);
+  EXPECT_TRUE(contains(r.err, "the plan is not feasible (1 violation: j1 effort")) << describe(r);
+  EXPECT_TRUE(contains(r.err, "--require-feasible")) << describe(r);
+  EXPECT_TRUE(r.out.empty()) << describe(r);
+  // The outputs are written as usual, identical to the run without the flag (but for wall times).
+  for (const char* f : {"plan.csv", "feasibility.json"}) EXPECT_EQ(read_text(strict / f), read_text(plain / f)) << f;
+  EXPECT_TRUE(fs::exists(strict / "summary.json"));
+
+  r = run(s, "plan " + quote(kGood) + " -q -o " + quote(good) + " --require-feasible");
+  EXPECT_EQ(r.code, 0) << "a feasible plan passes" << describe(r);
+  EXPECT_TRUE(r.err.empty()) << describe(r);
+}
+
+// A task that fixes every coordinate (m = n): no independent coordinates, every one dependent,
+// and κ = ‖A‖₁ ‖A⁻¹‖₁ — under the Lagrange solver too (it printed "independent [], dependent []"
+// and cond 1).
+TEST(Partition, ATaskFixingEveryCoordinateHasAllDependentUnderEitherSolver) {
+  Scratch s;
+  std::string text = read_text(kGood);
+  const std::string given = "partition:\n  independent: [j2]\n";
+  ASSERT_TRUE(contains(text, given));
+  text.replace(text.find(given), given.size(), "partition:\n  independent: auto\n");
+  const std::string constraints = "constraints:\n";
+  text.insert(text.find(constraints) + constraints.size(), "  - name: tip_y\n    expression: y(E) - L2\n");
+  std::map<std::string, std::string> lines;
+  for (const char* solver : {"lagrange", "projection"}) {
+    const fs::path f = s.root() / (std::string(solver) + ".yaml");
+    std::ofstream(f) << text << "\nsolver: " << solver << "\n";
+    const Result r = run(s, "check " + quote(f));
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const size_t a = r.out.find("partition: independent [");
+    ASSERT_NE(a, std::string::npos) << describe(r);
+    lines[solver] = r.out.substr(a, r.out.find('\n', a) - a);
+    EXPECT_TRUE(contains(lines[solver], "partition: independent [], dependent [j1, j2] (chosen automatically)"))
+        << describe(r);
+    EXPECT_GE(std::stod(printed_condition(r.out)), 1.0) << describe(r);
+  }
+  EXPECT_EQ(lines["lagrange"], lines["projection"]);
+}

@@ -91,7 +91,7 @@ SE3 pose(const Vec3& p, const Mat3& R = Mat3::Identity()) { return {R, p}; }
 
 ::testing::AssertionResult parse_fails_with(const std::string& xml, std::vector<std::string> parts,
                                             const UrdfOptions& opt = {}) {
-  parts.insert(parts.begin(), "urdf file 'inline.urdf': ");
+  parts.insert(parts.begin(), "URDF file 'inline.urdf': ");
   return fails_with([&] { parse_urdf(xml, "inline.urdf", opt); }, parts);
 }
 
@@ -421,16 +421,16 @@ TEST(UrdfFiles, TemporaryFileLoadsAndErrorsNameIt) {
 
   TempFile bad("<robot name=\"t\">\n  <link name=\"a\">\n  <link name=\"b\"/>\n</robot>\n", "refdyn_urdf_bad");
   EXPECT_TRUE(fails_with([&] { load_urdf(bad.path.string()); },
-                         {"urdf file '" + bad.path.string() + "': ", "not well-formed XML at line 4, column ", "closing tag"}));
+                         {"URDF file '" + bad.path.string() + "': ", "not well-formed XML at line 4, column ", "closing tag"}));
 }
 
 // --- errors ------------------------------------------------------------------------------------
 
 TEST(UrdfErrors, MissingFileAndDirectory) {
   EXPECT_TRUE(fails_with([] { load_urdf("/nonexistent/x.urdf"); },
-                         {"urdf file '/nonexistent/x.urdf': cannot be read: No such file or directory", "hint"}));
+                         {"URDF file '/nonexistent/x.urdf': cannot be read: No such file or directory", "hint"}));
   const std::string dir = fs::temp_directory_path().string();
-  EXPECT_TRUE(fails_with([&] { load_urdf(dir); }, {"urdf file '" + dir + "': cannot be read", "directory"}));
+  EXPECT_TRUE(fails_with([&] { load_urdf(dir); }, {"URDF file '" + dir + "': cannot be read", "directory"}));
 }
 
 TEST(UrdfErrors, MalformedXmlHasALineNumber) {
@@ -482,7 +482,20 @@ TEST(UrdfErrors, UrdfdomDiagnosticsAreCapturedNotPrinted) {
 
 TEST(UrdfErrors, UnsupportedJoints) {
   EXPECT_TRUE(parse_fails_with(robot(link("world") + link("base_link") + joint("free", "floating", "world", "base_link")),
-                               {"joint 'free' is floating", "not supported", "root_link = \"base_link\""}));
+                               {"joint 'free' is floating", "not supported", "set UrdfOptions::root_link to 'base_link'"}));
+  // A caller that exposes the option under another name (scenario files: model.urdf.root) gets
+  // that name in the hint, never the C++ one.
+  UrdfOptions scenario;
+  scenario.root_link_option = "model.urdf.root";
+  try {
+    parse_urdf(robot(link("world") + link("base_link") + joint("free", "floating", "world", "base_link")), "inline.urdf",
+               scenario);
+    ADD_FAILURE() << "a floating joint was accepted";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("set model.urdf.root to 'base_link'"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find("UrdfOptions"), std::string::npos) << msg;
+  }
   EXPECT_TRUE(parse_fails_with(robot(link("a") + link("b") + joint("slide", "planar", "a", "b")),
                                {"joint 'slide' is planar", "not supported", "hint"}));
   EXPECT_TRUE(parse_fails_with(robot(link("a") + link("b") + link("c") + joint("j1", "revolute", "a", "b") +
@@ -540,4 +553,38 @@ TEST(UrdfErrors, UnknownRootLink) {
   opt.root_link = "lnk1";
   EXPECT_TRUE(parse_fails_with(robot(link("base_link") + link("link1") + joint("j1", "revolute", "base_link", "link1")),
                                {"root link 'lnk1' is not a link of this URDF", "did you mean 'link1'"}, opt));
+  // Its own type, so that a scenario reports it under model.urdf.root rather than the file.
+  EXPECT_THROW(parse_urdf(robot(link("base_link") + link("link1") + joint("j1", "revolute", "base_link", "link1")),
+                          "inline.urdf", opt),
+               io::UrdfRootLinkError);
+  // Another error of the same file is not a root-link error.
+  try {
+    parse_urdf(robot(link("a") + link("b") + joint("slide", "planar", "a", "b")), "inline.urdf");
+    ADD_FAILURE() << "a planar joint was accepted";
+  } catch (const io::UrdfRootLinkError& e) {
+    ADD_FAILURE() << "a planar joint reported as a root-link error: " << e.what();
+  } catch (const Error&) {
+  }
+}
+
+// A xacro file is not a URDF: urdfdom reads it without its macros ("No name given for the robot",
+// or a model missing the links its macros make). It is refused with the command that expands it,
+// whether recognised by a <xacro:...> element or by its name.
+TEST(UrdfErrors, XacroFilesAreRefusedWithTheExpandCommand) {
+  const std::string body = link("base_link") + "<xacro:macro name=\"arm\" params=\"n\"><link name=\"${n}\"/></xacro:macro>\n" +
+                           "<xacro:arm n=\"link1\"/>\n" + joint("j1", "revolute", "base_link", "link1");
+  const std::string xacro = "<?xml version=\"1.0\"?>\n<robot xmlns:xacro=\"http://www.ros.org/wiki/xacro\">\n" + body +
+                            "</robot>\n";
+  EXPECT_TRUE(parse_fails_with(xacro, {"this is a xacro file", "<xacro:...> elements",
+                                       "expand it first with `xacro inline.urdf > inline.urdf.urdf`"}));
+  // By name: arm.urdf.xacro expands to arm.urdf, arm.xacro to arm.urdf.
+  EXPECT_TRUE(fails_with([&] { parse_urdf(xacro, "robots/arm.urdf.xacro"); },
+                         {"URDF file 'robots/arm.urdf.xacro': this is a xacro file", "its name ends in .xacro",
+                          "`xacro robots/arm.urdf.xacro > robots/arm.urdf`", "load robots/arm.urdf"}));
+  EXPECT_TRUE(fails_with([&] { parse_urdf(robot(link("a")), "arm.xacro"); }, {"`xacro arm.xacro > arm.urdf`"}));
+  // An expanded file may keep the xmlns:xacro declaration: without <xacro:...> elements it is a URDF.
+  const std::string expanded = "<?xml version=\"1.0\"?>\n<robot name=\"t\" xmlns:xacro=\"http://www.ros.org/wiki/xacro\">\n" +
+                               link("a") + link("b", 1.0, "0 0 0", "0 0 0", 0.1, 0.1, 0.1) +
+                               joint("j", "revolute", "a", "b") + "</robot>\n";
+  EXPECT_EQ(build_model(parse_urdf(expanded, "expanded.urdf")).nq, 1);
 }

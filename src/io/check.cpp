@@ -2,6 +2,7 @@
 #include "refdyn/io/check.hpp"
 
 #include "refdyn/common/text.hpp"
+#include "refdyn/io/results.hpp"
 #include "refdyn/io/variants.hpp"
 #include "refdyn/scenario/problem.hpp"
 
@@ -78,14 +79,18 @@ CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
     r.initial_acceleration_rows = s.qdd_consistent_with;
     for (int j = 0; j < m.nq; ++j) r.initial_acceleration.push_back(x[2 * m.nq + j]);
   }
-  if (const std::optional<PlannerPartition> part = planner->partition()) {
+  // The partition summary.json and the report record (partition_at_t0): the plan's own under
+  // the projection solver, the one that solver would take under the Lagrange solver.
+  if (const std::optional<PlannerPartition> part = partition_at_t0(s)) {
     r.has_partition = true;
     for (int j : part->independent) r.independent.push_back(m.joint_name[j]);
     for (int j : part->dependent) r.dependent.push_back(m.joint_name[j]);
     r.automatic_partition = s.automatic_independent;
     r.condition = part->condition;
+    r.partition_used = solver_uses_partition(s);
   }
-  r.projected = s.project_initial && r.has_partition;  // the projection moves the dependent coordinates
+  r.solver = resolved_solver(s) == ReferenceSolver::Projection ? "projection" : "lagrange";
+  r.projected = s.project_initial && !s.is_jerk_problem();  // the projection moves the dependent coordinates
   if (r.projected)
     for (int j = 0; j < m.nq; ++j)
       if (s.initial_dq[j] != 0 || s.initial_dqd[j] != 0)
@@ -148,6 +153,10 @@ std::string check_text(const CheckReport& r) {
     for (size_t i = 0; i < r.dependent.size(); ++i) o << (i ? ", " : "") << r.dependent[i];
     o << "]" << (r.automatic_partition ? " (chosen automatically)" : "") << "; cond(K_dc) = " << r.condition
       << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
+    if (!r.partition_used)
+      o << "  (solver " << r.solver
+        << ": the KKT solve uses no partition; this is the one solver: projection takes, and the initial "
+           "projection's dependent coordinates)\n";
   }
   if (r.projected) {
     o << "initial state projected onto the constraints (Newton, dependent coordinates):\n";

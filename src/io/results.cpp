@@ -93,22 +93,29 @@ void run_experiments(const Problem& p, Results& res, const RunOptions& o) {
   for_each_index(p.experiments.size(), o.shard, o.num_shards, o.jobs, run, after);
 }
 
-/// The partition a fresh planner takes at (t0, x0) — the one `refdyn check` prints (a planner of
-/// its own: the plan's planner starts untouched). None for a KKT planner or a failing derivative
-/// (the plan then reports the failure).
+}  // namespace
+
 std::optional<PlannerPartition> partition_at_t0(const Problem& p) {
+  if (p.is_jerk_problem()) return std::nullopt;
   try {
-    const auto planner = p.make_planner();
-    const Eigen::VectorXd x = p.initial_state(*planner);
+    ReferenceDynamicsOptions o = p.options;
+    o.solver = ReferenceSolver::Projection;  // the same partition and κ as a projection plan's, bit for bit
+    ReferenceDynamics rd(p.model, p.forces, p.constraints, o);
+    ReferencePlanner planner(rd);
+    const Eigen::VectorXd x = p.initial_state(planner);
     Eigen::VectorXd dx(x.size());
-    planner->derivative(p.integrator.t0, x, dx);
-    return planner->partition();
+    planner.derivative(p.integrator.t0, x, dx);
+    return planner.partition();
   } catch (const std::exception&) {
     return std::nullopt;
   }
 }
 
-}  // namespace
+ReferenceSolver resolved_solver(const Problem& p) {
+  return p.options.solver == ReferenceSolver::Automatic
+             ? automatic_reference_solver(p.model.nq, p.constraints.rows())
+             : p.options.solver;
+}
 
 Results run_problem(const Problem& p, const RunOptions& o) {
   if (o.num_shards < 1 || o.shard < 0 || o.shard >= o.num_shards)  // before the plan
@@ -337,8 +344,9 @@ std::string sweep_csv(const Problem& p, const Results& res) {
   return s;
 }
 
-static JsonValue partition_json(const Model& m, const std::optional<PlannerPartition>& part, bool automatic) {
-  if (!part) return JsonValue();  // a KKT planner: no partition
+static JsonValue partition_json(const Model& m, const std::optional<PlannerPartition>& part, bool automatic,
+                                bool used) {
+  if (!part) return JsonValue();  // a jerk problem: no partition
   auto names = [&](const std::vector<int>& idx) {
     JsonValue a = JsonValue::array();
     for (int i : idx) a.push_back(m.joint_name[i]);
@@ -349,6 +357,7 @@ static JsonValue partition_json(const Model& m, const std::optional<PlannerParti
   o["dependent"] = names(part->dependent);
   o["automatic"] = automatic;
   o["condition"] = number_or_null(part->condition);
+  o["used_by_solver"] = used;  // false: the Lagrange solver; the partition is the projection solver's
   return o;
 }
 
@@ -365,7 +374,7 @@ JsonValue summary_json(const Problem& p, const Results& res) {
   plan["residual_tolerance"] = number_or_null(p.residual_tolerance);
   if (p.residual_from > p.integrator.t0)
     plan["max_constraint_residual_after_" + fmt(p.residual_from) + "s"] = res.plan.summary.max_constraint_residual;
-  plan["partition_t0"] = partition_json(p.model, res.partition_t0, p.automatic_independent);
+  plan["partition_t0"] = partition_json(p.model, res.partition_t0, p.automatic_independent, solver_uses_partition(p));
   plan["wall_time_s"] = wall;
   s["feasibility"] = res.feasibility.to_json();
   if (res.runs.empty()) return s;

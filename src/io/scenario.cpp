@@ -375,9 +375,12 @@ void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::
     if (p.is_relative()) p = fs::path(source).parent_path() / p;
     UrdfOptions uo;
     if (u["root"]) uo.root_link = c.string(u["root"], "model.urdf.root");
+    uo.root_link_option = "model.urdf.root";  // the hints name the scenario key
     std::vector<UrdfMimic> mimics;
     try {
       s.model.urdf = parse_urdf(read_text_file(p.string(), "URDF file", max_input_bytes), p.string(), uo, &mimics);
+    } catch (const UrdfRootLinkError& e) {  // the file is fine; the key names a link it lacks
+      c.fail(u["root"], "model.urdf.root", e.what());
     } catch (const Error& e) {
       c.fail(u["file"], "model.urdf.file", e.what());
     }

@@ -23,7 +23,23 @@ namespace refdyn::io {
 
 namespace {
 
-std::string where(const std::string& source) { return "urdf file '" + source + "': "; }
+std::string where(const std::string& source) { return "URDF file '" + source + "': "; }
+
+/// A xacro file (macros, properties, includes) is not a URDF: urdfdom would read what it can of
+/// it (or nothing: "No name given for the robot"). Recognised by its name (.xacro) or by a
+/// <xacro:...> element; a stray xmlns:xacro declaration alone, which expanded files may keep, is
+/// not enough.
+void refuse_xacro(const std::string& xml, const std::string& source) {
+  const bool named = source.size() >= 6 && source.compare(source.size() - 6, 6, ".xacro") == 0;
+  if (!named && xml.find("<xacro:") == std::string::npos) return;
+  std::string out = named ? source.substr(0, source.size() - 6) : source;
+  if (out.size() < 5 || out.compare(out.size() - 5, 5, ".urdf") != 0) out += ".urdf";
+  if (out == source) out = source + ".urdf";  // an unnamed xacro file called x.urdf: x.urdf.urdf
+  throw Error(where(source) + "this is a xacro file (" +
+              (named ? std::string("its name ends in .xacro") : std::string("it has <xacro:...> elements")) +
+              "), not a URDF: expand it first with `xacro " + source + " > " + out +
+              "` (ROS's xacro package) and load " + out);
+}
 
 // --- urdfdom diagnostics --------------------------------------------------------------------
 // urdfdom reports problems through console_bridge (printed to stderr by default) and returns
@@ -230,7 +246,8 @@ const char* urdf_type_name(int type) {
   }
 }
 
-LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, std::vector<UrdfMimic>* mimics) {
+LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, const UrdfOptions& opt,
+                       std::vector<UrdfMimic>* mimics) {
   const std::string jw = where(source) + "joint '" + j.name + "'";
   if (j.mimic) {
     if (!mimics)
@@ -255,9 +272,9 @@ LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, std::vec
     case urdf::Joint::FIXED: l.type = JointType::Fixed; break;
     case urdf::Joint::FLOATING:
       throw Error(jw + " is floating: floating joints are not supported, refdyn models have a fixed base "
-                  "and 1-DOF joints (hint: to weld link '" + j.child_link_name +
-                  "' to the world, load with UrdfOptions::root_link = \"" + j.child_link_name +
-                  "\"; for a mobile base use prismatic and revolute joints)");
+                  "and 1-DOF joints (hint: to weld link '" + j.child_link_name + "' to the world, set " +
+                  opt.root_link_option + " to '" + j.child_link_name +
+                  "'; for a mobile base use prismatic and revolute joints)");
     case urdf::Joint::PLANAR:
       throw Error(jw + " is planar: planar joints are not supported (hint: replace it by two prismatic "
                   "joints and a revolute joint through massless intermediate links)");
@@ -283,7 +300,7 @@ LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, std::vec
 }
 
 void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, const std::string& source,
-          ModelDescription& d, std::vector<UrdfMimic>* mimics) {
+          const UrdfOptions& opt, ModelDescription& d, std::vector<UrdfMimic>* mimics) {
   std::vector<const urdf::Joint*> children;
   for (const auto& j : link.child_joints) children.push_back(j.get());
   std::sort(children.begin(), children.end(),
@@ -292,11 +309,11 @@ void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, cons
     urdf::LinkConstSharedPtr child = u.getLink(j->child_link_name);
     if (!child)  // urdfdom checks this; keep the walk safe anyway
       throw Error(where(source) + "joint '" + j->name + "': unknown child link '" + j->child_link_name + "'");
-    LinkSpec l = convert_joint(*j, source, mimics);
+    LinkSpec l = convert_joint(*j, source, opt, mimics);
     l.parent = index;
     l.inertia = inertia(*child);
     const int ci = d.add_link(l);
-    walk(u, *child, ci, source, d, mimics);
+    walk(u, *child, ci, source, opt, d, mimics);
   }
 }
 
@@ -305,6 +322,7 @@ void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, cons
 ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
                             std::vector<UrdfMimic>* mimics) {
   if (mimics) mimics->clear();
+  refuse_xacro(xml, source_name);
   ParseResult parsed = parse_capturing(xml);
   // urdfdom sometimes logs an error and still returns a model (e.g. an <inertial> without
   // <inertia> yields a point mass); for dynamics every reported error is fatal.
@@ -317,8 +335,8 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
     if (!root) {
       std::vector<std::string> names;
       for (const auto& [name, link] : u.links_) names.push_back(name);
-      throw Error(where(source_name) + "root link '" + opt.root_link + "' is not a link of this URDF" +
-                  did_you_mean(opt.root_link, names));
+      throw UrdfRootLinkError(where(source_name) + "root link '" + opt.root_link + "' is not a link of this URDF" +
+                              did_you_mean(opt.root_link, names));
     }
   }
   if (!root) throw Error(where(source_name) + "no root link (hint: a URDF needs at least one <link>)");
@@ -331,7 +349,7 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
   r.type = JointType::Fixed;
   r.inertia = inertia(*root);  // welded to the world: kept for completeness, no dynamic effect
   d.add_link(r);
-  walk(u, *root, 0, source_name, d, mimics);
+  walk(u, *root, 0, source_name, opt, d, mimics);
   if (mimics)  // the leader must be a movable joint of the loaded subtree
     for (const UrdfMimic& mm : *mimics) {
       const auto it = std::find_if(d.links.begin(), d.links.end(),

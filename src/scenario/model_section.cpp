@@ -113,7 +113,7 @@ struct ModelNumberReader {
   }
 };
 
-/// model.points: name: {link, position} (a point named like an existing one replaces it).
+/// model.points: name: {link, position}; a name that a URDF link's point already has is refused.
 void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecValue& ps, ModelDescription& d,
                  std::optional<ModelNumbers>& numbers) {
   if (!ps.is_map()) c.fail(ps, "model.points", "expected a mapping name: {link: ..., position: [x, y, z]}");
@@ -131,8 +131,14 @@ void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecVal
       known = known || l.name == link;
     }
     if (!known) c.fail(kv.value["link"], k + ".link", "unknown link '" + link + "'" + did_you_mean(link, names));
-    // A point named like an existing one (e.g. URDF link points) replaces it.
-    std::erase_if(d.points, [&](const PointSpec& s) { return s.name == name; });
+    // The points that exist before model.points are the URDF's, one per link frame origin: a
+    // point of the same name would silently move what x(NAME) means (and every constraint on it).
+    for (const PointSpec& existing : d.points)
+      if (existing.name == name)
+        c.fail(ps.key_location(name), k,
+               "a point named '" + name + "' already exists: refdyn gives every URDF link a point at its frame origin, "
+               "and this one would replace the origin of link '" + existing.link +
+                   "' (hint: rename this point, e.g. '" + name + "_point'; x(" + name + ") keeps the link's origin)");
     d.add_point(name, link, pos);
     if (numbers) numbers->points.push_back({name, link, nr.opt_vec(kv.value, "position", k)});
   }

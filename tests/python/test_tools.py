@@ -54,6 +54,7 @@ def test_check_dict_fields_of_the_paper_example():
     assert [c["rheonomic"] for c in r["constraints"]] == [False, True]
     assert r["partition"]["independent"] == ["psi1"] and r["partition"]["dependent"] == ["psi2", "z3"]
     assert r["partition"]["condition"] > 1
+    assert r["partition"]["used_by_solver"] is True  # the paper's 3 coordinates: the projection solver
     assert f"cond(K_dc) = {r['partition']['condition']:.6g}" in r["text"]
     assert r["integrator"]["method"] == "rk4" and r["integrator"]["step"] == 1e-3
     assert r["experiments"] == 8 and r["variants"] == []

@@ -48,8 +48,12 @@ struct CheckReport {
 
   bool has_partition = false;
   std::vector<std::string> independent, dependent;  ///< joint names
-  bool automatic_partition = false;
-  double condition = 0;  ///< cond(K_dc) at t0, 1-norm
+  bool automatic_partition = false;  ///< chosen at t0 (partition.independent: auto)
+  double condition = 0;  ///< cond(K_dc) at t0, 1-norm (io::partition_at_t0)
+  /// The reference solver ("projection" or "lagrange") and whether it uses the partition: the
+  /// Lagrange (KKT) solver does not; the partition shown is then the projection solver's.
+  std::string solver;
+  bool partition_used = true;
 
   /// The initial state was projected onto the constraints; the joints it moved.
   bool projected = false;

@@ -126,8 +126,8 @@ struct RunRecord {
 
 struct Results {
   std::unique_ptr<Planner> planner;  ///< the plan's (Problem::make_planner)
-  /// The coordinate partition at t0 (the plan's first evaluation), recorded for summary.json and
-  /// the report; none for a KKT planner (jerk problems) or when the derivative at t0 failed.
+  /// The coordinate partition at t0 (partition_at_t0), recorded for summary.json and the report;
+  /// none for a jerk problem or when the derivative at t0 failed.
   std::optional<PlannerPartition> partition_t0;
   Plan plan;
   FeasibilityReport feasibility;
@@ -148,6 +148,22 @@ void for_each_index(size_t count, int shard, int num_shards, int jobs, const std
 /// Plans the problem (and, with options.track, runs its experiments) and assesses feasibility
 /// from the recorded actuator efforts.
 Results run_problem(const Problem& problem, const RunOptions& options = {});
+
+/// The coordinate partition at (t0, x0) and its κ = cond(K_dc) = ‖A‖₁ ‖K_dc⁻¹‖₁, as the
+/// projection solver takes it, whatever the problem's solver: a fresh reference dynamics with the
+/// problem's options but `solver: projection`, evaluated once at the initial state. The Lagrange
+/// (KKT) solver uses no partition, so the partition of its plan is the one the projection solver
+/// would take (and the initial projection's dependent coordinates); `refdyn check`, summary.json
+/// and the report all show this one. None for a jerk problem (no partition) or when the
+/// projection fails at t0.
+std::optional<PlannerPartition> partition_at_t0(const Problem& problem);
+
+/// The solver the problem's reference dynamics use (Automatic resolved): projection or lagrange.
+ReferenceSolver resolved_solver(const Problem& problem);
+/// Whether that solver uses the partition (the projection solver; not the Lagrange solver).
+inline bool solver_uses_partition(const Problem& problem) {
+  return resolved_solver(problem) == ReferenceSolver::Projection;
+}
 
 /// One table for any Trajectory: the columns of the series it has, in a fixed order
 ///   t, q_*, qd_*, qdd_*, qref_*, e_*, tau_*, <force states (plans)>, <point>_x|y|z,

@@ -28,11 +28,14 @@
 /// material joint_coupling constraint named mimic_<joint>). Without `mimics` a <mimic> is an
 /// error. The leader must be a movable joint of the loaded subtree.
 /// Not supported (refdyn::Error naming the joint): floating and planar joints.
-/// Every error is one line: "urdf file '<name>': what is wrong (hint: ...)". urdfdom's own
+/// A xacro file (a name ending in .xacro, or <xacro:...> elements) is refused with the command
+/// that expands it (xacro FILE > FILE.urdf): urdfdom would read it without its macros.
+/// Every error is one line: "URDF file '<name>': what is wrong (hint: ...)". urdfdom's own
 /// diagnostics are captured (not printed) and quoted in that line; malformed XML is reported
 /// with its line number. Any error urdfdom logs is fatal, even when it still returns a model.
 /// The result is validated with build_model, so a returned description always builds.
 
+#include "refdyn/common/error.hpp"
 #include "refdyn/multibody/model.hpp"
 
 #include <string>
@@ -49,10 +52,19 @@ struct UrdfMimic {
 struct UrdfOptions {
   /// Link to use as the root (fixed to the base); empty: the URDF's own root link.
   std::string root_link;
+  /// How error messages name the root_link option (scenario files: "model.urdf.root").
+  std::string root_link_option = "UrdfOptions::root_link";
   /// Add a named point "<link>" at every link frame origin (so that scenario files can refer
   /// to x(tool)). Links named "world" or "base" that are not the root get no point: refdyn
   /// reserves those point-link names for the world and base frames.
   bool points_for_links = true;
+};
+
+/// Thrown when UrdfOptions::root_link is not a link of the URDF (so that a caller can locate the
+/// error at the option rather than at the file).
+class UrdfRootLinkError : public Error {
+ public:
+  using Error::Error;
 };
 
 /// Reads and parses the URDF file at `path` (error messages name it as given). `mimics`, when
