@@ -324,6 +324,7 @@ void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
   const bool speeds = static_cast<bool>(tl["knot_speeds"]);
   const std::string key = speeds ? "knot_speeds" : "segments";
   const SpecValue& seg = speeds ? tl["knot_speeds"] : c.need(tl, "segments", "time_law");
+  std::vector<Number> d;  // the durations or knot speeds, from a list parameter or written in place
   if (seg.is_scalar()) {  // the compact form: the name of a list parameter, `knot_speeds: v`
     const auto it = c.lists.find(seg.text);
     if (it == c.lists.end()) {
@@ -335,7 +336,6 @@ void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
                  " (hint: parameters: {" + seg.text + ": [" + (speeds ? "0.5, 0.5, …" : "0.1, 0.1, …") + "]})" +
                  did_you_mean(seg.text, lists));
     }
-    std::vector<Number> d;
     for (size_t i = 0; i < it->second.size(); ++i) {
       const Quantity& q = it->second[i];
       if (!(q.value > 0))
@@ -344,27 +344,20 @@ void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
                    fmt(q.value) + (q.literal ? "" : " (" + q.text + ")"));
       d.push_back(q.number());
     }
-    try {
-      c.time_law = std::make_shared<const TimeLaw>(speeds ? TimeLawForm::knot_speeds : TimeLawForm::segments, Tp.number(),
-                                                   std::move(d));
-    } catch (const Error& e) {
-      c.fail(tl, "time_law", e.what());
+  } else {
+    if (!seg.is_list() || seg.size() == 0)
+      c.fail(seg, "time_law." + key,
+             (speeds ? std::string("expected a list of K - 1 > 0 task speeds [v1, v2, …] (ṡ at the inner knots i·Tp/K), got ")
+                     : std::string("expected a list of K > 0 durations [d1, d2, …] (the real time of each of K equal parts of task time), got ")) +
+                 (seg.is_list() ? std::string("an empty list") : seg.describe()));
+    for (size_t i = 0; i < seg.size(); ++i) {
+      const std::string k = "time_law." + key + "[" + std::to_string(i) + "]";
+      const Quantity q = c.quantity(seg[i], k);
+      if (!(q.value > 0))
+        c.fail(seg[i], k, (speeds ? "expected a task speed > 0, got " : "expected a duration > 0 [s], got ") + fmt(q.value) +
+                              (q.literal ? "" : " (" + q.text + ")"));
+      d.push_back(q.number());
     }
-    return;
-  }
-  if (!seg.is_list() || seg.size() == 0)
-    c.fail(seg, "time_law." + key,
-           (speeds ? std::string("expected a list of K - 1 > 0 task speeds [v1, v2, …] (ṡ at the inner knots i·Tp/K), got ")
-                   : std::string("expected a list of K > 0 durations [d1, d2, …] (the real time of each of K equal parts of task time), got ")) +
-               (seg.is_list() ? std::string("an empty list") : seg.describe()));
-  std::vector<Number> d;
-  for (size_t i = 0; i < seg.size(); ++i) {
-    const std::string k = "time_law." + key + "[" + std::to_string(i) + "]";
-    const Quantity q = c.quantity(seg[i], k);
-    if (!(q.value > 0))
-      c.fail(seg[i], k, (speeds ? "expected a task speed > 0, got " : "expected a duration > 0 [s], got ") + fmt(q.value) +
-                            (q.literal ? "" : " (" + q.text + ")"));
-    d.push_back(q.number());
   }
   try {
     c.time_law = std::make_shared<const TimeLaw>(speeds ? TimeLawForm::knot_speeds : TimeLawForm::segments, Tp.number(),
