@@ -1,6 +1,7 @@
 #include <fstream>
 #include <sstream>
 #include "test_support.hpp"
+#include "test_paths.hpp"
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -217,3 +218,6 @@ ConstraintSet all_kinds(const Model& model, std::mt19937& rng) {
 }
 
 }  // namespace refdyn::test
+
+extern "C" const char* refdyn_test_source_dir() { return REFDYN_SOURCE_DIR_PATH; }
+extern "C" const char* refdyn_test_cli() { return REFDYN_CLI_PATH; }
