@@ -80,16 +80,16 @@ TEST(Control, ComputedTorqueReusesThePlantDynamicsOnlyForItsOwnModel) {
   ctrl.compute(0.0, q, qd, ref, tau);
   Data d(f.ex.model);
   unchecked::mass_matrix_and_bias(f.ex.model, d, q, qd);
-  ctrl.compute_with_dynamics(0.0, q, qd, ref, f.ex.model, d, tau_reused);
+  ctrl.compute(0.0, q, qd, ref, nullptr, nullptr, tau_reused, &f.ex.model, &d);
   EXPECT_TRUE(near(tau_reused, tau, 1e-14, 1e-14));
   // Proof that the given dynamics are really used for the own model ...
   d.M *= 2.0;
   d.nle.setZero();
-  ctrl.compute_with_dynamics(0.0, q, qd, ref, f.ex.model, d, tau_reused);
+  ctrl.compute(0.0, q, qd, ref, nullptr, nullptr, tau_reused, &f.ex.model, &d);
   EXPECT_GT((tau_reused - tau).norm(), 1e-3 * tau.norm());
   // ... and ignored for another model object, even an equal one.
   const Model copy = f.ex.model;
-  ctrl.compute_with_dynamics(0.0, q, qd, ref, copy, d, tau_reused);
+  ctrl.compute(0.0, q, qd, ref, nullptr, nullptr, tau_reused, &copy, &d);
   EXPECT_TRUE(near(tau_reused, tau, 0, 0));
   // Whole closed loops: controller on the plant's own model (reuse) vs on a copy (recompute).
   ClosedLoopOptions o;
@@ -114,9 +114,15 @@ class PdGravityDeclaringReuse final : public Controller {
   static Eigen::VectorXd kd() { return Eigen::Vector3d(40, 4, 60); }
   std::string name() const override { return "pd_test"; }
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
-               Eigen::VectorXd& tau) override {
-    pd_.compute(t, q, qd, ref, tau);
+               const double* xc, double* xc_dot, Eigen::VectorXd& tau, const Model*, const Data*) override {
+    pd_.compute(t, q, qd, ref, xc, xc_dot, tau);
   }
+  void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
+                    const JacobianScalar* qd_ref, const JacobianScalar* qdd_ref, const JacobianScalar* xc,
+                    JacobianScalar* tau, JacobianScalar* xc_dot) const override {
+    pd_.compute_dual(t, q, qd, q_ref, qd_ref, qdd_ref, xc, tau, xc_dot);
+  }
+  const Actuation& actuation() const override { return pd_.actuation(); }
   bool reuses_dynamics(const Model&) const override { return reuse_; }
 
  private:

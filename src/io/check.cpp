@@ -115,6 +115,11 @@ CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
   r.checks_residual = planner->checks_residual_tolerance();
   r.residual_tolerance = s.residual_tolerance;
   r.experiments = static_cast<long>(s.experiments.size());
+  if (r.experiments > 0) {
+    for (int j : s.actuation.actuated) r.actuators.push_back(s.model.joint_name[j]);
+    for (int j : s.actuation.independent) r.plant_independent.push_back(s.model.joint_name[j]);
+    r.plant_material_rows = s.material ? s.material->rows() : 0;
+  }
   for (const Variant& v : variants) r.variants.push_back(v.name);
   return r;
 }
@@ -186,6 +191,15 @@ std::string check_text(const CheckReport& r) {
       << " (integrator.residual_tolerance)";
   o << "\n";
   o << "experiments: " << r.experiments << " runs\n";
+  if (r.experiments > 0 && (r.plant_material_rows > 0 || r.actuators.size() != r.joints.size())) {
+    auto list = [](const std::vector<std::string>& v) {
+      std::string s;
+      for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+      return s;
+    };
+    o << "plant: motors at " << list(r.actuators) << "; " << r.plant_material_rows
+      << " material rows kept; the controllers assign " << list(r.plant_independent) << "\n";
+  }
   if (!r.variants.empty()) {
     o << "variants: " << r.variants.size() << " (";
     for (size_t i = 0; i < r.variants.size() && i < 3; ++i) o << (i ? ", " : "") << r.variants[i];

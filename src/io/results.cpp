@@ -245,6 +245,9 @@ RunSummary summarize_run(const Problem& p, const ClosedLoopResult& r) {
   if (!r.t.empty()) s.final_max_abs_error = (r.x.back().head(n) - r.q_ref.back()).cwiseAbs().maxCoeff();
   s.joints = tracking_metrics(r, 1e-3, 0.5 * (p.integrator.t0 + p.integrator.t1));
   for (const auto& m : s.joints) s.peak_abs_tau = std::max(s.peak_abs_tau, m.peak_tau);
+  s.max_material_residual = r.max_material_residual;
+  s.initial_correction_q = r.initial_correction_q;
+  s.initial_correction_qd = r.initial_correction_qd;
   return s;
 }
 
@@ -326,6 +329,8 @@ std::string sweep_csv(const Problem& p, const Results& res) {
   if (sampled) head.push_back("sample");
   head.insert(head.end(), params.begin(), params.end());
   csv_columns<RunSummary>(head, c);
+  const bool plant_rows = p.material != nullptr;  // the material rows' columns
+  if (plant_rows) head.insert(head.end(), {"max_material_residual", "initial_correction_q", "initial_correction_qd"});
   std::string s = csv_line(head);
   for (size_t i = 0; i < res.runs.size(); ++i) {
     const RunRecord& r = res.runs[i];
@@ -339,6 +344,9 @@ std::string sweep_csv(const Problem& p, const Results& res) {
       cells.push_back(cell);
     }
     csv_cells(cells, r.summary, c);
+    if (plant_rows)
+      for (double v : {r.summary.max_material_residual, r.summary.initial_correction_q, r.summary.initial_correction_qd})
+        cells.push_back(csv_number(v));
     s += csv_line(cells);
   }
   return s;

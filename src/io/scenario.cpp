@@ -613,7 +613,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   s.root = to_spec(yroot, source, "", c, budget, text);
   const SpecValue& root = s.root;
   c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "stabilization", "solver",
-                    "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "plant_forces",
+                    "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "actuators", "plant_forces",
                     "experiments", "variants", "optimize", "outputs", "limits", "time_law"});
   const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
@@ -629,6 +629,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
 
   if (const SpecValue& ct = root["controller"]) s.controller = rd.controller(ct, "controller");
   s.effort_limit = root["effort_limit"];
+  s.actuators = root["actuators"];
   s.experiments_value = root["experiments"];
   if (const SpecValue& ex = root["experiments"]) {
     if (!ex.is_list()) c.fail(ex, "experiments", "expected a list of experiments");

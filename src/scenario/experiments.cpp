@@ -60,10 +60,48 @@ std::uint64_t read_seed(const SpecReader& c, const SpecValue& v, const std::stri
   return seed;
 }
 
-ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m) {
+ControllerFactory read_controller(const SpecReader& c, const EntrySpec& e, const Model& m, const Actuation& a) {
   return build_entry(c, controller_kinds(), e, "type", [&](const ControllerKind& k) {
-    return k.build(EntryArgs{c, e, m});
+    return k.build(EntryArgs{c, e, m, &a});
   });
+}
+
+/// `actuators: [joint, …]` (default: every joint) and the plant's material rows, checked at the
+/// initial state (make_actuation): Problem::material and Problem::actuation.
+void build_plant(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
+  const Model& m = s.model;
+  std::vector<int> actuated;
+  if (const SpecValue& a = spec.actuators) {
+    if (!a.is_list()) c.fail(a, "actuators", "expected a list of joints with a motor, got " + a.describe());
+    for (size_t i = 0; i < a.size(); ++i) {
+      const std::string key = "actuators[" + std::to_string(i) + "]";
+      const std::string j = c.joint(a[i], key, m);
+      const int idx = static_cast<int>(std::find(m.joint_name.begin(), m.joint_name.end(), j) - m.joint_name.begin());
+      if (std::find(actuated.begin(), actuated.end(), idx) != actuated.end())
+        c.fail(a[i], key, "the joint '" + j + "' is listed twice");
+      actuated.push_back(idx);
+    }
+    if (actuated.empty() && (!spec.experiments.empty() || spec.controller))
+      c.fail(a, "actuators", "an empty list, but the scenario tracks experiments: list the joints that have a motor");
+  } else {
+    for (int i = 0; i < m.nv; ++i) actuated.push_back(i);
+  }
+  auto material = std::make_shared<ConstraintSet>();
+  for (const ConstraintPtr& k : s.constraints.constraints())
+    if (k->origin == ConstraintOrigin::Material && k->order() <= 1) material->add(k);
+  if (material->rows() > 0) s.material = material;
+  s.actuation = Actuation::full(m);
+  s.actuation.actuated = actuated;
+  std::sort(s.actuation.actuated.begin(), s.actuation.actuated.end());
+  if (spec.experiments.empty() && !spec.controller) return;  // no closed loop: nothing to check
+  const ReferenceDynamicsOptions& o = s.options;
+  try {
+    s.actuation = make_actuation(m, s.material, actuated, s.integrator.t0, s.q0, s.qd0, o.alpha, o.beta,
+                                 o.beta_first_order, o.max_condition);
+  } catch (const Error& e) {
+    const SpecValue& at = spec.actuators ? spec.actuators : spec.controller ? spec.controller->fields : spec.experiments_value;
+    c.fail(at, "actuators", std::string(e.what()));
+  }
 }
 
 
@@ -212,7 +250,7 @@ void build_experiment(const SpecReader& c, const ScenarioSpec& spec, const Exper
     else if (spec.plant_forces)
       read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
     if (e.controller) {
-      exp->make_controller = read_controller(ce, *e.controller, m);
+      exp->make_controller = read_controller(ce, *e.controller, m, s.actuation);
       exp->controller_type = e.controller->kind;
     } else {
       exp->make_controller = top_controller;
@@ -228,10 +266,11 @@ void build_experiments(const SpecReader& c, const ScenarioSpec& spec, Problem& s
   const Model& m = s.model;
   // Tracking. Gains are numbers or expressions in the parameters (and, inside an experiment,
   // its sweep parameter).
+  build_plant(c, spec, s);
   ControllerFactory top_controller;
   std::string top_type;
   if (spec.controller) {
-    top_controller = read_controller(c, *spec.controller, m);
+    top_controller = read_controller(c, *spec.controller, m, s.actuation);
     top_type = spec.controller->kind;
   }
   if (spec.effort_limit) {

@@ -897,10 +897,41 @@ ClosedLoopResult track_experiment(const Problem& p, const Experiment& ex, const 
   o.effort_limit = p.effort_limit;
   o.progress = progress;
   o.points = p.report_point_indices();
+  o.material = p.material.get();
+  o.plant = p.options;
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(2 * n + ex.plant_forces.num_states());
   x0.head(n) = ex.q0;
   x0.segment(n, n) = ex.qd0;
+  double dq = 0, dqd = 0;
+  if (p.material) {  // a start the machine can have: dependent coordinates and velocities solved
+    ReferenceDynamicsOptions po = p.options;
+    po.independent.clear();
+    for (int j : ctrl->actuation().independent) po.independent.push_back(m.joint_name[j]);
+    po.automatic_partition = false;
+    const ForceSet none;
+    ReferenceDynamics plant(m, none, *p.material, po);
+    const ReferenceDynamics::Consistency c = plant.make_consistent(o.integrator.t0, ex.q0, ex.qd0);
+    if (!c.converged || !(c.residual_after <= p.initial_tolerance)) {
+      ClosedLoopResult r;
+      r.joints = m.joint_name;
+      r.summary.status = IntegrationStatus::NumericalFailure;
+      r.summary.t_end = o.integrator.t0;
+      r.summary.message = "the start cannot satisfy the material constraints: with the independent coordinates " +
+                          Actuation::names(m, ctrl->actuation().independent) + " as given, the Newton solve for " +
+                          Actuation::names(m, ctrl->actuation().dependent) + " left a residual of " +
+                          fmt(c.residual_after) + " (was " + fmt(c.residual_before) +
+                          "): the initial error is too large for the mechanism to assemble";
+      return r;
+    }
+    x0.head(n) = c.q;
+    x0.segment(n, n) = c.qd;
+    dq = c.dq.size() ? c.dq.cwiseAbs().maxCoeff() : 0.0;
+    dqd = c.dqd.size() ? c.dqd.cwiseAbs().maxCoeff() : 0.0;
+  }
   ClosedLoopResult r = simulate_closed_loop(m, ex.plant_forces, *ctrl, plan, &planner, x0, o);
+  r.initial_correction_q = dq;
+  r.initial_correction_qd = dqd;
+  r.summary.max_constraint_residual = r.max_material_residual;
   // A run that tracked a plan to its end is a success only when the plan was: else it tracked
   // the valid part of a reference that stopped early, and says so.
   if (r.summary.ok() && !plan.summary.ok()) {

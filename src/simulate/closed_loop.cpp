@@ -16,12 +16,69 @@ namespace refdyn {
 
 namespace {
 
+// The motors' efforts as an applied force of the constrained plant: `tau` is set before every
+// evaluation. Under dual numbers it is a constant: the closed loop's Jacobian adds τ's own
+// derivatives through ∂q̈/∂τ (ConstrainedPlant::effort_map).
+class MotorEfforts final : public ForceElement {
+ public:
+  explicit MotorEfforts(const Eigen::VectorXd& tau) : tau_(tau) {}
+  std::string name() const override { return "motors"; }
+  bool actuator() const override { return true; }
+  void apply(double, const Eigen::VectorXd&, const Eigen::VectorXd&, const double*, Eigen::VectorXd& Q, double*,
+             Eigen::MatrixXd*) const override {
+    Q += tau_;
+  }
+  void apply_dual(double, const JacobianScalar*, const JacobianScalar*, const JacobianScalar*, JacobianScalar* Q,
+                  JacobianScalar*) const override {
+    for (Eigen::Index i = 0; i < tau_.size(); ++i) Q[i] += tau_[i];
+  }
+
+ private:
+  const Eigen::VectorXd& tau_;
+};
+
+// The plant with its material rows: the planner's machinery over the material rows alone, with
+// the plant's forces and the motors' efforts as its applied forces.
+struct ConstrainedPlant {
+  ConstrainedPlant(const Model& m, const ForceSet& f, const ConstraintSet& material, ReferenceDynamicsOptions o,
+                   const Controller& c)
+      : tau(Eigen::VectorXd::Zero(m.nv)), forces(f), x(2 * m.nv + f.num_states()), dx(x.size()) {
+    forces.add(std::make_shared<MotorEfforts>(tau));
+    if (c.actuation().constrained()) {  // the controller's assigned coordinates (else: o's partition)
+      o.independent.clear();
+      for (int j : c.actuation().independent) o.independent.push_back(m.joint_name[j]);
+    }
+    o.automatic_partition = true;  // the plant's q̈ does not depend on it: never stop for it
+    rd = std::make_unique<ReferenceDynamics>(m, forces, material, o);
+  }
+  Eigen::VectorXd tau;  // the motors' efforts (MotorEfforts reads it)
+  ForceSet forces;
+  std::unique_ptr<ReferenceDynamics> rd;
+  Eigen::VectorXd x, dx;  // [q; q̇; z_plant]
+  bool projects() const { return rd->options().stabilization != Stabilization::Baumgarte; }
+  /// ∂q̈/∂τ at the last evaluation: G = M⁻¹ − M⁻¹Aᵀ(A M⁻¹ Aᵀ)⁻¹ A M⁻¹ (the KKT solution's
+  /// dependence on the applied force; the same for the projection, which solves the same system).
+  void effort_map(const Model& m, Data& data, Eigen::MatrixXd& G) const {
+    unchecked::crba(m, data, x.head(m.nv));
+    Eigen::LLT<Eigen::MatrixXd> llt(data.M);
+    if (llt.info() != Eigen::Success) throw NumericalFailure(0, "the plant's mass matrix is not positive definite");
+    const Eigen::MatrixXd& A = rd->constraints().A;
+    const Eigen::MatrixXd Minv = llt.solve(Eigen::MatrixXd::Identity(m.nv, m.nv));
+    const Eigen::MatrixXd Y = Minv * A.transpose();
+    Eigen::PartialPivLU<Eigen::MatrixXd> lu(A * Y);
+    G = Minv - Y * lu.solve(Y.transpose());
+  }
+};
+
 struct PlantWorkspace {
-  PlantWorkspace(const Model& m, const ForceSet& f)
+  PlantWorkspace(const Model& m, const ForceSet& f, const ClosedLoopOptions& o, const Controller& c)
       : data(m), q(m.nv), qd(m.nv), tau(m.nv), Q(m.nv), zdot(std::max(1, f.num_states())),
-        qr(m.nv), qdr(m.nv), qddr(m.nv) {}
+        qr(m.nv), qdr(m.nv), qddr(m.nv) {
+    if (o.material && o.material->rows() > 0) constrained = std::make_unique<ConstrainedPlant>(m, f, *o.material, o.plant, c);
+  }
   Data data;
   Eigen::VectorXd q, qd, tau, Q, zdot, qr, qdr, qddr;
+  std::unique_ptr<ConstrainedPlant> constrained;  // null: an unconstrained plant
 };
 
 // τ from the controller, saturated; returns true when a joint was saturated. With `dynamics`,
@@ -30,7 +87,7 @@ struct PlantWorkspace {
 bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit, const Model& plant,
              const Data* dynamics, const double* xc, double* xc_dot) {
   const ReferenceSample ref{w.qr, w.qdr, w.qddr};
-  c.compute_with_state(t, w.q, w.qd, ref, xc, xc_dot, plant, dynamics, w.tau);
+  c.compute(t, w.q, w.qd, ref, xc, xc_dot, w.tau, &plant, dynamics);
   bool sat = false;
   for (int i = 0; i < limit.size(); ++i) {
     if (w.tau[i] > limit[i]) w.tau[i] = limit[i], sat = true;
@@ -45,6 +102,15 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   const int n = m.nv, nz = forces.num_states(), nc = c.num_states();
   w.q = Eigen::Map<const Eigen::VectorXd>(x, n);
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
+  if (w.constrained) {  // the material rows' reactions join: the planner's machinery solves
+    ConstrainedPlant& p = *w.constrained;
+    control(c, w, t, limit, m, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
+    p.tau = w.tau;
+    p.x = Eigen::Map<const Eigen::VectorXd>(x, 2 * n + nz);
+    p.rd->derivative(t, p.x, p.dx);
+    Eigen::Map<Eigen::VectorXd>(dx, 2 * n + nz) = p.dx;
+    return;
+  }
   if (forward_dynamics_uses_aba(n) && !c.reuses_dynamics(m)) {  // articulated-body algorithm: no M needed
     control(c, w, t, limit, m, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
     forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
@@ -67,9 +133,9 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
 // The joint system X = [x_ref; x_plant] that Dormand–Prince and BDF integrate: the planner's state
 // and the plant's, the reference q̂, q̂̇, q̂̈ taken from the planner at every evaluation.
 struct JointSystem {
-  JointSystem(const Model& m, const ForceSet& f, Controller& c, Planner& p, const Eigen::VectorXd& limit)
-      : plant(m), forces(f), controller(c), planner(p), limit(limit), w(m, f), nr(p.state_size()), xr(nr), dxr(nr),
-        data(m) {}
+  JointSystem(const Model& m, const ForceSet& f, Controller& c, Planner& p, const ClosedLoopOptions& o)
+      : plant(m), forces(f), controller(c), planner(p), limit(o.effort_limit), w(m, f, o, c), nr(p.state_size()),
+        xr(nr), dxr(nr), data(m) {}
   const Model& plant;
   const ForceSet& forces;
   Controller& controller;
@@ -100,9 +166,12 @@ struct JointSystem {
   // numbers seeded on the plant's state and on the reference (q̂, q̂̇ from x_ref; q̂̈ carries the
   // planner's rows ∂q̂̈/∂x_ref), and M δq̈ = δτ + δQ − δ(M q̈* + c + g) at the solved q̈* (a
   // saturated joint's τ is constant). Evaluates derivative(t, X, ·) first.
+  // With material rows the plant's rows are its own exact Jacobian at fixed τ (the planner's
+  // machinery, ReferenceDynamics::jacobian) plus ∂q̈/∂τ · ∂τ/∂X, τ's row T from the controller's
+  // law over dual numbers.
   Data data;
   Eigen::VectorXd dX;
-  Eigen::MatrixXd Jr, r;
+  Eigen::MatrixXd Jr, r, Jp, T, G;
   Eigen::LLT<Eigen::MatrixXd> llt;
   std::vector<JacobianScalar> q, qd, z, xc, qr, qdr, qddr, tau, Q, zdot, xcdot, id;
   void jacobian(double t, const Eigen::VectorXd& X, Eigen::MatrixXd& J) {
@@ -140,6 +209,14 @@ struct JointSystem {
                               nc ? xcdot.data() : nullptr);
       for (int i = 0; i < limit.size(); ++i)
         if (std::abs(tau[i].v) > limit[i]) tau[i] = D(tau[i].v > 0 ? limit[i] : -limit[i]);
+      for (int k = 0; k < nc; ++k)
+        for (int c = 0; c < cols; ++c) J(nr + 2 * n + nz + k, c0 + c) = xcdot[k].d[c];
+      if (w.constrained) {
+        T.resize(n, N);
+        for (int i = 0; i < n; ++i)
+          for (int k = 0; k < cols; ++k) T(i, c0 + k) = tau[i].d[k];
+        continue;
+      }
       forces.evaluate_dual(t, q.data(), qd.data(), z.data(), n, Q.data(), zdot.data());
       for (int i = 0; i < n; ++i) id[i] = D(w.data.ddq[i]);
       inverse_dynamics_dual(plant, q.data(), qd.data(), id.data(), true, id.data());
@@ -149,8 +226,14 @@ struct JointSystem {
       }
       for (int k = 0; k < nz; ++k)
         for (int c = 0; c < cols; ++c) J(nr + 2 * n + k, c0 + c) = zdot[k].d[c];
-      for (int k = 0; k < nc; ++k)
-        for (int c = 0; c < cols; ++c) J(nr + 2 * n + nz + k, c0 + c) = xcdot[k].d[c];
+    }
+    if (w.constrained) {
+      ConstrainedPlant& p = *w.constrained;  // p.x and p.tau hold X's plant state and τ
+      p.rd->jacobian(t, p.x, Jp);
+      J.block(nr, nr, 2 * n + nz, 2 * n + nz) = Jp;
+      p.effort_map(plant, data, G);
+      J.block(nr + n, 0, n, N) += G * T;
+      return;
     }
     unchecked::crba(plant, data, Eigen::Map<const Eigen::VectorXd>(xp, n));
     llt.compute(data.M);
@@ -188,7 +271,16 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
   out.state_names = plant_forces.state_names();
   for (const auto& s : controller.state_names()) out.state_names.push_back(s);
   for (int p : options.points) out.points.push_back(plant.point_name[p]);
-  PlantWorkspace w(plant, plant_forces);
+  if (options.material)
+    for (const ConstraintPtr& c : options.material->constraints())
+      if (c->order() > 1)
+        throw Error("simulate_closed_loop: the plant's constraint '" + c->name + "' is of acceleration level; a "
+                    "material constraint is holonomic or first order");
+  PlantWorkspace w(plant, plant_forces, options, controller);
+  if (w.constrained) {
+    const ConstraintSet& mat = *options.material;
+    for (int r = 0; r < mat.rows(); ++r) out.constraint_rows.push_back(mat.row_name(r)), out.material_row.push_back(1);
+  }
   Data kin(plant);
   const auto start = std::chrono::steady_clock::now();
 
@@ -214,8 +306,29 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
         pts.segment<3>(3 * k) = point_position(plant, kin, options.points[k]);
     }
     out.point_positions.push_back(std::move(pts));
+    if (w.constrained) {  // the material rows and their reactions at this sample
+      ConstrainedPlant& p = *w.constrained;
+      p.tau = w.tau;
+      p.x = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
+      p.rd->derivative(t, p.x, p.dx);
+      const ConstraintEval& ev = p.rd->constraints();
+      out.phi.push_back(ev.phi);
+      out.phid.push_back(ev.phid);
+      out.lambda.push_back(p.rd->lambda());
+      out.reaction_effort.push_back(p.rd->constraint_force());
+      if (ev.phi.size()) out.max_material_residual = std::max(out.max_material_residual, ev.phi.cwiseAbs().maxCoeff());
+    }
     if (options.progress) options.progress(t);
   };
+  // Stabilisation by projection of the plant's material rows (plant.stabilization): after each step.
+  Eigen::VectorXd xp_projected;
+  auto project_plant = [&](double t, double* xp) {
+    ConstrainedPlant& p = *w.constrained;
+    xp_projected = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
+    p.rd->project_state(t, xp_projected);
+    Eigen::Map<Eigen::VectorXd>(xp, 2 * n + nz) = xp_projected;
+  };
+  const bool plant_projects = w.constrained && w.constrained->projects();
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nx);
   x0.head(x0_plant.size()) = x0_plant;
 
@@ -254,7 +367,9 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       return true;
     };
     Eigen::VectorXd x = x0;
-    out.summary = integrate_staged(rhs, x, o, obs);
+    OdeProjection projection;
+    if (plant_projects) projection = [&](double t, Eigen::VectorXd& X) { project_plant(t, X.data()); };
+    out.summary = integrate_staged(rhs, x, o, obs, {}, projection);
     if (out.summary.ok() && usable < nsteps) {
       out.summary.status = IntegrationStatus::Stopped;
       out.summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
@@ -263,7 +378,7 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     if (!rd)
       throw Error(std::string("simulate_closed_loop: ") + to_string(io.method) +
                   " needs the planner (reference dynamics) to integrate jointly");
-    JointSystem sys(plant, plant_forces, controller, *rd, options.effort_limit);
+    JointSystem sys(plant, plant_forces, controller, *rd, options);
     const int nr = sys.nr;
     auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { sys.derivative(t, x, dx); };
     auto obs = [&](double t, const Eigen::VectorXd& x) {
@@ -278,13 +393,16 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     OdeJacobian jacobian;
     if (io.method == IntegratorMethod::BDF)
       jacobian = [&](double t, const Eigen::VectorXd& X, Eigen::MatrixXd& J) { sys.jacobian(t, X, J); };
-    OdeProjection projection;  // the planner's part of the state, when its stabilization projects
+    OdeProjection projection;  // the planner's part of the state, when its stabilization projects, and the plant's
     Eigen::VectorXd xr_projected(nr);
-    if (rd->projects())
+    if (rd->projects() || plant_projects)
       projection = [&](double t, Eigen::VectorXd& X) {
-        xr_projected = X.head(nr);
-        rd->project(t, xr_projected);
-        X.head(nr) = xr_projected;
+        if (rd->projects()) {
+          xr_projected = X.head(nr);
+          rd->project(t, xr_projected);
+          X.head(nr) = xr_projected;
+        }
+        if (plant_projects) project_plant(t, X.data() + nr);
       };
     out.summary = integrate(rhs, x, io, obs, jacobian, projection);
   }
@@ -295,9 +413,17 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
 void closed_loop_derivative(const Model& plant, const ForceSet& plant_forces, Controller& controller, Planner& planner,
                             const Eigen::VectorXd& effort_limit, double t, const Eigen::VectorXd& X,
                             Eigen::VectorXd& dX, Eigen::MatrixXd* J) {
+  ClosedLoopOptions o;
+  o.effort_limit = effort_limit;
+  closed_loop_derivative(plant, plant_forces, controller, planner, o, t, X, dX, J);
+}
+
+void closed_loop_derivative(const Model& plant, const ForceSet& plant_forces, Controller& controller, Planner& planner,
+                            const ClosedLoopOptions& options, double t, const Eigen::VectorXd& X, Eigen::VectorXd& dX,
+                            Eigen::MatrixXd* J) {
   const int N = planner.state_size() + 2 * plant.nv + plant_forces.num_states() + controller.num_states();
   check_vector("closed-loop state X", X, N, "X = [x_ref; q; qd; z_plant; xc]");
-  JointSystem sys(plant, plant_forces, controller, planner, effort_limit);
+  JointSystem sys(plant, plant_forces, controller, planner, options);
   dX.resize(N);
   sys.derivative(t, X, dX);
   if (J) sys.jacobian(t, X, *J);

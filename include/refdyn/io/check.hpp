@@ -46,6 +46,11 @@ struct CheckReport {
   std::vector<std::string> initial_acceleration_rows;
   std::vector<double> initial_acceleration;  ///< per joint
 
+  /// The closed loops' plant (docs/scenario.md, "The plant"): its motors, its material rows and
+  /// the coordinates the controllers assign (joint names; empty without experiments).
+  std::vector<std::string> actuators, plant_independent;
+  int plant_material_rows = 0;
+
   bool has_partition = false;
   std::vector<std::string> independent, dependent;  ///< joint names
   bool automatic_partition = false;  ///< chosen at t0 (partition.independent: auto)

@@ -43,6 +43,9 @@ struct RunSummary {
   double final_max_abs_error = 0;  ///< max_j |e_j| at t_end
   double peak_abs_tau = 0;         ///< max over joints and samples of |τ|
   std::vector<JointTracking> joints;  ///< tracking_metrics(·, 1e-3, late_from)
+  /// Plants with material constraints (0 otherwise): the largest |Φ|, |c| of the material rows
+  /// over the run's samples, and the start's correction onto them (max |δq|, max |δq̇|).
+  double max_material_residual = 0, initial_correction_q = 0, initial_correction_qd = 0;
   double wall_time = 0;            ///< [s] (not in sweep.csv: it differs between executions)
   bool ok() const { return status == IntegrationStatus::Success; }
   /// The largest finite value of a per-joint metric (NaN when none): a run's settle time is
@@ -89,6 +92,10 @@ struct Fields<io::RunSummary> {
                            derived("max_late_error", &max_late, "m or rad", sink::Csv | sink::Stat) |
                                JsonKey{"max_max_abs_error_after_{late}s"},
                            field("joints", &S::joints) | CsvColumn{nullptr, 1} | Label{"joint"},
+                           // sweep.csv has them as columns only when the plant has material rows (sweep_csv)
+                           field("max_material_residual", &S::max_material_residual, "m or rad", record),
+                           field("initial_correction_q", &S::initial_correction_q, "m or rad", record),
+                           field("initial_correction_qd", &S::initial_correction_qd, "m/s or rad/s", record),
                            field("wall_time", &S::wall_time, "s", record) | JsonKey{"wall_time_s"});
   }
 };

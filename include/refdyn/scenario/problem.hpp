@@ -105,6 +105,11 @@ struct Problem {
   /// task (`integrator.residual_tolerance`, docs/scenario.md).
   double residual_tolerance = kDefaultResidualTolerance;
   Eigen::VectorXd effort_limit;             ///< closed-loop saturation (empty: none)
+  /// The plant of the closed loops (docs/scenario.md, "The plant"): the material rows of
+  /// `constraints` (null when there are none) and the motors with the coordinates the
+  /// controllers assign (`actuators`, every joint by default), checked at the initial state.
+  std::shared_ptr<const ConstraintSet> material;
+  Actuation actuation;
   std::vector<std::unique_ptr<Experiment>> experiments;
   std::vector<std::string> report_points;   ///< points recorded in trajectories
   /// The numbers of the scenario's `model:` section (dh: or links:) as read, with their texts,

@@ -87,6 +87,8 @@ struct EntryArgs {
   const SpecReader& reader;
   const EntrySpec& entry;
   const Model& model;
+  /// Controllers: the plant's motors and assigned coordinates (null: every joint, no material rows).
+  const Actuation* actuation = nullptr;
 
   bool has(const std::string& k) const { return static_cast<bool>(entry.fields[k]); }
   const SpecValue& value(const std::string& k) const { return entry.fields[k]; }

@@ -272,6 +272,7 @@ struct ScenarioSpec {
   IntegratorSpec integrator;
   std::optional<EntrySpec> controller;
   SpecValue effort_limit;
+  SpecValue actuators;                     ///< [joint, …] with a motor (null: every joint)
   std::vector<ExperimentSpec> experiments;
   SpecValue experiments_value;
   std::optional<std::vector<SpecValue>> output_points;  ///< absent: every model point
