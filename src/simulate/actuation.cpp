@@ -64,9 +64,34 @@ struct ActuatedModel<S>::Workspace {
   std::optional<ConstraintEval> ev;
   std::optional<ConstraintEvalDual> evd;
   Eigen::VectorXd q, qd, qdd, out;
-  Matrix A, Kdc, rhs_ic;
-  Vector rhs;
+  Matrix A, Kdc, rhs_ic, X, P, PPt, Y, ta;
+  Vector rhs, r, dep;
+  std::vector<int> row_of;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu;  // double: reused (no allocation after the first call)
 };
+
+namespace {
+// X = A⁻¹ B for a square A; false when A is singular to working precision. Doubles: one LU held
+// in the workspace, singular when a pivot of U is below 1e-13 × the largest (no allocation, no
+// condition estimate); dual numbers: ad::solve_square.
+bool solve(Eigen::PartialPivLU<Eigen::MatrixXd>& lu, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
+           Eigen::MatrixXd& X) {
+  if (A.rows() == 0) {
+    X.resize(0, B.cols());
+    return true;
+  }
+  lu.compute(A);
+  const auto d = lu.matrixLU().diagonal().cwiseAbs();
+  if (!(d.minCoeff() > 1e-13 * d.maxCoeff())) return false;
+  X.noalias() = lu.solve(B);
+  return true;
+}
+template <int N>
+bool solve(Eigen::PartialPivLU<Eigen::MatrixXd>&, const ad::MatrixX<ad::Dual<N>>& A, const ad::MatrixX<ad::Dual<N>>& B,
+           ad::MatrixX<ad::Dual<N>>& X) {
+  return ad::solve_square(A, B, X);
+}
+}  // namespace
 
 template <class S>
 ActuatedModel<S>::ActuatedModel(const Model& model, const Actuation& actuation)
@@ -140,10 +165,9 @@ bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd) {
   for (int j = 0; j < m; ++j) w.Kdc.col(j) = w.A.col(dep_[j]);
   for (int i = 0; i < k; ++i) w.rhs_ic.col(i) = w.A.col(ind_[i]);
   w.rhs_ic.col(k) = w.rhs;
-  Matrix X;
-  if (!ad::solve_square(w.Kdc, w.rhs_ic, X)) return false;
-  Nd_ = -X.leftCols(k);
-  qdd_p_ = X.col(k);
+  if (!solve(w.lu, w.Kdc, w.rhs_ic, w.X)) return false;
+  Nd_ = -w.X.leftCols(k);
+  qdd_p_ = w.X.col(k);
   return true;
 }
 
@@ -152,7 +176,9 @@ void ActuatedModel<S>::accelerations(const Vector& u, Vector& qdd) const {
   qdd.resize(model_.nv);
   for (size_t i = 0; i < ind_.size(); ++i) qdd[ind_[i]] = u[i];
   if (!act_.constrained()) return;
-  const Vector dep = qdd_p_ + Nd_ * u;
+  Vector& dep = ws_->dep;
+  dep = qdd_p_;
+  dep.noalias() += Nd_ * u;
   for (size_t j = 0; j < dep_.size(); ++j) qdd[dep_[j]] = dep[j];
 }
 
@@ -161,10 +187,14 @@ bool ActuatedModel<S>::efforts(const Vector& b, Vector& tau) const {
   const int k = static_cast<int>(ind_.size()), na = static_cast<int>(act_.actuated.size());
   if (na < k) return false;
   // r = Nᵀ b and P = Nᵀ S (column a: row act[a] of N, transposed).
-  Vector r(k);
+  Workspace& w = *ws_;
+  Vector& r = w.r;
+  r.resize(k);
   for (int i = 0; i < k; ++i) r[i] = b[ind_[i]];
-  Matrix P = Matrix::Zero(k, na);
-  std::vector<int> row_of(model_.nv, -1);  // joint -> its place among independent (≥ 0) or dependent (< −1 … )
+  Matrix& P = w.P;
+  P.setZero(k, na);
+  std::vector<int>& row_of = w.row_of;  // joint -> its place among independent (≥ 0) or dependent (−2 − j)
+  row_of.assign(model_.nv, -1);
   for (int i = 0; i < k; ++i) row_of[ind_[i]] = i;
   for (size_t j = 0; j < dep_.size(); ++j) row_of[dep_[j]] = -2 - static_cast<int>(j);
   if (act_.constrained())
@@ -176,15 +206,16 @@ bool ActuatedModel<S>::efforts(const Vector& b, Vector& tau) const {
     else
       P.col(a) = Nd_.row(-2 - p).transpose();
   }
-  Matrix ta;
+  Matrix& ta = w.ta;
+  w.Y = r;  // as a one-column matrix
   if (na == k) {
-    if (!ad::solve_square(P, Matrix(r), ta)) return false;
+    if (!solve(w.lu, P, w.Y, ta)) return false;
   } else {
-    Matrix y;
-    if (!ad::solve_square(Matrix(P * P.transpose()), Matrix(r), y)) return false;
-    ta = P.transpose() * y;
+    w.PPt.noalias() = P * P.transpose();
+    if (!solve(w.lu, w.PPt, w.Y, w.X)) return false;
+    ta.noalias() = P.transpose() * w.X;
   }
-  tau = Vector::Zero(model_.nv);
+  tau.setZero(model_.nv);
   for (int a = 0; a < na; ++a) tau[act_.actuated[a]] = ta(a, 0);
   return true;
 }
