@@ -302,6 +302,8 @@ py::dict check_dict(const io::CheckReport& r) {
       r.checks_residual ? py::object(py::float_(r.residual_tolerance)) : py::object(py::none());
   d["integrator"] = integ;
   d["experiments"] = r.experiments;
+  d["plant"] = py::dict(py::arg("actuators") = r.actuators, py::arg("assigned") = r.plant_independent,
+                        py::arg("material_rows") = r.plant_material_rows);
   d["variants"] = r.variants;
   d["text"] = io::check_text(r);
   return d;

@@ -345,7 +345,10 @@ def test_problem_constraints():
 
 def test_track_keeps_the_material_constraints_and_motors_only_at_the_actuators():
     # examples/four_bar: the loop closure is kept in the plant, the crank is the only motor.
-    r = refdyn.track(str(SOURCE_DIR / "examples" / "four_bar" / "four_bar.yaml"))
+    path = str(SOURCE_DIR / "examples" / "four_bar" / "four_bar.yaml")
+    plant = refdyn.check(path)["plant"]
+    assert plant == {"actuators": ["crank"], "assigned": ["crank"], "material_rows": 2}
+    r = refdyn.track(path)
     run = r.runs["crank_off"]
     assert run.ok
     assert np.all(run["tau_coupler"] == 0) and np.all(run["tau_rocker"] == 0)
