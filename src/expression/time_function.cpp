@@ -124,14 +124,6 @@ class Cycloidal final : public TimeFunction {
 };
 }  // namespace
 
-TimeValueDual eval_dual(const TimeFunction& f, const JacobianScalar& t) {
-  const TimeValue v = f.eval(t.v);
-  bool seeded = false;
-  for (double d : t.d) seeded = seeded || d != 0.0;
-  if (!seeded) return {JacobianScalar(v.f), JacobianScalar(v.df), JacobianScalar(v.ddf)};
-  return {ad::chain(v.f, v.df, t), ad::chain(v.df, v.ddf, t), ad::chain(v.ddf, v.dddf, t)};
-}
-
 TimeFunctionPtr constant(double c) {
   need_finite(c, "value", "constant");
   return std::make_shared<Constant>(c);

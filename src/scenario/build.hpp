@@ -31,6 +31,16 @@ std::string count_text(double x);
 /// Names become CSV headers, JSON strings and file names: printable UTF-8.
 void check_name(const SpecReader& c, const SpecValue& at, const std::string& key, const std::string& name);
 
+/// Capabilities known at load (capabilities.cpp): each force element built from `entries` (the
+/// last entries.size() elements of `forces`) has exact derivatives when `bdf` and its rate when
+/// `jerk`; otherwise a located error with the reason.
+void check_force_capabilities(const SpecReader& c, const std::vector<EntrySpec>& entries, const ForceSet& forces,
+                              bool bdf, bool jerk);
+/// The problem's (after its integrator): under method: bdf every constraint and force element has
+/// exact derivatives and paper_literal_forces is off; in a jerk-level problem every force element
+/// has its rate and every row of order position, velocity or acceleration exact derivatives.
+void check_capabilities(const SpecReader& c, const ScenarioSpec& spec, const Problem& s);
+
 /// Builds one registry entry; errors from the factory that carry no location get the entry's.
 template <class Kind, class Build>
 auto build_entry(const SpecReader& c, const Registry<Kind>& reg, const EntrySpec& e, const std::string& kind_key,

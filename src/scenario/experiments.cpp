@@ -245,10 +245,10 @@ void build_experiment(const SpecReader& c, const ScenarioSpec& spec, const Exper
         if (!std::isnan(given[j])) exp->q0[j] = given[j];
     }
     if (e.initial_qd) exp->qd0 = ce.joint_vector(e.initial_qd, k + ".initial.qd", m, false, 0.0);
-    if (e.plant_forces)
-      read_forces(ce, *e.plant_forces, m, exp->plant_forces);
-    else if (spec.plant_forces)
-      read_forces(ce, *spec.plant_forces, m, exp->plant_forces);
+    if (const auto* plant = e.plant_forces ? &*e.plant_forces : spec.plant_forces ? &*spec.plant_forces : nullptr) {
+      read_forces(ce, *plant, m, exp->plant_forces);
+      check_force_capabilities(ce, *plant, exp->plant_forces, s.integrator.method == IntegratorMethod::BDF, false);
+    }
     if (e.controller) {
       exp->make_controller = read_controller(ce, *e.controller, m, s.actuation);
       exp->controller_type = e.controller->kind;

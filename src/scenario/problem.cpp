@@ -406,26 +406,12 @@ void build_constraints_and_forces(const SpecReader& c, const ScenarioSpec& spec,
   read_forces(c, spec.forces, m, s.forces);
 }
 
-/// Jerk-level problems (a row of order 3): rows of every order ≤ 3 beside the jerk rows, force
-/// elements with a rate (every built-in kind), experiments; docs/higher_order.md.
+/// Jerk-level problems (a row of order 3): rows of every order ≤ 3 beside the jerk rows,
+/// experiments; docs/higher_order.md. (Force elements with a rate: check_capabilities.)
 void check_jerk_scope(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
-  const Model& m = s.model;
   for (int k = 0; k < s.constraints.size(); ++k)
     if (JerkConstraintPtr j = jerk_constraint_of(*s.constraints.constraints()[k])) s.jerk_constraints.push_back(j);
   if (!s.is_jerk_problem()) return;
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(m.nq);
-  Eigen::VectorXd rate = zero;
-  const std::vector<double> z(std::max(1, s.forces.num_states()), 0.0);
-  for (size_t k = 0; k < spec.forces.size(); ++k) {
-    const ForceElement& f = *s.forces.elements()[k];
-    const double* zk = z.data() + s.forces.state_offset(static_cast<int>(k));
-    if (!f.add_rate_with_states(0.0, zero, zero, zero, zk, zk, rate))
-      c.fail(spec.forces[k].fields, spec.forces[k].key,
-             "force element '" + f.name() + "' in a problem with jerk constraints (order: jerk): the p = 3 "
-             "reference dynamics needs the time derivative of every force, which this element does not provide "
-             "(damping, spring, effort, flexible_drive and lugre do); remove it or state the task at the "
-             "acceleration level");
-  }
   // A plan of jerk rows alone reports the dynamics residual and is not cut at a tolerance; rows
   // of order ≤ 2 beside them are (plan_jerk_motion).
   if (static_cast<int>(s.jerk_constraints.size()) == s.constraints.size())
@@ -866,6 +852,7 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
   build_reference_options(c, spec, *s);
   build_initial(c, spec, *s);
   build_integrator(c, spec, *s);
+  check_capabilities(c, spec, *s);
   build_limits(c, spec, *s);
   check_initial_state(c, spec, *s);
   build_experiments(c, spec, *s);

@@ -119,6 +119,12 @@ class Constraint {
                              JacobianScalar* A, JacobianScalar* gamma) const;
   /// Dual numbers of scratch memory evaluate_dual() needs (ConstraintInputDual::scratch).
   virtual int scratch_size_dual() const { return 0; }
+  /// Whether evaluate_dual() is provided: known when the constraint is built, so that
+  /// build_problem refuses a kind without it under method: bdf or beside jerk rows (with the
+  /// entry's location) instead of a throw in the middle of a run. Every kind written as a law
+  /// (ConstraintLaw, law.hpp) has it; a hand-written kind that implements evaluate_dual
+  /// overrides this to return true.
+  virtual bool exact_derivatives() const { return false; }
   /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
   /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
   virtual const TimeFunction* target() const { return nullptr; }
@@ -160,6 +166,8 @@ class ImplicitSurface {
   /// this default, which throws Error naming the surface.
   virtual ValueDual eval_dual(const multibody::Vec3T<JacobianScalar>& r, const JacobianScalar& t) const;
   virtual bool rheonomic() const { return false; }
+  /// Whether eval_dual() is provided (SurfaceLaw's surfaces; see Constraint::exact_derivatives).
+  virtual bool exact_derivatives() const { return false; }
   virtual std::string describe() const = 0;
   /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
   virtual std::optional<SymbolicForm> symbolic(const std::string& /*point*/) const { return std::nullopt; }

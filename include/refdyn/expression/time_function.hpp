@@ -51,12 +51,29 @@ TimeFunctionPtr cycloidal(Number rise, Number duration, Number f0 = 0.0, Number 
 /// gives a constant function. Throws Error for a text that does not parse.
 TimeFunctionPtr expression_time_function(const std::string& text, const std::map<std::string, double>& parameters = {});
 
-/// f, f', f'' at a dual time t = t.v + Σ_k t.d_k ε_k (JacobianScalar): each a dual number whose
+/// f, f', f'' at a dual time t = t.v + Σ_k t.d_k ε_k (any ad::Dual<N>): each a dual number whose
 /// derivative parts are the next derivative (f', f'', f''') times t.d_k, exact. An unseeded t
-/// (every t.d_k = 0) gives derivative parts that are exactly +0, as JacobianScalar(f.f) would.
-struct TimeValueDual {
-  JacobianScalar f, df, ddf;
+/// (every t.d_k = 0) gives derivative parts that are exactly +0, as Dual<N>(f.f) would.
+template <int N>
+struct TimeValueDualN {
+  ad::Dual<N> f, df, ddf;
 };
-TimeValueDual eval_dual(const TimeFunction& f, const JacobianScalar& t);
+using TimeValueDual = TimeValueDualN<kJacobianDirections>;
+template <int N>
+TimeValueDualN<N> eval_dual(const TimeFunction& f, const ad::Dual<N>& t) {
+  const TimeValue v = f.eval(t.v);
+  bool seeded = false;
+  for (double d : t.d) seeded = seeded || d != 0.0;
+  if (!seeded) return {ad::Dual<N>(v.f), ad::Dual<N>(v.df), ad::Dual<N>(v.ddf)};
+  return {ad::chain(v.f, v.df, t), ad::chain(v.df, v.ddf, t), ad::chain(v.ddf, v.dddf, t)};
+}
+
+/// f, f', f'' at t over the scalar of t: TimeValue for a double, TimeValueDualN for a dual
+/// number (eval_dual). The one spelling the laws of constraint kinds and force elements use.
+inline TimeValue time_value(const TimeFunction& f, double t) { return f.eval(t); }
+template <int N>
+TimeValueDualN<N> time_value(const TimeFunction& f, const ad::Dual<N>& t) {
+  return eval_dual(f, t);
+}
 
 }  // namespace refdyn

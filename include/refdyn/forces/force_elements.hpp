@@ -8,6 +8,7 @@
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/expression/time_function.hpp"
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +30,13 @@ class ForceElement {
   /// Error naming the element (a user-defined element without it cannot be integrated by BDF).
   virtual void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
                           JacobianScalar* Q, JacobianScalar* zdot) const;
+  /// Whether apply_dual() is provided, and whether add_rate_with_states() gives the rate: known
+  /// when the element is built, so that build_problem refuses an element without them under
+  /// method: bdf (exact derivatives) or in a jerk-level problem (the rate) with the entry's
+  /// location, instead of a throw in the middle of a run. Every element written as a law
+  /// (ForceLaw below) has both; a hand-written element overrides them with what it implements.
+  virtual bool exact_derivatives() const { return false; }
+  virtual bool has_rate() const { return false; }
   /// Adds the rate of the element's force along the motion, Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈
   /// (exact), to Qdot and returns true; the default provides none and returns false. Needed by
   /// jerk-level problems (p = 3, jerk.hpp), which reject elements without it (and elements with
@@ -64,6 +72,98 @@ class ForceElement {
   /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
   std::string label;
 };
+/// A force element written once, over a scalar S (as a constraint kind is, constraints/law.hpp):
+///
+///     class MyElement final : public ForceLaw<MyElement> {
+///      public:
+///       template <class S>
+///       void law(const S& t, const S* q, const S* qd, const S* z, S* Q, S* zdot) const;
+///     };
+///
+/// law<S> adds the element's generalized force to Q[0, n) and writes its states' rates ż to
+/// zdot[0, num_states()) from t, q, q̇ (n entries each) and its states z. ForceLaw derives:
+///   apply()                 law<double>; with dQ_dqd, ∂Q/∂q̇ from law<JacobianScalar> seeded on
+///                           q̇ (⌈n / 8⌉ sweeps: only the paper-literal option asks for it)
+///   apply_dual()            law<JacobianScalar> at the unseeded time t
+///   add_rate_with_states()  law<Dual<1>> seeded along the motion (t with 1, q with q̇, q̇ with
+///                           q̈, z with ż): Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈ + ∂Q/∂z ż
+///   add_rate()              the same for an element without states (false for one with them:
+///                           their rates are needed)
+/// and reports exact_derivatives() and has_rate() true. The scratch of the dual sweeps is per
+/// thread and grows once (no allocation after the first call with a given n on a thread).
+/// The text form (symbolic()) stays the element's own (see law.hpp; tests/law_test.cpp checks it
+/// against the law).
+template <class Element>
+class ForceLaw : public ForceElement {
+ public:
+  void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z, Eigen::VectorXd& Q,
+             double* zdot, Eigen::MatrixXd* dQ_dqd) const final {
+    self().template law<double>(t, q.data(), qd.data(), z, Q.data(), zdot);
+    if (dQ_dqd) add_velocity_jacobian(t, q, qd, z, *dQ_dqd);
+  }
+  void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
+                  JacobianScalar* Q, JacobianScalar* zdot) const final {
+    self().template law<JacobianScalar>(JacobianScalar(t), q, qd, z, Q, zdot);
+  }
+  bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                Eigen::VectorXd& Qdot) const final {
+    return this->num_states() == 0 && add_rate_with_states(t, q, qd, qdd, nullptr, nullptr, Qdot);
+  }
+  bool add_rate_with_states(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
+                            const double* z, const double* zdot, Eigen::VectorXd& Qdot) const final {
+    using D1 = ad::Dual<1>;
+    const int n = static_cast<int>(q.size()), nz = this->num_states();
+    Sweep<D1>& s = sweep<D1>(n, nz);
+    for (int i = 0; i < n; ++i) {
+      s.q[i] = D1::variable(q[i], 0, qd[i]);
+      s.qd[i] = D1::variable(qd[i], 0, qdd[i]);
+      s.Q[i] = D1(0.0);
+    }
+    for (int k = 0; k < nz; ++k) s.z[k] = D1::variable(z[k], 0, zdot[k]);
+    self().template law<D1>(D1::variable(t, 0, 1.0), s.q.data(), s.qd.data(), s.z.data(), s.Q.data(), s.zdot.data());
+    for (int i = 0; i < n; ++i)
+      if (s.Q[i].d[0] != 0.0) Qdot[i] += s.Q[i].d[0];
+    return true;
+  }
+  bool exact_derivatives() const final { return true; }
+  bool has_rate() const final { return true; }
+
+ private:
+  const Element& self() const { return static_cast<const Element&>(*this); }
+  template <class D>
+  struct Sweep {
+    std::vector<D> q, qd, z, Q, zdot;
+  };
+  /// Per-thread scratch of the dual sweeps, sized for n coordinates and nz states.
+  template <class D>
+  static Sweep<D>& sweep(int n, int nz) {
+    thread_local Sweep<D> s;
+    const size_t m = static_cast<size_t>(std::max(1, nz));
+    if (s.q.size() < static_cast<size_t>(n)) s.q.resize(n), s.qd.resize(n), s.Q.resize(n);
+    if (s.z.size() < m) s.z.resize(m), s.zdot.resize(m);
+    return s;
+  }
+  /// dQ_dqd += ∂Q/∂q̇, column block by column block.
+  void add_velocity_jacobian(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                             Eigen::MatrixXd& dQ) const {
+    using D = JacobianScalar;
+    const int n = static_cast<int>(q.size()), nz = this->num_states();
+    Sweep<D>& s = sweep<D>(n, nz);
+    for (int c0 = 0; c0 < n; c0 += kJacobianDirections) {
+      const int width = std::min(kJacobianDirections, n - c0);
+      for (int i = 0; i < n; ++i) {
+        s.q[i] = D(q[i]);
+        s.qd[i] = i >= c0 && i < c0 + width ? D::variable(qd[i], i - c0) : D(qd[i]);
+        s.Q[i] = D(0.0);
+      }
+      for (int k = 0; k < nz; ++k) s.z[k] = D(z[k]);
+      self().template law<D>(D(t), s.q.data(), s.qd.data(), s.z.data(), s.Q.data(), s.zdot.data());
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < width; ++k) dQ(i, c0 + k) += s.Q[i].d[k];
+    }
+  }
+};
+
 using ForceElementPtr = std::shared_ptr<const ForceElement>;
 /// A force element while it is being built: labelled by the caller before it is published as a
 /// ForceElementPtr (ForceSet::add).
@@ -82,17 +182,14 @@ struct FlexibleDriveParams {
   Number stiffness = 1e4;   ///< s [Nm/rad or N/m]
   Number damping = 70.0;    ///< d [Nms/rad or Ns/m]
 };
-class FlexibleDrive final : public ForceElement {
+class FlexibleDrive final : public ForceLaw<FlexibleDrive> {
  public:
   FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p, TimeFunctionPtr profile);
   std::string name() const override { return "flexible_drive(" + joint_name_ + ")"; }
   bool actuator() const override { return true; }
-  void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
-             Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
-  void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
-                  JacobianScalar* Q, JacobianScalar* zdot) const override;
-  bool add_rate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
-                Eigen::VectorXd& Qdot) const override;
+  /// Q_j += τ(t, q_j, q̇_j) (torque_law); no states.
+  template <class S>
+  void law(const S& t, const S* q, const S* qd, const S* z, S* Q, S* zdot) const;
   /// The drive torque alone.
   double torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const;
   /// psi_dr (the drive displacement ψ_dr(t)) and tau_drive (its torque), suffixed "_<label>".
@@ -103,6 +200,8 @@ class FlexibleDrive final : public ForceElement {
   const TimeFunction& profile() const { return *profile_; }
   int joint() const { return j_; }
  private:
+  template <class S>
+  S torque_law(const S& t, const S& qj, const S& qdj) const;
   int j_;
   std::string joint_name_;
   FlexibleDriveParams p_;
@@ -117,18 +216,15 @@ struct LuGreParams {
   Number sigma0 = 5.0, sigma1 = 0.025, sigma2 = 0.0;
   Number v_stribeck = 0.175;          ///< Stribeck velocity q̇_S
 };
-class LuGreFriction final : public ForceElement {
+class LuGreFriction final : public ForceLaw<LuGreFriction> {
  public:
   LuGreFriction(const Model& model, const std::string& joint, LuGreParams p);
   std::string name() const override { return "lugre(" + joint_name_ + ")"; }
   int num_states() const override { return 1; }
   std::vector<std::string> state_names() const override { return {"z_" + joint_name_}; }
-  void apply(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
-             Eigen::VectorXd& Q, double* zdot, Eigen::MatrixXd* dQ_dqd) const override;
-  void apply_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* z,
-                  JacobianScalar* Q, JacobianScalar* zdot) const override;
-  bool add_rate_with_states(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& qdd,
-                            const double* z, const double* zdot, Eigen::VectorXd& Qdot) const override;
+  /// ż and τ above, in the joint.
+  template <class S>
+  void law(const S& t, const S* q, const S* qd, const S* z, S* Q, S* zdot) const;
   std::optional<SymbolicForm> symbolic() const override;
   const LuGreParams& params() const { return p_; }
   int joint() const { return j_; }

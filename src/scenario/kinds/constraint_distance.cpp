@@ -4,10 +4,13 @@
 // With Δ = r_A − r_B, ρ = |Δ|, u = Δ/ρ and Δ̇ = v_A − v_B:
 //   Φ = ρ − d,   Φ̇ = u·Δ̇ − ḋ,   A = uᵀ (C_A − C_B),
 //   Φ̈ = A q̈ + γ,   γ = u·(d_A − d_B) + (|Δ̇|² − (u·Δ̇)²)/ρ − d̈
-// (d_P: the drift acceleration of P, the part of its acceleration that does not depend on q̈).
+// (d_P: the drift acceleration of P, the part of its acceleration that does not depend on q̈),
+// written once as law<S> (ConstraintLaw, constraints/law.hpp): evaluate() and evaluate_dual()
+// are its instantiations.
 // The constraint is undefined when the points coincide (ρ = 0): evaluation stops there.
 #include "kinds.hpp"
 
+#include "refdyn/constraints/law.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/common/text.hpp"
 
@@ -15,11 +18,31 @@ namespace refdyn::kinds {
 
 namespace {
 
-class Distance final : public Constraint {
+class Distance final : public ConstraintLaw<Distance> {
  public:
   Distance(const Model& m, const std::string& a, const std::string& b, TimeFunctionPtr d)
       : a_(m.point_index(a)), b_(m.point_index(b)), an_(a), bn_(b), d_(std::move(d)) {
     if (a_ == b_) throw Error("distance: expected two different points, got '" + a + "' twice");
+  }
+  template <class S>
+  void law(const LawInput<S>& in, LawRows<S>& out) const {
+    using namespace law_ops;
+    const auto& P = in.points[a_];
+    const auto& Q = in.points[b_];
+    const auto delta = sub(P.r, Q.r), delta_dot = sub(P.v, Q.v);
+    const S rho = norm(delta);
+    if (!(value_of(rho) > 1e-12)) {
+      const double t = value_of(in.t);
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the points '" + an_ + "' and '" + bn_ +
+                                    "' of distance constraint '" + name + "' coincide: the distance has no direction there");
+    }
+    const auto u = div(delta, rho);
+    const auto d = time_value(*d_, in.t);
+    const S ud = dot(u, delta_dot);
+    out.phi[0] = rho - d.f;
+    out.phid[0] = ud - d.df;
+    out.A_dot_diff(0, u, P.C, Q.C);
+    out.gamma[0] = dot(u, sub(P.d, Q.d)) + (squared_norm(delta_dot) - ud * ud) / rho - d.ddf;
   }
   int rows() const override { return 1; }
   bool first_order() const override { return false; }
@@ -35,45 +58,6 @@ class Distance final : public Constraint {
     d->rows[0] = "sqrt((x(" + an_ + ") - x(" + bn_ + "))^2 + (y(" + an_ + ") - y(" + bn_ + "))^2 + (z(" + an_ + ") - z(" +
                  bn_ + "))^2) - (" + d->rows[0] + ")";
     return d;
-  }
-  void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
-                Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const override {
-    const PointState& P = in.points[a_];
-    const PointState& Q = in.points[b_];
-    const Vec3 delta = P.r - Q.r, delta_dot = P.v - Q.v;
-    const double rho = delta.norm();
-    if (!(rho > 1e-12))
-      throw NumericalFailure(in.t, "at t = " + fmt(in.t) + " s the points '" + an_ + "' and '" + bn_ +
-                                       "' of distance constraint '" + name +
-                                       "' coincide: the distance has no direction there");
-    const Vec3 u = delta / rho;
-    const TimeValue d = d_->eval(in.t);
-    const double ud = u.dot(delta_dot);
-    phi[0] = rho - d.f;
-    phid[0] = ud - d.df;
-    A.row(0).noalias() = u.transpose().lazyProduct(P.C - Q.C);
-    gamma[0] = u.dot(P.d - Q.d) + (delta_dot.squaredNorm() - ud * ud) / rho - d.ddf;
-  }
-  void evaluate_dual(const ConstraintInputDual& in, JacobianScalar* phi, JacobianScalar* phid, JacobianScalar* A,
-                     JacobianScalar* gamma) const override {
-    using namespace multibody;
-    using JS = JacobianScalar;
-    const PointStateT<JS>& P = in.points[a_];
-    const PointStateT<JS>& Q = in.points[b_];
-    const Vec3T<JS> delta = sub(P.r, Q.r), delta_dot = sub(P.v, Q.v);
-    const JS rho = sqrt(dot(delta, delta));
-    if (!(rho.v > 1e-12))
-      throw NumericalFailure(in.t.v, "at t = " + fmt(in.t.v) + " s the points '" + an_ + "' and '" + bn_ +
-                                       "' of distance constraint '" + name +
-                                       "' coincide: the distance has no direction there");
-    const JS inv = JS(1.0) / rho;
-    const Vec3T<JS> u = scale(delta, inv);
-    const TimeValueDual d = eval_dual(*d_, in.t);
-    const JS ud = dot(u, delta_dot);
-    phi[0] = rho - d.f;
-    phid[0] = ud - d.df;
-    for (int j = 0; j < in.n; ++j) A[j] = dot(u, sub(P.C[j], Q.C[j]));
-    gamma[0] = dot(u, sub(P.d, Q.d)) + (dot(delta_dot, delta_dot) - ud * ud) * inv - d.ddf;
   }
 
  private:

@@ -1,0 +1,57 @@
+// flexible_drive: the paper's flexible drive (4.6), τ = s (ψ_dr(t) − q_j) + d (ψ̇_dr(t) − q̇_j),
+// written once (torque_law); apply (the paper study's arithmetic), apply_dual, ∂Q/∂q̇ and the jerk
+// level's rate are its instantiations (ForceLaw), the recorded torque signal too.
+#include "element_support.hpp"
+
+#include <cmath>
+
+namespace refdyn {
+
+FlexibleDrive::FlexibleDrive(const Model& model, const std::string& joint, FlexibleDriveParams p,
+                             TimeFunctionPtr profile)
+    : j_(model.joint_index(joint)), joint_name_(joint), p_(p), profile_(std::move(profile)) {
+  using force_detail::need;
+  need(std::isfinite(p.stiffness.value) && p.stiffness >= 0, "flexible drive stiffness", "a finite value >= 0", p.stiffness);
+  need(std::isfinite(p.damping.value) && p.damping >= 0, "flexible drive damping", "a finite value >= 0", p.damping);
+  if (!profile_) throw Error("flexible drive: expected a displacement profile, got none");
+}
+
+template <class S>
+S FlexibleDrive::torque_law(const S& t, const S& qj, const S& qdj) const {
+  const auto psi = time_value(*profile_, t);
+  return p_.stiffness.value * (psi.f - qj) + p_.damping.value * (psi.df - qdj);
+}
+
+template <class S>
+void FlexibleDrive::law(const S& t, const S* q, const S* qd, const S*, S* Q, S*) const {
+  Q[j_] += torque_law(t, q[j_], qd[j_]);
+}
+REFDYN_INSTANTIATE_FORCE_LAW(FlexibleDrive);
+
+double FlexibleDrive::torque(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
+  return torque_law(t, q[j_], qd[j_]);
+}
+
+std::vector<std::string> FlexibleDrive::signal_names() const {
+  const std::string suffix = label.empty() ? "" : "_" + label;
+  return {"psi_dr" + suffix, "tau_drive" + suffix};
+}
+
+void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double*,
+                            double* out) const {
+  out[0] = profile_->eval(t).f;
+  out[1] = torque(t, q, qd);
+}
+
+std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
+  std::optional<SymbolicForm> f = profile_->symbolic();
+  if (!f) return std::nullopt;
+  f->functions = {{"psi_dr", f->rows[0]}};
+  f->rows = {symbolic_number(p_.stiffness) + "*(psi_dr - q(" + joint_name_ + ")) + " + symbolic_number(p_.damping) +
+             "*(d_psi_dr - qd(" + joint_name_ + "))"};
+  f->scenario_texts = f->scenario_texts || any_text(p_.stiffness, p_.damping);
+  f->joints = {j_};
+  return f;
+}
+
+}  // namespace refdyn
