@@ -329,7 +329,7 @@ JsonValue visuals_json(const Problem& p, double budget, std::vector<std::string>
   if (fallback) {
     char b[256];
     std::snprintf(b, sizeof b,
-                  "the URDF's meshes (%.1f MB inlined) exceed the report's budget of %.1f MB: the 3D replay draws the "
+                  "the URDF's meshes (%.3g MB inlined) exceed the report's budget of %.3g MB: the 3D replay draws the "
                   "links as segments (refdyn report DIR --mesh-budget %.0f draws them)",
                   bytes / 1e6, budget / 1e6, std::ceil(bytes / 1e6));
     notes.push_back(b);
