@@ -146,7 +146,9 @@ TEST(Armature, EveryMassMatrixRouteAddsTheDiagonal) {
     // The joints without armature keep their diagonal entries bit for bit.
     const Eigen::MatrixXd Mw = mass_matrix(with, dw, q);
     for (int i = 0; i < with.nq; ++i)
-      if (with.armature[i] == 0) EXPECT_EQ(Mw(i, i), M0(i, i)) << "joint " << i;
+      if (with.armature[i] == 0) {
+        EXPECT_EQ(Mw(i, i), M0(i, i)) << "joint " << i;
+      }
   }
 }
 

@@ -2,8 +2,8 @@
 // descriptions: the description package refdyn_test_arm with a 7-joint arm + gripper and a 6-joint
 // arm) through the pipeline: check (the armature read from Drake's rotor tags and its note, the
 // URDF's <dynamics> as force elements or ignored with a note, model.armature), plan (the task
-// held, the mimic finger coupled, the armature's share of the effort), track and the command line
-// (ROS_PACKAGE_PATH for the meshes). The report with the meshes: tests/report_browser_test.py;
+// held, the mimic finger coupled; on a prescribed motion the armature's share of the effort is
+// exactly a_i q̈_i), track and the command line (ROS_PACKAGE_PATH for the meshes). The report with the meshes: tests/report_browser_test.py;
 // the generated C with armature: tests/symbolic_c_test.cpp (tests/data/symbolic/armature.yaml).
 #include "refdyn/io/check.hpp"
 #include "refdyn/io/results.hpp"
@@ -86,8 +86,6 @@ io::Results plan_of(const Problem& p) {
   o.track = false;
   return io::run_problem(p, o);
 }
-
-double peak_effort(const io::Results& r, int joint) { return r.feasibility.joints.at(joint).peak_effort; }
 
 TEST(UrdfScenario, PlanHoldsTheTaskAndTheMimic) {
   const auto p = io::load_problem(data_path("arm7_hand.yaml"));

@@ -677,7 +677,9 @@ TEST(UrdfTestArm, VisualsResolvePackagesRosPackagePathAndRelativePaths) {
     ::setenv("ROS_PACKAGE_PATH", ("/nonexistent:" + entry.string()).c_str(), 1);
     const ModelDescription r = load_urdf(urdf, {}, ex);
     for (const VisualSpec& v : r.visuals)
-      if (v.shape == VisualSpec::Shape::Mesh) EXPECT_TRUE(fs::exists(v.file)) << entry << ": " << v.file;
+      if (v.shape == VisualSpec::Shape::Mesh) {
+        EXPECT_TRUE(fs::exists(v.file)) << entry << ": " << v.file;
+      }
   }
   ::unsetenv("ROS_PACKAGE_PATH");
   // A relative path is taken from the URDF's folder; file:// is a path.
