@@ -393,7 +393,7 @@ int finish_results(const Problem& problem, const io::Results& r, const std::stri
   JsonValue summary = io::summary_json(problem, r);
   if (!r.runs.empty()) summary["track_csv"] = run_csv;
   io::write_results(out_dir, problem, r, summary);
-  if (report) write_report(out_dir, problem, r, summary);
+  if (report) write_report(out_dir, problem, r, summary, quiet);
   if (!quiet) print_runs(problem, r, out_dir, report);
   if (!r.ok()) {
     report_stopped(r);

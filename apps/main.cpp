@@ -39,6 +39,7 @@ struct Args {
   refdyn::app::RunConfig run;
   std::string method;
   long budget = 0;
+  double mesh_budget = refdyn::app::kReportMeshBudgetMB;
 };
 
 struct Commands {
@@ -127,6 +128,11 @@ void add_other_commands(CLI::App& app, Args& a, Commands& c) {
                        "Scenario file of the results (default: the one summary.json names; built in for paper results)");
   c.report->add_option("-o,--output", a.report_out, "Report file (default: DIR/report.html)");
   c.report->add_flag("-q,--quiet", a.quiet, "Print nothing on success");
+  c.report->add_option("--mesh-budget", a.mesh_budget,
+                       "Largest size of the URDF's visual meshes inlined into the page [MB]; above it the 3D replay "
+                       "draws the links as segments")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   add_input_options(c.report, a);
 
   c.generate = app.add_subcommand(
@@ -151,7 +157,7 @@ int dispatch(const Commands& c, Args& a) {
   if (*c.optimize) return run_optimize(a.file, a.out_dir, a.quiet, a.in, a.method, a.budget);
   if (*c.track) return run_track(a.file, a.out_dir, a.quiet, a.in, a.run);
   if (*c.plot) return run_plot(a.out_dir);
-  if (*c.report) return run_report(a.out_dir, a.scenario, a.report_out, a.quiet, a.in);
+  if (*c.report) return run_report(a.out_dir, a.scenario, a.report_out, a.quiet, a.in, a.mesh_budget);
   if (*c.paper) return run_paper_command(a.out_dir, a.quiet, a.report, a.run.jobs < 0 ? 0 : a.run.jobs);
   if (*c.generate) return run_generate(a.file, a.out_dir, a.formats, a.prefix, a.quiet, a.in);
   if (*c.kinds) return run_kinds();

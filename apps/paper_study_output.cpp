@@ -56,7 +56,7 @@ int run_paper_command(const std::string& out, bool quiet, bool report, int jobs)
     runs.at(i)["plant_friction"] = !e.plant_forces.elements().empty();
   }
   io::write_results(out, p, r, summary);
-  if (report) write_report(out, p, r, summary);
+  if (report) write_report(out, p, r, summary, quiet);
 
   if (!quiet) {
     const int n = p.model.nv;

@@ -13,7 +13,10 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -31,6 +34,9 @@ namespace {
 constexpr const char* kDataMarker = "/*@@REFDYN_DATA@@*/";
 constexpr const char* kSummaryMarker = "@@REFDYN_SUMMARY@@";
 constexpr const char* kFeasibilityMarker = "@@REFDYN_FEASIBILITY@@";
+/// Around the three.js mesh loaders (apps/report_template.cmake): kept only in a page with meshes.
+constexpr const char* kLoadersBegin = "/*@@REFDYN_LOADERS_BEGIN@@*/";
+constexpr const char* kLoadersEnd = "/*@@REFDYN_LOADERS_END@@*/";
 
 /// JSON text that goes inside a <script> element: every '<' becomes \u003c (in valid JSON a '<'
 /// can only be inside a string, where this is the same character), so neither "</script" nor
@@ -218,6 +224,129 @@ JsonValue model_json(const Model& m) {
   return o;
 }
 
+/// RFC 4648 base64 of `bytes`.
+std::string base64(const std::string& bytes) {
+  static const char* A = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const unsigned v = static_cast<unsigned char>(bytes[i]) << 16 | static_cast<unsigned char>(bytes[i + 1]) << 8 |
+                       static_cast<unsigned char>(bytes[i + 2]);
+    for (int k = 18; k >= 0; k -= 6) out += A[(v >> k) & 63];
+  }
+  if (i < bytes.size()) {
+    const bool two = i + 1 < bytes.size();
+    const unsigned v = static_cast<unsigned char>(bytes[i]) << 16 | (two ? static_cast<unsigned char>(bytes[i + 1]) << 8 : 0);
+    out += A[(v >> 18) & 63];
+    out += A[(v >> 12) & 63];
+    out += two ? A[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+/// "stl", "dae" or "obj" from a file name (any case); "" for another format.
+std::string mesh_format(const std::string& file) {
+  std::string e = fs::path(file).extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e == ".stl" || e == ".dae" || e == ".obj" ? e.substr(1) : std::string();
+}
+
+/// The model's visual geometry for the replay (Problem::visuals, on the link frames of the model):
+/// {meshes: [{format, file, data (base64)}], items: [{link, body, p, q, shape, mesh | size |
+/// radius, length, scale, color}], bytes, budget, fallback, notes}. Meshes that cannot be drawn
+/// (unresolved, unreadable, another format) are left out with a note; above the budget every
+/// mesh is, and the replay draws segments (fallback).
+JsonValue visuals_json(const Problem& p, double budget, std::vector<std::string>& notes) {
+  const Model& m = p.model;
+  JsonValue meshes = JsonValue::array(), items = JsonValue::array();
+  std::map<std::string, int> mesh_index;
+  std::vector<std::string> data;
+  double bytes = 0;
+  int missing = 0;
+  for (const VisualSpec& v : p.visuals) {
+    const auto f = std::find(m.frame_name.begin(), m.frame_name.end(), v.link);
+    if (f == m.frame_name.end()) continue;  // a link outside the model (not loaded)
+    const int fi = static_cast<int>(f - m.frame_name.begin());
+    const SE3 X = m.frame_pose[fi] * v.origin;  // in the body frame (the world's for body −1)
+    JsonValue it = JsonValue::object();
+    it["link"] = v.link;
+    it["body"] = m.frame_body[fi];
+    it["p"] = vec_json(X.p, 9);
+    const Eigen::Quaterniond qu(X.R);
+    it["q"] = JsonValue::array({num(qu.x(), 9), num(qu.y(), 9), num(qu.z(), 9), num(qu.w(), 9)});
+    if (v.has_color) it["color"] = JsonValue::array({num(v.rgba[0], 4), num(v.rgba[1], 4), num(v.rgba[2], 4), num(v.rgba[3], 4)});
+    switch (v.shape) {
+      case VisualSpec::Shape::Mesh: {
+        std::string why = v.note;
+        const std::string format = mesh_format(v.uri);
+        if (why.empty() && format.empty()) why = "not an STL, COLLADA or OBJ file";
+        if (why.empty() && mesh_index.find(v.file) == mesh_index.end()) {
+          std::string content;
+          try {
+            content = io::read_text_file(v.file, "mesh file", std::numeric_limits<std::size_t>::max());
+          } catch (const Error&) {
+            why = "cannot read " + v.file;
+          }
+          if (why.empty()) {
+            mesh_index[v.file] = static_cast<int>(data.size());
+            data.push_back(base64(content));
+            bytes += static_cast<double>(data.back().size());
+            JsonValue mj = JsonValue::object();
+            mj["format"] = format;
+            mj["file"] = v.uri;
+            meshes.push_back(std::move(mj));
+          }
+        }
+        if (!why.empty()) {
+          ++missing;
+          notes.push_back("link " + v.link + ": mesh " + v.uri + " not drawn: " + why);
+          continue;
+        }
+        it["shape"] = "mesh";
+        it["mesh"] = mesh_index[v.file];
+        it["scale"] = vec_json(v.size, 9);
+        break;
+      }
+      case VisualSpec::Shape::Box:
+        it["shape"] = "box";
+        it["size"] = vec_json(v.size, 9);
+        break;
+      case VisualSpec::Shape::Cylinder:
+        it["shape"] = "cylinder";
+        it["radius"] = num(v.radius, 9);
+        it["length"] = num(v.length, 9);
+        break;
+      case VisualSpec::Shape::Sphere:
+        it["shape"] = "sphere";
+        it["radius"] = num(v.radius, 9);
+        break;
+    }
+    items.push_back(std::move(it));
+  }
+  const bool fallback = bytes > budget;
+  if (fallback) {
+    char b[256];
+    std::snprintf(b, sizeof b,
+                  "the URDF's meshes (%.3g MB inlined) exceed the report's budget of %.3g MB: the 3D replay draws the "
+                  "links as segments (refdyn report DIR --mesh-budget %.0f draws them)",
+                  bytes / 1e6, budget / 1e6, std::ceil(bytes / 1e6));
+    notes.push_back(b);
+  } else {
+    for (size_t k = 0; k < data.size(); ++k) meshes[k]["data"] = std::move(data[k]);
+  }
+  JsonValue o = JsonValue::object();
+  o["meshes"] = fallback ? JsonValue::array() : std::move(meshes);
+  o["items"] = fallback ? JsonValue::array() : std::move(items);
+  o["bytes"] = bytes;
+  o["budget"] = budget;
+  o["fallback"] = fallback;
+  o["missing"] = missing;
+  o["notes"] = strings(notes);
+  return o;
+}
+
 /// The constraints as built (name, role, order, time dependence, equation) and the task
 /// geometry they record (the ellipses of point_on_ellipse constraints, for the 3D view).
 void constraints_json(const Problem& p, JsonValue& o) {
@@ -295,11 +424,12 @@ JsonValue experiments_json(const Problem& p) {
 
 /// The scenario part of the page: what the problem recorded when it was built, and the
 /// partition summary.json recorded when the plan was made (nothing is re-run).
-JsonValue scenario_json(const Problem& p, const JsonValue& summary) {
+JsonValue scenario_json(const Problem& p, const JsonValue& summary, double mesh_budget, std::vector<std::string>& notes) {
   JsonValue o = JsonValue::object();
   o["name"] = p.name;
   o["file"] = p.file;
   o["model"] = model_json(p.model);
+  if (!p.visuals.empty()) o["visuals"] = visuals_json(p, mesh_budget, notes);
   constraints_json(p, o);
   JsonValue& forces = o["forces"] = JsonValue::array();
   for (const auto& f : p.forces.elements()) forces.push_back(f->name());
@@ -318,7 +448,7 @@ void require_report_template() {
                 "scripts/install-deps.sh installs libjs-three and libjs-dygraphs; then reconfigure and rebuild)");
 }
 
-std::string report_html(const ReportInput& in) {
+std::string report_html(const ReportInput& in, std::vector<std::string>* notes_out) {
   require_report_template();
   const char* tpl = refdyn_report_template;
   const Problem& p = *in.problem;
@@ -329,7 +459,11 @@ std::string report_html(const ReportInput& in) {
 
   JsonValue data = JsonValue::object();
   data["version"] = 1;
-  data["scenario"] = scenario_json(p, parse_json(in.summary_json, "summary.json"));
+  std::vector<std::string> notes;
+  data["scenario"] = scenario_json(p, parse_json(in.summary_json, "summary.json"), in.mesh_budget, notes);
+  const JsonValue& sc = data["scenario"];
+  const bool meshes_drawn = sc.contains("visuals") && !sc["visuals"]["items"].empty();
+  if (notes_out) *notes_out = notes;
   // Plots: every column of plan.csv at about kReportPlotPoints samples; the runs resampled on
   // the same times (linear interpolation; RK4 runs share the plan's samples).
   const auto pidx = decimate(in.plan.rows.size(), kReportPlotPoints);
@@ -387,8 +521,14 @@ std::string report_html(const ReportInput& in) {
   }
   const std::string d = json_text(data, -1);  // minimal separators: the page is large
 
-  // The markers are located in the template once, so nothing inserted can be taken for one.
-  const std::string t = tpl;
+  // The markers are located in the template once, so nothing inserted can be taken for one. The
+  // three.js mesh loaders are in the page only when it draws meshes.
+  std::string t = tpl;
+  const size_t lb = t.find(kLoadersBegin), le = t.find(kLoadersEnd);
+  if (lb == std::string::npos || le == std::string::npos || le < lb)
+    throw std::logic_error("report template: the mesh loaders' markers are missing");
+  if (meshes_drawn) t.erase(le, std::strlen(kLoadersEnd)), t.erase(lb, std::strlen(kLoadersBegin));
+  else t.erase(lb, le + std::strlen(kLoadersEnd) - lb);
   std::vector<std::pair<size_t, std::pair<std::string, std::string>>> parts;
   for (const auto& [marker, text] : {std::pair<std::string, std::string>{kSummaryMarker, script_safe(in.summary_json)},
                                      {kFeasibilityMarker, script_safe(in.feasibility_json)},
@@ -410,7 +550,17 @@ std::string report_html(const ReportInput& in) {
   return html;
 }
 
-void write_report(const fs::path& dir, const Problem& problem, const io::Results& r, const JsonValue& summary) {
+namespace {
+/// The notes of a report on the terminal: the first three, then how many more the page has.
+void print_notes(const std::vector<std::string>& notes) {
+  for (size_t k = 0; k < notes.size() && k < 3; ++k) std::fprintf(stderr, "report: note: %s\n", notes[k].c_str());
+  if (notes.size() > 3) std::fprintf(stderr, "report: ... %zu more notes in the page (3D replay)\n", notes.size() - 3);
+}
+
+}  // namespace
+
+void write_report(const fs::path& dir, const Problem& problem, const io::Results& r, const JsonValue& summary,
+                  bool quiet) {
   ReportInput in;
   in.problem = &problem;
   in.summary_json = json_text(summary, 2, 2);
@@ -419,12 +569,16 @@ void write_report(const fs::path& dir, const Problem& problem, const io::Results
   for (const auto& run : r.runs)  // the runs whose trajectories were kept (RunOptions::keep_trajectories)
     if (in.runs.size() < kReportMaxRuns && !run.result.joints.empty())
       in.runs.emplace_back(run.experiment->name, io::trajectory_table(run.result));
-  const std::string html = report_html(in);
+  std::vector<std::string> notes;
+  const std::string html = report_html(in, &notes);
   io::write_text_atomic(dir / "report.html", html);
+  if (!quiet) print_notes(notes);
 }
 
 int run_report(const std::string& dir_name, const std::string& scenario, const std::string& output, bool quiet,
-               const InputOptions& opt) {
+               const InputOptions& opt, double mesh_budget_mb) {
+  if (!(mesh_budget_mb >= 0) || !std::isfinite(mesh_budget_mb))
+    throw Error("--mesh-budget: expected a number of MB >= 0, got " + fmt(mesh_budget_mb));
   const fs::path dir(dir_name);
   if (!fs::is_directory(dir))
     throw Error("results folder '" + dir_name + "': not found (hint: run refdyn plan/track/paper first)");
@@ -487,10 +641,15 @@ int run_report(const std::string& dir_name, const std::string& scenario, const s
     const std::string f = (dir / "optimization.csv").string();
     in.optimization = io::parse_csv(io::read_text_file(f, "results file"), f);
   }
-  const std::string html = report_html(in);  // everything is formed before anything is written
+  in.mesh_budget = mesh_budget_mb * 1e6;
+  std::vector<std::string> notes;
+  const std::string html = report_html(in, &notes);  // everything is formed before anything is written
   const fs::path out = output.empty() ? dir / "report.html" : fs::path(output);
   io::write_text_atomic(out, html);
-  if (!quiet) std::printf("report: %s (%.2f MB)\n", out.c_str(), html.size() / 1e6);
+  if (!quiet) {
+    std::printf("report: %s (%.2f MB)\n", out.c_str(), html.size() / 1e6);
+    print_notes(notes);
+  }
   return kOk;
 }
 

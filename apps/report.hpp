@@ -21,6 +21,16 @@
 
 namespace refdyn::app {
 
+/// Largest number of samples per series in the plots and of frames in the 3D replay.
+inline constexpr int kReportPlotPoints = 1000;
+inline constexpr int kReportReplayFrames = 1000;
+/// Runs drawn in a report (the first ones, in experiment order); the sweep statistics in it
+/// cover every run (summary.json).
+inline constexpr std::size_t kReportMaxRuns = 24;
+/// The default budget of the URDF meshes inlined into a report [MB of base64 text]
+/// (`refdyn report --mesh-budget`).
+inline constexpr double kReportMeshBudgetMB = 24.0;
+
 /// What a report is made of: the built scenario and its results as tables and JSON text.
 struct ReportInput {
   const Problem* problem = nullptr;
@@ -31,30 +41,29 @@ struct ReportInput {
   /// optimization.csv of `refdyn optimize` (empty header: none): the report's optimization
   /// section (objective and constraint history).
   io::CsvText optimization;
+  /// Largest size of the visual meshes inlined into the page [bytes, base64]; above it the replay
+  /// draws the links as segments, as without meshes, and says so.
+  double mesh_budget = kReportMeshBudgetMB * 1e6;
 };
-
-/// Largest number of samples per series in the plots and of frames in the 3D replay.
-inline constexpr int kReportPlotPoints = 1000;
-inline constexpr int kReportReplayFrames = 1000;
-/// Runs drawn in a report (the first ones, in experiment order); the sweep statistics in it
-/// cover every run (summary.json).
-inline constexpr std::size_t kReportMaxRuns = 24;
 
 /// Throws refdyn::Error when refdyn was built without the report's JavaScript libraries
 /// (checked before a run with --report, so that nothing is written then).
 void require_report_template();
 
 /// The HTML text. Throws refdyn::Error when the tables do not fit the scenario (e.g. no
-/// q_<joint> column) or when refdyn was built without the JavaScript libraries.
-std::string report_html(const ReportInput& input);
+/// q_<joint> column) or when refdyn was built without the JavaScript libraries. `notes`, when
+/// given, receives what the page says about the model's meshes (not drawn, over the budget).
+std::string report_html(const ReportInput& input, std::vector<std::string>* notes = nullptr);
 
-/// `--report` on plan / track / paper: DIR/report.html from the results in memory.
+/// `--report` on plan / track / paper: DIR/report.html from the results in memory; printed
+/// (unless quiet): the notes of report_html.
 void write_report(const std::filesystem::path& dir, const Problem& problem, const io::Results& results,
-                  const JsonValue& summary);
+                  const JsonValue& summary, bool quiet);
 
 /// `refdyn report DIR`: reads a results folder; the scenario is `scenario` when given, else the
 /// one summary.json names (the built-in paper scenario for `refdyn paper` results).
+/// mesh_budget_mb: ReportInput::mesh_budget in MB.
 int run_report(const std::string& dir, const std::string& scenario, const std::string& output, bool quiet,
-               const InputOptions& in);
+               const InputOptions& in, double mesh_budget_mb = kReportMeshBudgetMB);
 
 }  // namespace refdyn::app

@@ -3,16 +3,17 @@
 #   -DTEMPLATE=apps/report_template.html -DOUT=<build>/report_template.html
 #   -DTHREE_JS=.../three.min.js -DORBIT_JS=.../OrbitControls.js
 #   -DDYGRAPH_JS=.../dygraph.min.js -DDYGRAPH_CSS=.../dygraph.min.css
+#   -DSTL_LOADER=.../STLLoader.js -DOBJ_LOADER=.../OBJLoader.js -DCOLLADA_LOADER=.../ColladaLoader.js
 # When a library is missing (empty path) OUT holds only the marker REFDYN_REPORT_UNAVAILABLE and
 # `refdyn report` explains how to get the libraries.
-foreach(v THREE_JS ORBIT_JS DYGRAPH_JS DYGRAPH_CSS)
+foreach(v THREE_JS ORBIT_JS DYGRAPH_JS DYGRAPH_CSS STL_LOADER OBJ_LOADER COLLADA_LOADER)
   if(NOT ${v} OR NOT EXISTS "${${v}}")
     file(WRITE "${OUT}" "REFDYN_REPORT_UNAVAILABLE")
     return()
   endif()
 endforeach()
 file(READ "${TEMPLATE}" html)
-foreach(v THREE_JS ORBIT_JS DYGRAPH_JS DYGRAPH_CSS)
+foreach(v THREE_JS ORBIT_JS DYGRAPH_JS DYGRAPH_CSS STL_LOADER OBJ_LOADER COLLADA_LOADER)
   file(READ "${${v}}" content)
   string(FIND "${content}" "</script" closing)
   string(FIND "${content}" "</style" closing_style)

@@ -18,6 +18,7 @@ refdyn::ModelDescription description_from_table(const DHTable& t) {
     rows.push_back(r);
   }
   refdyn::ModelDescription d = refdyn::from_dh(rows, refdyn::DHConvention::Standard, t.name);
+  for (size_t i = 0; i < t.links.size(); ++i) d.links[i].armature = t.links[i].armature;
   d.gravity = refdyn::Vec3(t.gravity[0], t.gravity[1], t.gravity[2]);
   return d;
 }

@@ -19,6 +19,7 @@ struct DHLink {
   double mass = 0;
   std::array<double, 3> com{};   ///< centre of mass in the link frame [m]
   std::array<double, 9> I_com{}; ///< inertia about the COM, link axes, row-major [kg m²]
+  double armature = 0;           ///< rotor inertia reflected to the joint (refdyn's armature, KDL's joint inertia)
 };
 
 struct DHTable {

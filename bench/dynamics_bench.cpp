@@ -79,6 +79,7 @@ struct Case {
   std::vector<Eigen::VectorXd> x_tip;
   bool tip = false;
   bool crossover_only = false;  ///< only the FD and CFD benchmarks (sizes for the crossovers)
+  bool check_only = false;      ///< checked against KDL at start-up, not timed (armature cases)
 };
 
 /// Constrained FD: the tip's x, y and z held at their values in state 0 (point_coordinate) and
@@ -529,6 +530,15 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
 
 int main(int argc, char** argv) {
   // Defaults (overridable on the command line, later flags win): interleaved repetitions.
+  // --check-only: the start-up agreement check alone (CTest dynamics_bench_check).
+  bool check_only = false;
+  for (int i = 1; i < argc; ++i)
+    if (std::string(argv[i]) == "--check-only") {
+      check_only = true;
+      for (int j = i; j + 1 < argc; ++j) argv[j] = argv[j + 1];
+      --argc;
+      break;
+    }
   if (!refdyn_bench::initialize_with_defaults(argc, argv)) return 1;
 
   std::vector<std::unique_ptr<Case>> cases;
@@ -544,6 +554,16 @@ int main(int argc, char** argv) {
     cases.back()->crossover_only = true;
   }
 
+  // Armature (KDL's joint inertia) on every joint of a chain and a tree of 3, 7 and 12 joints:
+  // checked against KDL like the others (M, τ, FD, CFD with Vereshchagin), not timed.
+  for (int dof : {3, 7, 12}) {
+    DHTable t = refdyn_bench::random_table(dof, 4000 + dof);
+    t.name = "rotor" + std::to_string(dof);
+    for (size_t i = 0; i < t.links.size(); ++i) t.links[i].armature = 0.05 + 0.4 * static_cast<double>(i % 4);
+    cases.push_back(make_case(t, model_from_table(t), 5000 + dof, /*tip=*/dof >= 7));
+    cases.back()->check_only = true;
+  }
+
   bool ok = true;
   for (auto& c : cases) ok = check_case(*c, 1e-10) && ok;
   if (!ok) {
@@ -554,7 +574,9 @@ int main(int argc, char** argv) {
   std::printf("\n");
   std::fflush(stdout);
 
-  for (auto& c : cases) register_case(c.get());
+  if (check_only) return 0;
+  for (auto& c : cases)
+    if (!c->check_only) register_case(c.get());
   Reporter reporter;
   benchmark::RunSpecifiedBenchmarks(&reporter);
   print_ratio_table(cases, reporter);

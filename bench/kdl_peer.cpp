@@ -33,7 +33,9 @@ KDL::Chain make_chain(const DHTable& t) {
     const auto& I = l.I_com;  // row-major
     const KDL::RotationalInertia Ic(I[0], I[4], I[8], I[1], I[2], I[5]);
     const KDL::RigidBodyInertia rbi(l.mass, KDL::Vector(l.com[0], l.com[1], l.com[2]), Ic);
-    const KDL::Joint joint(l.prismatic ? KDL::Joint::TransZ : KDL::Joint::RotZ);
+    // KDL's joint inertia is refdyn's armature: JntToMass adds it to H(k,k), the RNE solver
+    // inertia·q̈ to τ, Vereshchagin's solver to D.
+    const KDL::Joint joint(l.prismatic ? KDL::Joint::TransZ : KDL::Joint::RotZ, 1.0, 0.0, l.armature);
     chain.addSegment(KDL::Segment(joint, KDL::Frame::DH(l.a, l.alpha, l.d, l.theta), rbi));
   }
   return chain;

@@ -24,7 +24,8 @@ class REFDYN_KDL_PEER_API KdlPeer {
  public:
   /// Builds a KDL::Chain from the standard-DH table: one segment per row with
   /// Joint::RotZ / Joint::TransZ, tip frame KDL::Frame::DH(a, α, d, θ) and
-  /// KDL::RigidBodyInertia(m, com, I_com) (KDL takes the rotational inertia about the COM).
+  /// KDL::RigidBodyInertia(m, com, I_com) (KDL takes the rotational inertia about the COM); a
+  /// row's armature is the joint's inertia (KDL::Joint's `inertia`).
   explicit KdlPeer(const DHTable& table);
   ~KdlPeer();
   KdlPeer(const KdlPeer&) = delete;

@@ -229,6 +229,7 @@ py::dict check_dict(const io::CheckReport& r) {
   d["file"] = r.file;
   d["valid"] = true;
   d["model"] = r.model_summary;
+  d["model_notes"] = r.model_notes;
   d["joints"] = r.joints;
   py::list cs;
   for (const io::CheckReport::Constraint& c : r.constraints) {

@@ -14,6 +14,11 @@ can be fetched).
      plan's E(2.5) from plan.csv.
   3. A screenshot (1400 x 1000, kept as OUT/report_paper_t2.5.png) has ink in the 3D canvas and
      in the first plot, and the end-effector's colour in the canvas.
+  4. A URDF model with visual meshes (tests/data/urdf: the 7-joint arm with a gripper, the 6-joint
+     arm through ROS_PACKAGE_PATH): the page inlines the meshes and the loaders, the paper's does
+     not; over --mesh-budget the page draws segments and the command says so; an unresolved
+     package is a note. In the browser: no error, every item drawn; a screenshot
+     (OUT/report_arm7_meshes.png) shows the meshes' colours.
 
 Exit 77 (CTest: skipped) when chromium is not installed. Usage:
   report_browser_test.py REFDYN OUT
@@ -118,6 +123,45 @@ check(r.returncode == 0, "refdyn plan four_bar --report (%s)" % r.stderr.strip()
 four_bar_html = os.path.join(four_bar, "report.html")
 check(page_up(four_bar_html) == [0.0, 1.0, 0.0], "four-bar page: up = -gravity direction = [0, 1, 0] (%s)" % page_up(four_bar_html))
 check(page_up(html_path) == [0.0, 0.0, 1.0], "paper page: up = [0, 0, 1] (%s)" % page_up(html_path))
+
+# ---- 4. a URDF model drawn with its visual meshes (docs/report.md, "A URDF model's own shapes") ----
+def page_data(path):
+    m = re.search(r'<script type="application/json" id="refdyn-data">(.*?)</script>', open(path, encoding="utf-8").read(), re.S)
+    return json.loads(m.group(1)) if m else {}
+
+
+LOADERS = ("exports.STLLoader", "exports.OBJLoader", "exports.ColladaLoader")
+check(not any(x in html for x in LOADERS), "the paper's page (no meshes) carries no mesh loader")
+arm7 = os.path.join(OUT, "arm7")
+r = run([REFDYN, "plan", os.path.join(SOURCE, "tests/data/urdf/arm7_hand.yaml"), "-o", arm7, "--report", "-q"])
+check(r.returncode == 0 and r.stderr == "", "refdyn plan arm7_hand --report: exit 0, no note (%d: %s)" % (r.returncode, r.stderr.strip()))
+arm7_html = os.path.join(arm7, "report.html")
+arm7_page = open(arm7_html, encoding="utf-8").read()
+vis = page_data(arm7_html)["scenario"]["visuals"]
+print("arm7_hand page: %.2f MB, %d meshes (%d bytes of base64) for %d visual items" %
+      (len(arm7_page) / 1e6, len(vis["meshes"]), vis["bytes"], len(vis["items"])))
+check(len(vis["items"]) == 13 and len(vis["meshes"]) == 10 and not vis["fallback"] and vis["notes"] == [],
+      "arm7_hand page: 13 visual items (11 meshes in 10 files, a box, a sphere), no note")
+check(all(x in arm7_page for x in LOADERS), "arm7_hand page: the STL, OBJ and COLLADA loaders are inlined")
+sticks = os.path.join(OUT, "arm7_sticks.html")
+r = run([REFDYN, "report", arm7, "--mesh-budget", "0.001", "-o", sticks])
+vs = page_data(sticks).get("scenario", {}).get("visuals", {})
+check(r.returncode == 0 and "report: note: the URDF's meshes (" in r.stderr and "exceed the report's budget of 0.001 MB" in r.stderr
+      and vs.get("fallback") is True and vs.get("items") == [] and not any(x in open(sticks).read() for x in LOADERS),
+      "over the mesh budget: a note on stderr, segments, no loader in the page (%s)" % r.stderr.strip())
+arm6 = os.path.join(OUT, "arm6")
+env = dict(os.environ, ROS_PACKAGE_PATH=os.path.join(SOURCE, "tests/data/urdf"))
+r = run([REFDYN, "track", os.path.join(SOURCE, "tests/data/urdf/arm6.yaml"), "-o", arm6, "--report", "-q"], env=env)
+v6 = page_data(os.path.join(arm6, "report.html")).get("scenario", {}).get("visuals", {})
+check(r.returncode == 0 and r.stderr == "" and len(v6.get("items", [])) == 8 and v6.get("notes") == [],
+      "arm6 with ROS_PACKAGE_PATH: 7 meshes and a cylinder, no note (%d: %s)" % (r.returncode, r.stderr.strip()))
+env.pop("ROS_PACKAGE_PATH")
+arm6_bare = os.path.join(OUT, "arm6_no_package")
+r = run([REFDYN, "plan", os.path.join(SOURCE, "tests/data/urdf/arm6.yaml"), "-o", arm6_bare, "--report"], env=env)
+vb = page_data(os.path.join(arm6_bare, "report.html")).get("scenario", {}).get("visuals", {})
+check(r.returncode == 0 and "package 'refdyn_test_arm' is not known" in r.stderr and "4 more notes" in r.stderr
+      and len(vb.get("items", [])) == 1 and len(vb.get("notes", [])) == 7,
+      "arm6 without the package: exit 0, notes on stderr and in the page, the primitive drawn (%d: %s)" % (r.returncode, r.stderr.strip()))
 
 if not CHROMIUM:
     print("SKIP: chromium not installed (bash scripts/install-deps.sh installs it)")
@@ -227,6 +271,44 @@ if Image and os.path.exists(shot):
     check(f3 > 0.02, "screenshot: the 3D canvas is not blank")
     check(magenta > 20, "screenshot: the end-effector marker is visible")
     check(fp > 0.02, "screenshot: the first plot is not blank")
+
+# ---- 5. the meshes in the browser ----
+def selftest_of(path, t):
+    r = chromium("file://" + path + "#selftest=%g" % t, "--dump-dom")
+    m = re.search(r'<pre id="selftest"[^>]*>([^<]*)</pre>', r.stdout)
+    return json.loads(m.group(1)) if m and m.group(1).strip() else {"errors": ["no self-test output"]}
+
+
+s7 = selftest_of(arm7_html, 1.0)
+print("arm7_hand self-test:", json.dumps({k: s7.get(k) for k in ("errors", "meshes", "canvas3d")}))
+m7 = s7.get("meshes") or {}
+check(s7["errors"] == [] and m7.get("drawn") == 13 and m7.get("items") == 13 and m7.get("failed") == [],
+      "arm7_hand page in the browser: no error, every visual item drawn, none failed")
+c7 = s7.get("canvas3d", {})
+check(c7.get("nonBackgroundPixels", 0) / max(1, c7.get("width", 0) * c7.get("height", 0)) > 0.05,
+      "arm7_hand page: the 3D canvas is drawn")
+ss = selftest_of(sticks, 1.0)
+check(ss["errors"] == [] and (ss.get("meshes") or {}).get("fallback") is True,
+      "the page over the budget: no error, segments (%s)" % ss["errors"])
+s6 = selftest_of(os.path.join(arm6, "report.html"), 1.0)
+check(s6["errors"] == [] and (s6.get("meshes") or {}).get("drawn") == 8, "arm6 page: no error, 8 items drawn (%s)" % s6["errors"])
+sb = selftest_of(os.path.join(arm6_bare, "report.html"), 1.0)
+check(sb["errors"] == [] and (sb.get("meshes") or {}).get("drawn") == 1, "arm6 page without the package: no error, the cylinder drawn")
+shot7 = os.path.join(OUT, "report_arm7_meshes.png")
+r = chromium("file://" + arm7_html + "#selftest=1", "--screenshot=" + shot7)
+check(r.returncode == 0 and os.path.exists(shot7), "screenshot written: " + shot7)
+if Image and os.path.exists(shot7):
+    img = Image.open(shot7).convert("RGB")
+    dpr = s7.get("devicePixelRatio", 1)
+    x, y, w, h = (int(round(v * dpr)) for v in s7["rects"]["canvas3d"])
+    c = img.crop((x + 2, y + 2, x + w - 2, y + h - 2))
+    px = list(c.getdata())
+    # the COLLADA links' own orange (0.95, 0.45, 0.05) and the STL/OBJ links' URDF grey (0.55, 0.57, 0.6), shaded
+    orange = sum(1 for p in px if p[0] > 120 and 0.3 * p[0] < p[1] < 0.7 * p[0] and p[2] < 0.25 * p[0])
+    grey = sum(1 for p in px if 60 < p[0] < 215 and abs(p[0] - p[1]) < 12 and 0 <= p[2] - p[0] < 20)
+    print("screenshot %s: %d orange and %d grey pixels of %d in the 3D canvas" % (shot7, orange, grey, len(px)))
+    check(orange > 2000, "screenshot: the COLLADA links' orange is visible")
+    check(grey > 5000, "screenshot: the STL and OBJ links' grey is visible")
 
 shutil.rmtree(os.path.join(OUT, "chromium-profile"), ignore_errors=True)
 if failures:

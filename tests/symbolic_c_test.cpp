@@ -1,7 +1,9 @@
 // The generated C (refdyn generate --format c, compiled at build time by tests/CMakeLists.txt)
 // of six examples (planar_2r_circle fully constrained: n = m; waiter_tray with an acceleration
 // row, p = 2) and of tests/data/symbolic/every_kind.yaml
-// (the kinds and model features the examples leave out) against the numeric
+// (the kinds and model features the examples leave out), armature.yaml (joint armature, one
+// of them a symbol) and urdf_hand.yaml (a URDF hand: Drake rotor tags, a mimic finger, rounded π)
+// against the numeric
 // engine at random states: M, c, g, Q, ż, Φ, Φ̇, A, γ and ẋ of the reference dynamics. Two
 // independent routes: the generator's symbolic Newton–Euler in body frames with
 // GiNaC-differentiated constraint formulas, the engine's
@@ -13,6 +15,8 @@
 #include "refdyn/reference/reference_dynamics.hpp"
 
 #include "arm_jerk/reference_dynamics.h"
+#include "armature/reference_dynamics.h"
+#include "urdf_hand/reference_dynamics.h"
 #include "every_kind/reference_dynamics.h"
 #include "mixed_jerk/reference_dynamics.h"
 #include "mixed_jerk_t/reference_dynamics.h"
@@ -79,6 +83,12 @@ struct Generated {
 #define waiter_tray_NQ WAITER_TRAY_NQ
 #define waiter_tray_NZ WAITER_TRAY_NZ
 #define waiter_tray_NC WAITER_TRAY_NC
+#define armature_NQ ARMATURE_NQ
+#define armature_NZ ARMATURE_NZ
+#define armature_NC ARMATURE_NC
+#define urdf_hand_NQ URDF_HAND_NQ
+#define urdf_hand_NZ URDF_HAND_NZ
+#define urdf_hand_NC URDF_HAND_NC
 #define arm_NQ ARM_NQ
 #define arm_NZ ARM_NZ
 #define arm_NC ARM_NC
@@ -87,7 +97,8 @@ std::vector<Generated> all_generated() {
   return {REFDYN_GENERATED(paper_, "paper"), REFDYN_GENERATED(four_bar_, "four_bar"),
           REFDYN_GENERATED(unicycle_, "unicycle"), REFDYN_GENERATED(arm_, "urdf_arm_line"),
           REFDYN_GENERATED(planar_2r_circle_, "planar_2r_circle"), REFDYN_GENERATED(every_kind_, "every_kind"),
-          REFDYN_GENERATED(waiter_tray_, "waiter_tray")};
+          REFDYN_GENERATED(waiter_tray_, "waiter_tray"), REFDYN_GENERATED(armature_, "armature"),
+          REFDYN_GENERATED(urdf_hand_, "urdf_hand")};
 }
 
 /// max |a − b| / max(1, max |b|)
@@ -99,8 +110,8 @@ double rel(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 TEST(GeneratedC, EqualsTheEngineAtRandomStates) {
   for (const Generated& G : all_generated()) {
     SCOPED_TRACE(G.example);
-    const std::string file = G.example == "every_kind"
-                                 ? std::string(REFDYN_SOURCE_DIR) + "/tests/data/symbolic/every_kind.yaml"
+    const std::string file = G.example == "every_kind" || G.example == "armature" || G.example == "urdf_hand"
+                                 ? std::string(REFDYN_SOURCE_DIR) + "/tests/data/symbolic/" + G.example + ".yaml"
                                  : std::string(REFDYN_SOURCE_DIR) + "/examples/" + G.example + "/" + G.example + ".yaml";
     const auto problem = io::load_problem(file);
     const Model& model = problem->model;

@@ -11,6 +11,7 @@
 #include <console_bridge/console.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <fstream>
@@ -587,4 +588,132 @@ TEST(UrdfErrors, XacroFilesAreRefusedWithTheExpandCommand) {
                                link("a") + link("b", 1.0, "0 0 0", "0 0 0", 0.1, 0.1, 0.1) +
                                joint("j", "revolute", "a", "b") + "</robot>\n";
   EXPECT_EQ(build_model(parse_urdf(expanded, "expanded.urdf")).nq, 1);
+}
+
+// --- the test robots of tests/data/urdf/refdyn_test_arm (a description package) --------------
+
+namespace {
+fs::path test_arm_package() { return fs::path(REFDYN_SOURCE_DIR) / "tests" / "data" / "urdf" / "refdyn_test_arm"; }
+}  // namespace
+
+// Drake's rotor tags give the armature I_r N² (as Drake's reflected inertia); <dynamics> is
+// returned, not applied; the mimic finger is a coupling; rounded π in the joint origins.
+TEST(UrdfTestArm, DrakeRotorTagsDynamicsAndMimic) {
+  io::UrdfExtras ex;
+  const ModelDescription d = load_urdf((test_arm_package() / "urdf" / "arm7_hand.urdf").string(), {}, ex);
+  const Model m = build_model(d);
+  ASSERT_EQ(m.nq, 9);  // joint1..7, two fingers; world, flange, hand and tcp folded
+  ASSERT_EQ(ex.rotors.size(), 7u);
+  for (int j = 0; j < 7; ++j) {
+    const double I_r = j < 4 ? 0.000335 : 0.000116;
+    EXPECT_EQ(ex.rotors[j].joint, "joint" + std::to_string(j + 1));
+    EXPECT_DOUBLE_EQ(ex.rotors[j].gear_ratio, 100.0);
+    EXPECT_DOUBLE_EQ(m.armature[m.joint_index("joint" + std::to_string(j + 1))], I_r * 100 * 100);
+  }
+  EXPECT_EQ(m.armature[m.joint_index("finger_joint1")], 0.0);
+  ASSERT_EQ(ex.dynamics.size(), 7u);  // the fingers have none
+  EXPECT_EQ(ex.dynamics[0].joint, "joint1");
+  EXPECT_DOUBLE_EQ(ex.dynamics[0].damping, 0.5);
+  EXPECT_DOUBLE_EQ(ex.dynamics[6].friction, 0.1);
+  ASSERT_EQ(ex.mimics.size(), 1u);
+  EXPECT_EQ(ex.mimics[0].joint, "finger_joint2");
+  EXPECT_EQ(ex.mimics[0].leader, "finger_joint1");
+  // continuous joint7: speed and effort limits, no position limits
+  const JointLimits& l7 = m.limits[m.joint_index("joint7")];
+  EXPECT_TRUE(std::isinf(l7.lower) && std::isinf(l7.upper));
+  EXPECT_EQ(l7.effort, 40.0);
+  // standing straight up at q = 0: the tool point on the z axis, rounded π leaving ~1e-12
+  const Vec3 tcp = point_at(m, Eigen::VectorXd::Zero(9), "tcp");
+  EXPECT_NEAR(tcp.x(), 0.0, 1e-10);
+  EXPECT_NEAR(tcp.y(), 0.0, 1e-10);
+  EXPECT_NEAR(tcp.z(), 0.16 + 0.2 + 0.21 + 0.19 + 0.2 + 0.21 + 0.085 + 0.045 + 0.105, 1e-10);
+  // M's diagonal carries the armature: the same model with the tags removed has it less
+  ModelDescription bare = d;
+  for (LinkSpec& l : bare.links) l.armature = 0;
+  const Eigen::VectorXd q = (Eigen::VectorXd(9) << 0.2, 0.5, 0, -1.2, 0, 0.9, 0, 0.01, 0.01).finished();
+  const Eigen::MatrixXd dM = mass_matrix_at(m, q) - mass_matrix_at(build_model(bare), q);
+  const Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(m.armature.data(), 9);
+  EXPECT_TRUE(near(dM, Eigen::MatrixXd(a.asDiagonal()), 1e-14, 1e-14));
+}
+
+TEST(UrdfTestArm, VisualsResolvePackagesRosPackagePathAndRelativePaths) {
+  const std::string urdf = (test_arm_package() / "urdf" / "arm7_hand.urdf").string();
+  UrdfOptions opt;
+  opt.packages["refdyn_test_arm"] = test_arm_package().string();
+  io::UrdfExtras ex;  // (the mimic finger wants its coupling returned)
+  const ModelDescription d = load_urdf(urdf, opt, ex);
+  int meshes = 0, boxes = 0, spheres = 0;
+  for (const VisualSpec& v : d.visuals) {
+    if (v.shape == VisualSpec::Shape::Mesh) {
+      ++meshes;
+      EXPECT_TRUE(fs::exists(v.file)) << v.uri << " -> " << v.file;
+      EXPECT_TRUE(v.note.empty()) << v.note;
+    }
+    boxes += v.shape == VisualSpec::Shape::Box;
+    spheres += v.shape == VisualSpec::Shape::Sphere;
+  }
+  EXPECT_EQ(meshes, 11);
+  EXPECT_EQ(boxes, 1);
+  EXPECT_EQ(spheres, 1);
+  EXPECT_EQ(d.visuals.front().link, "base_link");
+  EXPECT_TRUE(d.visuals.front().has_color);  // the global material "grey"
+  EXPECT_NEAR(d.visuals.front().rgba[0], 0.55, 1e-6);  // urdfdom keeps colours as float
+  // Unknown package: no error, a note on each mesh.
+  struct RestoreEnv {
+    std::string old;
+    bool had;
+    RestoreEnv() : had(std::getenv("ROS_PACKAGE_PATH") != nullptr) { if (had) old = std::getenv("ROS_PACKAGE_PATH"); }
+    ~RestoreEnv() { had ? ::setenv("ROS_PACKAGE_PATH", old.c_str(), 1) : ::unsetenv("ROS_PACKAGE_PATH"); }
+  } restore;
+  ::unsetenv("ROS_PACKAGE_PATH");
+  const ModelDescription u = load_urdf(urdf, {}, ex);
+  for (const VisualSpec& v : u.visuals)
+    if (v.shape == VisualSpec::Shape::Mesh) {
+      EXPECT_TRUE(v.file.empty());
+      EXPECT_NE(v.note.find("package 'refdyn_test_arm' is not known"), std::string::npos) << v.note;
+    }
+  // ROS_PACKAGE_PATH: an entry holding the package folder, or the package folder itself.
+  for (const fs::path& entry : {test_arm_package().parent_path(), test_arm_package()}) {
+    ::setenv("ROS_PACKAGE_PATH", ("/nonexistent:" + entry.string()).c_str(), 1);
+    const ModelDescription r = load_urdf(urdf, {}, ex);
+    for (const VisualSpec& v : r.visuals)
+      if (v.shape == VisualSpec::Shape::Mesh) {
+        EXPECT_TRUE(fs::exists(v.file)) << entry << ": " << v.file;
+      }
+  }
+  ::unsetenv("ROS_PACKAGE_PATH");
+  // A relative path is taken from the URDF's folder; file:// is a path.
+  const std::string xml = robot(link("a") + "<link name=\"b\"><visual><geometry><mesh filename=\"../meshes/finger.stl\" "
+                                            "scale=\"2 2 2\"/></geometry></visual><visual><geometry><mesh filename=\"file://" +
+                                (test_arm_package() / "meshes" / "hand.dae").string() +
+                                "\"/></geometry></visual></link>" + joint("j", "revolute", "a", "b"));
+  const ModelDescription rel = parse_urdf(xml, (test_arm_package() / "urdf" / "inline.urdf").string());
+  ASSERT_EQ(rel.visuals.size(), 2u);
+  EXPECT_TRUE(fs::exists(rel.visuals[0].file)) << rel.visuals[0].file;
+  EXPECT_EQ(rel.visuals[0].size, Vec3(2, 2, 2));
+  EXPECT_TRUE(fs::exists(rel.visuals[1].file)) << rel.visuals[1].file;
+}
+
+TEST(UrdfErrors, DrakeRotorTags) {
+  auto with = [](const std::string& transmission) {
+    return robot(link("a") + link("b", 1.0, "0 0 0", "0 0 0", 0.1, 0.1, 0.1) + link("c") + joint("j", "revolute", "a", "b") +
+                 joint("f", "fixed", "b", "c") + transmission);
+  };
+  auto tr = [](const std::string& joint, const std::string& tags) {
+    return "<transmission name=\"t\"><joint name=\"" + joint + "\"/><actuator name=\"m\">" + tags + "</actuator></transmission>";
+  };
+  // gear ratio 1 when absent
+  io::UrdfExtras ex;
+  const ModelDescription d = parse_urdf(with(tr("j", "<drake:rotor_inertia value=\"0.5\"/>")), "inline.urdf", {}, ex);
+  EXPECT_EQ(build_model(d).armature[0], 0.5);
+  EXPECT_TRUE(parse_fails_with(with(tr("j", "<drake:rotor_inertia value=\"abc\"/>")),
+                               {"transmission 't' <drake:rotor_inertia>", "expected a finite number, got 'abc'"}));
+  EXPECT_TRUE(parse_fails_with(with(tr("j", "<drake:gear_ratio/>")), {"<drake:gear_ratio> has no value attribute"}));
+  EXPECT_TRUE(parse_fails_with(with(tr("j", "<drake:rotor_inertia value=\"-1\"/>")), {"expected a value >= 0"}));
+  EXPECT_TRUE(parse_fails_with(with(tr("f", "<drake:rotor_inertia value=\"1\"/>")), {"joint 'f' is fixed"}));
+  EXPECT_TRUE(parse_fails_with(with(tr("nope", "<drake:rotor_inertia value=\"1\"/>")), {"unknown joint 'nope'"}));
+  EXPECT_TRUE(parse_fails_with(with(tr("j", "<drake:rotor_inertia value=\"1\"/>") + tr("j", "<drake:gear_ratio value=\"2\"/>")),
+                               {"two transmissions"}));
+  // ROS transmissions without Drake's tags are ignored.
+  EXPECT_EQ(build_model(parse_urdf(with(tr("j", "<mechanicalReduction>50</mechanicalReduction>")), "inline.urdf")).armature[0], 0.0);
 }

@@ -51,6 +51,7 @@ CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
   r.name = s.name;
   r.file = file;
   r.model_summary = m.summary();
+  r.model_notes = s.model_notes;
   r.joints = m.joint_name;
   r.rows = s.constraints.rows();
   for (const auto& c : s.constraints.constraints()) {
@@ -127,6 +128,7 @@ CheckReport check_scenario(const ScenarioSpec& spec, const std::string& file) {
 std::string check_text(const CheckReport& r) {
   std::ostringstream o;  // std::cout's formatting (6 significant digits)
   o << "scenario '" << r.name << "' (" << r.file << "): valid\n" << r.model_summary;
+  for (const std::string& n : r.model_notes) o << "  note: " << n << "\n";
   o << "constraints: " << r.constraints.size() << " (" << r.rows << " rows)\n";
   for (const CheckReport::Constraint& c : r.constraints)
     o << "  " << c.name << ": " << c.origin << ", " << c.kind << ", " << (c.rheonomic ? "rheonomic" : "scleronomic")

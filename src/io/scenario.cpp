@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -359,6 +360,70 @@ YAML::Node load_yaml(const SpecReader& c, const std::string& text, const std::st
   return yroot;
 }
 
+/// The shortest text that reads back as v.
+std::string number_text(double v) {
+  char b[32];
+  const auto r = std::to_chars(b, b + sizeof b, v);
+  return std::string(b, r.ptr);
+}
+
+/// LuGre bristle stiffness of a URDF joint's Coulomb friction F, per newton metre of F: σ0 = 100 F
+/// [N m/rad] (breakaway deflection F/σ0 = 0.01 rad; docs/scenario.md "model").
+constexpr double kUrdfFrictionStiffness = 100.0;
+constexpr double kUrdfStribeckVelocity = 0.01;  ///< [rad/s]; no effect with μs = μk
+
+/// The URDF's <dynamics damping friction>: with model.urdf.dynamics: true, force elements written
+/// ahead of the file's own forces (damping b; LuGre with μs = μk = F), as if the file had them;
+/// else a note that they are ignored.
+void urdf_dynamics(const SpecReader& c, const SpecValue& u, const std::vector<UrdfJointDynamics>& dyn, ScenarioSpec& s) {
+  const bool use = u["dynamics"] && c.boolean(u["dynamics"], "model.urdf.dynamics");
+  if (dyn.empty()) return;
+  std::string joints;
+  for (const UrdfJointDynamics& d : dyn) joints += (joints.empty() ? "" : ", ") + d.joint;
+  if (!use) {
+    s.model.notes.push_back("the URDF's <dynamics> (damping, friction) of joints " + joints +
+                            " are ignored (model.urdf.dynamics: true adds them as damping and LuGre friction forces)");
+    return;
+  }
+  const SourceLocation at = u.key_location("dynamics");
+  auto scalar = [&](const std::string& t) { return SpecValue::scalar(t, at); };
+  auto entry = [&](const std::string& type, const std::string& joint,
+                   std::vector<std::pair<std::string, std::string>> fields) {
+    EntrySpec e;
+    e.kind = type;
+    e.key = "model.urdf.dynamics (" + type + " of joint " + joint + ")";
+    e.fields.kind = SpecValue::Kind::Map;
+    e.fields.where = at;
+    fields.insert(fields.begin(), {{"type", type}, {"joint", joint}});
+    for (auto& [k, v] : fields) e.fields.entries.push_back({k, at.line, scalar(v)});
+    return e;
+  };
+  std::vector<EntrySpec> added;
+  std::string damped, rubbing;
+  for (const UrdfJointDynamics& d : dyn) {
+    if (d.damping > 0) {
+      added.push_back(entry("damping", d.joint, {{"coefficient", number_text(d.damping)}}));
+      damped += (damped.empty() ? "" : ", ") + d.joint;
+    }
+    if (d.friction > 0) rubbing += (rubbing.empty() ? "" : ", ") + d.joint;
+    if (d.friction > 0)
+      added.push_back(entry("lugre", d.joint,
+                            {{"mu_s", number_text(d.friction)},
+                             {"mu_k", number_text(d.friction)},
+                             {"sigma0", number_text(kUrdfFrictionStiffness * d.friction)},
+                             {"sigma1", "0"},
+                             {"sigma2", "0"},
+                             {"stribeck_velocity", number_text(kUrdfStribeckVelocity)}}));
+  }
+  s.forces.insert(s.forces.begin(), added.begin(), added.end());
+  s.model.notes.push_back("the URDF's <dynamics> are force elements (model.urdf.dynamics): " +
+                          (damped.empty() ? std::string() : "damping on " + damped) +
+                          (damped.empty() || rubbing.empty() ? "" : "; ") +
+                          (rubbing.empty() ? std::string()
+                                           : "LuGre friction (mu_s = mu_k = F, sigma0 = " +
+                                                 number_text(kUrdfFrictionStiffness) + " F per rad) on " + rubbing));
+}
+
 /// parameters: and model: (a URDF model is read here, with its <mimic> couplings).
 void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::size_t max_input_bytes, ScenarioSpec& s) {
   const std::string& source = s.file;
@@ -369,22 +434,38 @@ void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::
 
   s.model.value = c.need(root, "model", "");
   if (const SpecValue& u = s.model.value["urdf"]) {
-    c.keys(u, "model.urdf", {"file", "root"});
+    c.keys(u, "model.urdf", {"file", "root", "packages", "dynamics"});
     const std::string f = c.string(c.need(u, "file", "model.urdf"), "model.urdf.file");
+    const fs::path here = fs::path(source).parent_path();
     fs::path p(f);
-    if (p.is_relative()) p = fs::path(source).parent_path() / p;
+    if (p.is_relative()) p = here / p;
     UrdfOptions uo;
     if (u["root"]) uo.root_link = c.string(u["root"], "model.urdf.root");
     uo.root_link_option = "model.urdf.root";  // the hints name the scenario key
-    std::vector<UrdfMimic> mimics;
+    if (const SpecValue& pk = u["packages"]) {  // {name: folder}, folders relative to the scenario file
+      if (!pk.is_map()) c.fail(pk, "model.urdf.packages", "expected a mapping package: folder, got " + pk.describe());
+      for (const auto& e : pk.entries) {
+        const fs::path folder(c.string(e.value, "model.urdf.packages." + e.key));
+        uo.packages[e.key] = (folder.is_relative() ? here / folder : folder).string();
+      }
+    }
+    UrdfExtras extras;
     try {
-      s.model.urdf = parse_urdf(read_text_file(p.string(), "URDF file", max_input_bytes), p.string(), uo, &mimics);
+      s.model.urdf = parse_urdf(read_text_file(p.string(), "URDF file", max_input_bytes), p.string(), uo, extras);
     } catch (const UrdfRootLinkError& e) {  // the file is fine; the key names a link it lacks
       c.fail(u["root"], "model.urdf.root", e.what());
     } catch (const Error& e) {
       c.fail(u["file"], "model.urdf.file", e.what());
     }
-    for (const auto& m : mimics) s.model.mimics.push_back({m.joint, m.leader, m.multiplier, m.offset});
+    for (const auto& m : extras.mimics) s.model.mimics.push_back({m.joint, m.leader, m.multiplier, m.offset});
+    if (!extras.rotors.empty()) {  // one line: joint armature (rotor inertia x gear ratio^2), ...
+      std::string list;
+      for (const UrdfRotor& r : extras.rotors)
+        list += (list.empty() ? "" : ", ") + r.joint + " " + fmt(r.armature()) + " (" + fmt(r.rotor_inertia) + " x " +
+                fmt(r.gear_ratio) + "^2)";
+      s.model.notes.push_back("armature [kg m^2] from the URDF's <drake:rotor_inertia> x <drake:gear_ratio>^2: " + list);
+    }
+    urdf_dynamics(c, u, extras.dynamics, s);
   }
 }
 
@@ -622,7 +703,11 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
 
   s.constraints_value = root["constraints"];
   s.constraints = rd.constraints(root["constraints"]);
-  s.forces = *rd.forces(root["forces"], "forces");
+  {
+    std::vector<EntrySpec> urdf_forces = std::move(s.forces);  // model.urdf.dynamics: ahead of the file's
+    s.forces = *rd.forces(root["forces"], "forces");
+    s.forces.insert(s.forces.begin(), urdf_forces.begin(), urdf_forces.end());
+  }
   if (root["plant_forces"]) s.plant_forces = rd.forces(root["plant_forces"], "plant_forces");
 
   read_solver_sections(c, root, s);

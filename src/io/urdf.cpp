@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -22,6 +23,8 @@
 namespace refdyn::io {
 
 namespace {
+
+namespace rapidxml_ns = boost::property_tree::detail::rapidxml;
 
 std::string where(const std::string& source) { return "URDF file '" + source + "': "; }
 
@@ -300,7 +303,8 @@ LinkSpec convert_joint(const urdf::Joint& j, const std::string& source, const Ur
 }
 
 void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, const std::string& source,
-          const UrdfOptions& opt, ModelDescription& d, std::vector<UrdfMimic>* mimics) {
+          const UrdfOptions& opt, ModelDescription& d, std::vector<UrdfMimic>* mimics,
+          std::vector<UrdfJointDynamics>* dynamics) {
   std::vector<const urdf::Joint*> children;
   for (const auto& j : link.child_joints) children.push_back(j.get());
   std::sort(children.begin(), children.end(),
@@ -312,15 +316,168 @@ void walk(const urdf::ModelInterface& u, const urdf::Link& link, int index, cons
     LinkSpec l = convert_joint(*j, source, opt, mimics);
     l.parent = index;
     l.inertia = inertia(*child);
+    if (dynamics && j->dynamics && l.type != JointType::Fixed) {
+      const urdf::JointDynamics& dj = *j->dynamics;
+      if (!std::isfinite(dj.damping) || !std::isfinite(dj.friction) || dj.damping < 0 || dj.friction < 0)
+        throw Error(where(source) + "joint '" + j->name + "': <dynamics> damping and friction must be finite numbers >= 0");
+      if (dj.damping != 0 || dj.friction != 0) dynamics->push_back({j->name, dj.damping, dj.friction});
+    }
     const int ci = d.add_link(l);
-    walk(u, *child, ci, source, opt, d, mimics);
+    walk(u, *child, ci, source, opt, d, mimics, dynamics);
   }
 }
 
-}  // namespace
+// --- Drake's rotor tags ---------------------------------------------------------------------
 
-ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
-                            std::vector<UrdfMimic>* mimics) {
+double attribute_number(const rapidxml_ns::xml_node<char>& n, const std::string& what) {
+  const auto* a = n.first_attribute("value");
+  if (!a) throw Error(what + " has no value attribute (hint: <" + std::string(n.name(), n.name_size()) + " value=\"...\"/>)");
+  const std::string text(a->value(), a->value_size());
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || !end || *end != 0 || !std::isfinite(v))
+    throw Error(what + ": expected a finite number, got '" + text + "'");
+  return v;
+}
+
+/// <transmission><joint name/><actuator><drake:rotor_inertia value/><drake:gear_ratio value/>:
+/// armature I_r N² for joints of d (joints outside the loaded subtree are skipped).
+void read_rotors(const std::string& xml, const std::string& source, const urdf::ModelInterface& u, ModelDescription& d,
+                 std::vector<UrdfRotor>& rotors) {
+  if (xml.find("drake:rotor_inertia") == std::string::npos && xml.find("drake:gear_ratio") == std::string::npos) return;
+  std::vector<char> buf(xml.begin(), xml.end());
+  buf.push_back('\0');
+  rapidxml_ns::xml_document<char> doc;
+  doc.parse<0>(buf.data());  // urdfdom has read it: well formed
+  const auto* robot = doc.first_node("robot");
+  if (!robot) return;
+  for (const auto* t = robot->first_node("transmission"); t; t = t->next_sibling("transmission")) {
+    const auto* act = t->first_node("actuator");
+    const auto* ri = act ? act->first_node("drake:rotor_inertia") : nullptr;
+    const auto* gr = act ? act->first_node("drake:gear_ratio") : nullptr;
+    if (!ri && !gr) continue;
+    const auto* tn = t->first_attribute("name");
+    const std::string tw = where(source) + "transmission '" + (tn ? std::string(tn->value(), tn->value_size()) : "") + "'";
+    const auto* jn = t->first_node("joint");
+    const auto* ja = jn ? jn->first_attribute("name") : nullptr;
+    if (!ja) throw Error(tw + ": Drake rotor tags need the transmission's <joint name=\"...\"> (hint: name the joint they drive)");
+    const std::string joint(ja->value(), ja->value_size());
+    if (!u.getJoint(joint))
+      throw Error(tw + ": unknown joint '" + joint + "'");
+    UrdfRotor r;
+    r.joint = joint;
+    if (ri) r.rotor_inertia = attribute_number(*ri, tw + " <drake:rotor_inertia>");
+    if (gr) r.gear_ratio = attribute_number(*gr, tw + " <drake:gear_ratio>");
+    if (r.rotor_inertia < 0) throw Error(tw + " <drake:rotor_inertia>: expected a value >= 0 [kg m^2], got " + fmt(r.rotor_inertia));
+    const auto it = std::find_if(d.links.begin(), d.links.end(), [&](const LinkSpec& l) { return l.joint_name == joint; });
+    if (it == d.links.end()) continue;  // outside the loaded subtree
+    if (it->type == JointType::Fixed) throw Error(tw + ": joint '" + joint + "' is fixed: it has no rotor (hint: remove the Drake tags)");
+    for (const UrdfRotor& o : rotors)
+      if (o.joint == joint) throw Error(tw + ": joint '" + joint + "' has Drake rotor tags in two transmissions (hint: keep one)");
+    it->armature = r.armature();
+    rotors.push_back(r);
+  }
+  // in the model's joint order
+  std::vector<UrdfRotor> ordered;
+  for (const LinkSpec& l : d.links)
+    for (const UrdfRotor& r : rotors)
+      if (r.joint == l.joint_name) ordered.push_back(r);
+  rotors = std::move(ordered);
+}
+
+// --- visuals ---------------------------------------------------------------------------------
+
+namespace fs = std::filesystem;
+
+/// The file a mesh URI names (UrdfOptions::packages), or "" with `note` saying why not.
+std::string resolve_mesh(const std::string& uri, const std::string& source, const UrdfOptions& opt, std::string& note) {
+  const std::string pkg = "package://", file = "file://";
+  std::error_code ec;
+  if (uri.compare(0, pkg.size(), pkg) == 0) {
+    const std::string rest = uri.substr(pkg.size());
+    const size_t slash = rest.find('/');
+    const std::string name = rest.substr(0, slash), path = slash == std::string::npos ? "" : rest.substr(slash + 1);
+    const auto it = opt.packages.find(name);
+    if (it != opt.packages.end()) return (fs::path(it->second) / path).string();
+    if (const char* rpp = std::getenv("ROS_PACKAGE_PATH")) {
+      std::string entries = rpp;
+      for (size_t from = 0; from <= entries.size();) {
+        const size_t to = std::min(entries.find(':', from), entries.size());
+        const fs::path e = entries.substr(from, to - from);
+        from = to + 1;
+        if (e.empty()) continue;
+        if (fs::is_directory(e / name, ec)) return (e / name / path).string();
+        if (e.filename() == name && fs::is_directory(e, ec)) return (e / path).string();
+      }
+    }
+    note = "package '" + name + "' is not known (hint: model.urdf.packages: {" + name + ": FOLDER}, or ROS_PACKAGE_PATH)";
+    return "";
+  }
+  std::string p = uri;
+  if (uri.compare(0, file.size(), file) == 0) p = uri.substr(file.size());
+  else if (uri.find("://") != std::string::npos) {
+    note = "the URI scheme of '" + uri + "' is not supported (package://, file:// or a path)";
+    return "";
+  }
+  if (p.empty()) {
+    note = "empty mesh file name";
+    return "";
+  }
+  const fs::path fp(p);
+  return (fp.is_relative() ? fs::path(source).parent_path() / fp : fp).lexically_normal().string();
+}
+
+void read_visuals(const urdf::ModelInterface& u, const std::string& source, const UrdfOptions& opt, ModelDescription& d) {
+  for (const LinkSpec& l : d.links) {
+    const urdf::LinkConstSharedPtr link = u.getLink(l.name);
+    if (!link) continue;
+    for (const urdf::VisualSharedPtr& v : link->visual_array) {
+      if (!v || !v->geometry) continue;
+      VisualSpec s;
+      s.link = l.name;
+      s.origin = pose(v->origin);
+      const urdf::Geometry& g = *v->geometry;
+      switch (g.type) {
+        case urdf::Geometry::MESH: {
+          const auto& m = static_cast<const urdf::Mesh&>(g);
+          s.shape = VisualSpec::Shape::Mesh;
+          s.size = Vec3(m.scale.x, m.scale.y, m.scale.z);
+          s.uri = m.filename;
+          s.file = resolve_mesh(m.filename, source, opt, s.note);
+          break;
+        }
+        case urdf::Geometry::BOX: {
+          const auto& b = static_cast<const urdf::Box&>(g);
+          s.shape = VisualSpec::Shape::Box;
+          s.size = Vec3(b.dim.x, b.dim.y, b.dim.z);
+          break;
+        }
+        case urdf::Geometry::CYLINDER: {
+          const auto& c = static_cast<const urdf::Cylinder&>(g);
+          s.shape = VisualSpec::Shape::Cylinder;
+          s.radius = c.radius;
+          s.length = c.length;
+          break;
+        }
+        case urdf::Geometry::SPHERE:
+          s.shape = VisualSpec::Shape::Sphere;
+          s.radius = static_cast<const urdf::Sphere&>(g).radius;
+          break;
+        default: continue;
+      }
+      if (!s.size.allFinite() || !std::isfinite(s.radius) || !std::isfinite(s.length)) continue;  // nothing to draw
+      if (v->material) {
+        const urdf::Color& c = v->material->color;
+        s.has_color = true;
+        s.rgba = {c.r, c.g, c.b, c.a};
+      }
+      d.visuals.push_back(std::move(s));
+    }
+  }
+}
+
+ModelDescription parse(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
+                       std::vector<UrdfMimic>* mimics, UrdfExtras* extras) {
   if (mimics) mimics->clear();
   refuse_xacro(xml, source_name);
   ParseResult parsed = parse_capturing(xml);
@@ -349,7 +506,11 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
   r.type = JointType::Fixed;
   r.inertia = inertia(*root);  // welded to the world: kept for completeness, no dynamic effect
   d.add_link(r);
-  walk(u, *root, 0, source_name, opt, d, mimics);
+  walk(u, *root, 0, source_name, opt, d, mimics, extras ? &extras->dynamics : nullptr);
+  std::vector<UrdfRotor> rotors;
+  read_rotors(xml, source_name, u, d, rotors);
+  if (extras) extras->rotors = std::move(rotors);
+  read_visuals(u, source_name, opt, d);
   if (mimics)  // the leader must be a movable joint of the loaded subtree
     for (const UrdfMimic& mm : *mimics) {
       const auto it = std::find_if(d.links.begin(), d.links.end(),
@@ -377,7 +538,7 @@ ModelDescription parse_urdf(const std::string& xml, const std::string& source_na
   return d;
 }
 
-ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, std::vector<UrdfMimic>* mimics) {
+std::string read_urdf_file(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw Error(where(path) + "cannot be read: it is a directory (hint: give the path of a .urdf file)");
@@ -394,7 +555,28 @@ ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, std:
   const int err = errno;
   std::fclose(f);
   if (failed) throw Error(where(path) + "cannot be read: " + std::strerror(err));
-  return parse_urdf(xml, path, opt, mimics);
+  return xml;
+}
+
+}  // namespace
+
+ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
+                            std::vector<UrdfMimic>* mimics) {
+  return parse(xml, source_name, opt, mimics, nullptr);
+}
+
+ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
+                            UrdfExtras& extras) {
+  extras = UrdfExtras{};
+  return parse(xml, source_name, opt, &extras.mimics, &extras);
+}
+
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, std::vector<UrdfMimic>* mimics) {
+  return parse_urdf(read_urdf_file(path), path, opt, mimics);
+}
+
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, UrdfExtras& extras) {
+  return parse_urdf(read_urdf_file(path), path, opt, extras);
 }
 
 }  // namespace refdyn::io

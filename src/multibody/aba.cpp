@@ -97,7 +97,7 @@ REFDYN_INLINE void aba_forward_sweep(const Model& model, AbaBody* __restrict B, 
 ///  1. forward: joint and world transforms, joint axis S_i in {0}, velocity v_i = v_par + S_i q̇_i,
 ///     velocity-product acceleration c_i = v_i ×m S_i q̇_i, body inertia I_i in {0} and bias
 ///     force p_i = v_i ×* I_i v_i;
-///  2. backward: U_i = IA_i S_i, D_i = S_iᵀ U_i, u_i = τ_i − S_iᵀ p_i; the parent receives
+///  2. backward: U_i = IA_i S_i, D_i = S_iᵀ U_i + a_i (a_i the joint's armature), u_i = τ_i − S_iᵀ p_i; the parent receives
 ///     Ia = IA_i − U_i U_iᵀ / D_i and pa = p_i + Ia c_i + U_i u_i / D_i;
 ///  3. forward: a'_i = a_par + c_i, q̈_i = (u_i − U_iᵀ a'_i) / D_i, a_i = a'_i + S_i q̈_i, with
 ///     a_base = −g (gravity as a base acceleration).
@@ -153,7 +153,8 @@ int aba_world(const Model& model, Data& data, const double* q, const double* qd,
     }
     const SV S = ld(B[i].S);
     const SV U = mul(IA, S);
-    const double D = dot6(S, U);
+    double D = dot6(S, U);
+    if (model.armature[i] != 0.0) D += model.armature[i];  // D_i = S_iᵀ IA_i S_i + a_i
     const double Dinv = 1.0 / D;
     B[i].Dinv = Dinv;
     if (!(D > 0)) return i;

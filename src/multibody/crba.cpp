@@ -150,6 +150,7 @@ constexpr int kWorldCrbaFrom = 7;
 void crba_impl(const Model& model, Data& data, const Eigen::VectorXd& q) {
   if (model.nq < kWorldCrbaFrom) crba_local(model, data, q.data());
   else crba_world(model, data, q.data());
+  add_armature(model, data.M.data(), data.M.rows());
 }
 
 }  // namespace
@@ -199,6 +200,7 @@ void mass_matrix_and_bias(const Model& model, Data& data, const Eigen::VectorXd&
     crba_world(model, data, q.data());
     rnea_impl<true, false>(model, data, q.data(), qd.data(), nullptr, true, data.nle.data(), true);
   }
+  kernels::add_armature(model, data.M.data(), data.M.rows());
 }
 
 }  // namespace unchecked

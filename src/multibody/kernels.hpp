@@ -259,6 +259,19 @@ REFDYN_INLINE void rnea_backward_body(const Model& model, Data& data, int i, con
   }
 }
 
+// ---- armature ----------------------------------------------------------------------------------
+
+/// M_ii += a_i (Model::armature; joints without armature are left untouched, bit for bit).
+REFDYN_INLINE void add_armature(const Model& model, double* M, Eigen::Index ld_M) {
+  for (int i = 0; i < model.nq; ++i)
+    if (model.armature[i] != 0.0) M[i + ld_M * i] += model.armature[i];
+}
+/// τ_i += a_i q̈_i (the same joints).
+REFDYN_INLINE void add_armature_torque(const Model& model, const double* qdd, double* tau) {
+  for (int i = 0; i < model.nq; ++i)
+    if (model.armature[i] != 0.0) tau[i] += model.armature[i] * qdd[i];
+}
+
 /// QD: q̇ given (else zero); QDD: q̈ given (else zero). With `have_X` the joint transforms in
 /// data.liMi are reused (computed by the caller for the same q). Internal linkage (static), as
 /// when it was local to one file: each of rnea.cpp and crba.cpp has its own copy, which the
@@ -290,6 +303,7 @@ static void rnea_impl(const Model& model, Data& data, const double* q, const dou
     load_transform(data.liMi[i], R, p);
     rnea_backward_body(model, data, i, R, p, force, out);
   }
+  if constexpr (QDD) add_armature_torque(model, qdd, out);
 }
 
 // ---- CRBA steps (shared by crba.cpp's sweeps) --------------------------------------------------

@@ -128,6 +128,11 @@ void validate_link(const ModelDescription& d, int i, std::map<std::string, int>&
     throw Error(expected_got(where + " position limits", "lower <= upper", fmt(lim.lower) + " > " + fmt(lim.upper)));
   if (lim.velocity < 0 || lim.effort < 0)
     throw Error(where + " limits: velocity and effort limits must be >= 0");
+  if (!std::isfinite(l.armature) || l.armature < 0)
+    throw Error(expected_got(where + " armature", "a finite value >= 0", fmt(l.armature),
+                             "the rotor inertia reflected to the joint, I_r N² [kg m²] (kg for a prismatic joint)"));
+  if (l.type == JointType::Fixed && l.armature != 0)
+    throw Error(where + ": a fixed joint has no armature (hint: remove it, or give the joint a type that moves)");
 }
 
 /// Folds fixed joints: each link maps to a movable body (body_of, −1 = world) plus a fixed pose
@@ -211,6 +216,12 @@ Model build_model(const ModelDescription& d) {
   m.gravity = d.gravity;
   fold_links(d, m, body_of, link_in_body);
   m.nv = m.nq;
+  m.armature.assign(m.nq, 0.0);
+  for (int i = 0; i < nl; ++i)
+    if (d.links[i].type != JointType::Fixed) m.armature[body_of[i]] = d.links[i].armature;
+  for (int i = 0; i < nl; ++i) m.frame_name.push_back(d.links[i].name);
+  m.frame_body = body_of;
+  m.frame_pose = link_in_body;
   m.support.resize(m.nq);
   for (int i = 0; i < m.nq; ++i) {
     if (m.parent[i] >= 0) m.support[i] = m.support[m.parent[i]];
@@ -225,8 +236,9 @@ Model::Model(ModelData d)
       joint_type(std::move(d.joint_type)), placement(std::move(d.placement)), axis(std::move(d.axis)),
       offset(std::move(d.offset)), inertia(std::move(d.inertia)), link_offset(std::move(d.link_offset)),
       body_name(std::move(d.body_name)), joint_name(std::move(d.joint_name)), limits(std::move(d.limits)),
-      support(std::move(d.support)), point_name(std::move(d.point_name)), point_body(std::move(d.point_body)),
-      point_position(std::move(d.point_position)) {}
+      support(std::move(d.support)), armature(std::move(d.armature)), point_name(std::move(d.point_name)),
+      point_body(std::move(d.point_body)), point_position(std::move(d.point_position)),
+      frame_name(std::move(d.frame_name)), frame_body(std::move(d.frame_body)), frame_pose(std::move(d.frame_pose)) {}
 
 int Model::body_index(const std::string& n) const { return find_name(body_name, n, "link"); }
 int Model::point_index(const std::string& n) const { return find_name(point_name, n, "point"); }
@@ -254,7 +266,9 @@ std::string Model::summary() const {
   for (int i = 0; i < nq; ++i) {
     os << "  " << i << "  " << joint_name[i] << "  " << to_string(joint_type[i]) << "  link '" << body_name[i]
        << "'  parent " << (parent[i] < 0 ? std::string("base") : body_name[parent[i]]) << "  mass "
-       << inertia[i].m << " kg\n";
+       << inertia[i].m << " kg";
+    if (armature[i] != 0) os << "  armature " << armature[i] << (joint_type[i] == JointType::Revolute ? " kg m^2" : " kg");
+    os << "\n";
   }
   for (size_t k = 0; k < point_name.size(); ++k)
     os << "  point '" << point_name[k] << "' on "

@@ -37,6 +37,7 @@ double kinetic_energy(const Model& model, Data& data, const Eigen::VectorXd& q, 
     const int p = model.parent[i];
     data.v[i] = (p < 0 ? Motion::Zero() : X.act_inv(data.v[p])) + model.motion_subspace(i) * qd[i];
     T += 0.5 * dot(data.v[i], model.inertia[i] * data.v[i]);
+    if (model.armature[i] != 0) T += 0.5 * model.armature[i] * qd[i] * qd[i];
   }
   return T;
 }

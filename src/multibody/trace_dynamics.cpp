@@ -80,6 +80,8 @@ const Eigen::MatrixXd& trace_mass_matrix(const Model& model, Data& data, const E
       }
     }
   }
+  for (int i = 0; i < n; ++i)
+    if (model.armature[i] != 0) data.M_trace(i, i) += model.armature[i];  // the joints' armature
   return data.M_trace;
 }
 
@@ -132,6 +134,8 @@ double trace_kinetic_energy(const Model& model, Data& data, const Eigen::VectorX
     for (int i : model.support[l]) Td += data.D[i] * data.T[l] * qd[i];
     T += 0.5 * (Td * data.H[l] * Td.transpose()).trace();
   }
+  for (int i = 0; i < model.nq; ++i)
+    if (model.armature[i] != 0) T += 0.5 * model.armature[i] * qd[i] * qd[i];
   return T;
 }
 

@@ -74,6 +74,15 @@ JointLimits read_limits(const SpecReader& c, const SpecValue& n, const std::stri
   return l;
 }
 
+/// A joint's armature [kg m² or kg]: a number >= 0 (an expression of the parameters).
+double read_armature(const SpecReader& c, const SpecValue& n, const std::string& key) {
+  const double a = c.number(n, key);
+  if (!(a >= 0) || !std::isfinite(a))
+    c.fail(n, key, "expected a finite armature >= 0 (the rotor inertia reflected to the joint, I_r N^2 [kg m^2]; kg for "
+                   "a prismatic joint), got " + fmt(a));
+  return a;
+}
+
 JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::string& key) {
   const std::string t = c.choice(n, key, {"revolute", "prismatic", "fixed"});
   return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
@@ -144,11 +153,39 @@ void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecVal
   }
 }
 
+/// model.armature: {joint: value}: a joint's armature for any model. For a URDF it replaces the
+/// value of the Drake tags; a joint of a links:/dh: model may not have it twice.
+void read_armature_map(const SpecReader& c, const ModelNumberReader& nr, const SpecValue& am, ModelDescription& d,
+                       std::optional<ModelNumbers>& numbers, std::vector<std::string>& notes) {
+  if (!am.is_map()) c.fail(am, "model.armature", "expected a mapping joint: armature, got " + am.describe());
+  for (const auto& kv : am.entries) {
+    const std::string k = "model.armature." + kv.key;
+    std::vector<std::string> names;
+    int found = -1;
+    for (size_t i = 0; i < d.links.size(); ++i)
+      if (d.links[i].type != JointType::Fixed) {
+        const std::string& jn = d.links[i].joint_name.empty() ? d.links[i].name : d.links[i].joint_name;
+        names.push_back(jn);
+        if (jn == kv.key) found = static_cast<int>(i);
+      }
+    if (found < 0) c.fail(am.key_location(kv.key), k, "unknown joint '" + kv.key + "' (a joint that moves)" + did_you_mean(kv.key, names));
+    if (numbers && numbers->links[found].armature)
+      c.fail(am.key_location(kv.key), k, "joint '" + kv.key + "' already has an armature in its model entry (hint: give it once)");
+    const double before = d.links[found].armature;
+    d.links[found].armature = read_armature(c, kv.value, k);
+    if (!numbers && before != 0)
+      notes.push_back("joint " + kv.key + ": armature " + fmt(d.links[found].armature) + " from model.armature (replaces the URDF's " +
+                      fmt(before) + ")");
+    if (numbers) numbers->links[found].armature = nr.c.quantity(kv.value, k);
+  }
+}
+
 ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::optional<ModelDescription>& urdf,
-                            std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers) {
+                            std::map<std::string, int>& link_lines, std::optional<ModelNumbers>& numbers,
+                            std::vector<std::string>& notes) {
   const ModelNumberReader nr{c};
   const std::string key = "model";
-  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points"});
+  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points", "armature"});
   const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
   if (sources != 1) c.fail(m, key, "expected exactly one of 'dh', 'links' or 'urdf', got " + std::to_string(sources));
   ModelDescription d;
@@ -167,7 +204,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     for (size_t i = 0; i < js.size(); ++i) {
       const SpecValue& j = js[i];
       const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
-      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits"});
+      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits", "armature"});
       DHRow r;
       r.name = c.string(c.need(j, "name", k), k + ".name");
       r.type = read_joint_type(c, c.need(j, "type", k), k + ".type");
@@ -187,6 +224,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       L.d = nr.opt(j, "d", k);
       L.a = nr.opt(j, "a", k);
       L.alpha = nr.opt(j, "alpha", k);
+      L.armature = nr.opt(j, "armature", k);
       nr.inertia(j, k, L);
       numbers->links.push_back(std::move(L));
       link_lines[link_names.back()] = j.where.line;
@@ -195,6 +233,8 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     for (size_t i = 0; i < rows.size(); ++i) {
       d.links[i].name = link_names[i];
       d.links[i].joint_name = rows[i].name;
+      const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
+      if (js[i]["armature"]) d.links[i].armature = read_armature(c, js[i]["armature"], k + ".armature");
     }
   } else if (const SpecValue& ls = m["links"]) {
     if (!ls.is_list() || ls.size() == 0) c.fail(ls, "model.links", "expected a non-empty list of links");
@@ -203,7 +243,8 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     for (size_t i = 0; i < ls.size(); ++i) {
       const SpecValue& l = ls[i];
       const std::string k = "model.links[" + std::to_string(i) + "]";
-      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits"});
+      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits",
+                    "armature"});
       LinkSpec s;
       s.name = c.string(c.need(l, "name", k), k + ".name");
       s.joint_name = l["joint"] ? c.string(l["joint"], k + ".joint") : s.name;
@@ -227,6 +268,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       s.offset = c.number_or(l, "offset", k, 0.0);
       s.inertia = read_inertia(c, l, k);
       s.limits = read_limits(c, l["limits"], k + ".limits");
+      if (l["armature"]) s.armature = read_armature(c, l["armature"], k + ".armature");
       ModelNumbers::Link L;
       L.name = s.name;
       L.parent = s.parent;
@@ -234,6 +276,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
       L.origin = l["origin"] ? nr.pose(l["origin"], k + ".origin") : ModelNumbers::Pose{};
       L.link_offset = l["link_offset"] ? nr.pose(l["link_offset"], k + ".link_offset") : ModelNumbers::Pose{};
       L.offset = nr.opt(l, "offset", k);
+      L.armature = nr.opt(l, "armature", k);
       nr.inertia(l, k, L);
       numbers->links.push_back(std::move(L));
       index[s.name] = static_cast<int>(d.links.size());
@@ -249,6 +292,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
   if (m["base"]) d.base = c.pose(m["base"], "model.base");
   if (numbers && m["base"]) numbers->base = nr.pose(m["base"], "model.base");
   if (const SpecValue& ps = m["points"]) read_points(c, nr, ps, d, numbers);
+  if (const SpecValue& a = m["armature"]) read_armature_map(c, nr, a, d, numbers, notes);
   return d;
 }
 
@@ -259,7 +303,8 @@ std::unique_ptr<Problem> build_model_section(const SpecReader& c, const Scenario
   const std::string& source = spec.file;
   std::map<std::string, int> link_lines;
   std::optional<ModelNumbers> numbers;
-  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines, numbers);
+  std::vector<std::string> notes = spec.model.notes;
+  ModelDescription description = read_model(c, spec.model.value, spec.model.urdf, link_lines, numbers, notes);
   if (!spec.model.value["name"]) description.name = spec.name;
   std::unique_ptr<Problem> s;
   try {
@@ -291,6 +336,8 @@ std::unique_ptr<Problem> build_model_section(const SpecReader& c, const Scenario
   }
   s->parameters = c.params;
   s->model_numbers = std::move(numbers);
+  s->model_notes = std::move(notes);
+  s->visuals = description.visuals;
   const Model& m = s->model;
   if (m.nv == 0)
     c.fail(spec.model.value, "model",

@@ -153,6 +153,7 @@ struct CBlocks {
       t.m = conv.ts(b.m);
       t.h = v3(b.h);
       t.I = m3(b.I);
+      t.armature = conv.ts(b.armature);
       bodies.bodies.push_back(t);
       poses.local_R.push_back(m3(S.model.poses.local_R[i]));
       poses.local_p.push_back(v3(S.model.poses.local_p[i]));

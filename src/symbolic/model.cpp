@@ -92,6 +92,7 @@ SymbolicBodies bodies_from_model(const Model& model) {
     const double tol = 4 * std::numeric_limits<double>::epsilon() * I.I.cwiseAbs().maxCoeff();
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) b.I[3 * r + c] = std::fabs(I.I(r, c)) <= tol ? ex(0) : number(I.I(r, c));
+    b.armature = number(model.armature[i]);
     out.bodies.push_back(b);
   }
   for (size_t k = 0; k < model.point_name.size(); ++k)
@@ -208,6 +209,12 @@ SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec,
   if (static_cast<int>(out.bodies.size()) != model.nq)
     throw Error("generate: the model section gives " + std::to_string(out.bodies.size()) + " bodies, the model has " +
                 std::to_string(model.nq) + " (internal error)");
+  // Armature: as written (a parameter stays a symbol), else the compiled model's number.
+  for (int i = 0; i < nl; ++i)
+    if (links[i].type != JointType::Fixed) {
+      const std::optional<Quantity>& a = spec.links[i].armature;
+      out.bodies[body_of[i]].armature = a ? value(*a) : number(model.armature[body_of[i]]);
+    }
   // Points: in the link frame as written, expressed in the body frame.
   out.points.resize(model.point_name.size());
   for (const ModelNumbers::Point& p : spec.points) {

@@ -17,6 +17,7 @@ struct CheckReport {
   std::string name;           ///< the scenario's
   std::string file;           ///< as given (a path, or the source name of a text)
   std::string model_summary;  ///< Model::summary(), lines ending in "\n"
+  std::vector<std::string> model_notes;  ///< Problem::model_notes (armature read from a URDF, <dynamics>)
   std::vector<std::string> joints;
 
   struct Constraint {

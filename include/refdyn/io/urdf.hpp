@@ -20,8 +20,18 @@
 /// does not enter the dynamics. Links are listed parents-first by a depth-first walk from the
 /// root; siblings are visited in the natural order of their joint names ("j2" before "j10").
 /// This is also the order of the model's coordinates. URDF parts outside the walked subtree
-/// are ignored. Visual/collision geometry, materials, <dynamics> (damping, friction),
-/// <calibration> and <safety_controller> are ignored; Gazebo/transmission tags too.
+/// are ignored.
+///
+/// Rotor inertia (Drake's tags, as Drake reads them):
+///   <transmission><joint name="J"/><actuator><drake:rotor_inertia value="I_r"/>
+///   <drake:gear_ratio value="N"/></actuator></transmission>
+/// gives joint J the armature I_r N² (LinkSpec::armature; N = 1 when absent), reported in
+/// UrdfExtras::rotors. <visual> elements (mesh, box, cylinder, sphere; the material's colour)
+/// become ModelDescription::visuals, a mesh's file resolved as UrdfOptions says. <dynamics
+/// damping friction> is not part of the description: it is returned in UrdfExtras::dynamics
+/// (scenario files turn it into force elements with model.urdf.dynamics: true). Collision
+/// geometry, <calibration>, <safety_controller>, Gazebo tags and the other transmission tags are
+/// ignored.
 ///
 /// <mimic joint="L" multiplier="r" offset="c">: the mimicking joint stays a coordinate of its
 /// own and the coupling q = r·q_L + c is returned in `mimics` (scenario files turn each into a
@@ -38,6 +48,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/multibody/model.hpp"
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -49,9 +60,35 @@ struct UrdfMimic {
   double multiplier = 1.0, offset = 0.0;
 };
 
+/// A URDF joint's <dynamics damping="b" friction="F">: viscous damping b and Coulomb friction F.
+struct UrdfJointDynamics {
+  std::string joint;
+  double damping = 0.0, friction = 0.0;
+};
+
+/// Drake's rotor tags of a joint: armature = rotor_inertia · gear_ratio².
+struct UrdfRotor {
+  std::string joint;
+  double rotor_inertia = 0.0, gear_ratio = 1.0;
+  double armature() const { return rotor_inertia * gear_ratio * gear_ratio; }
+};
+
+/// What a URDF holds besides the ModelDescription (each in the model's joint order).
+struct UrdfExtras {
+  std::vector<UrdfMimic> mimics;               ///< <mimic> couplings
+  std::vector<UrdfJointDynamics> dynamics;     ///< joints with a non-zero <dynamics> damping or friction
+  std::vector<UrdfRotor> rotors;               ///< joints given an armature by Drake's tags
+};
+
 struct UrdfOptions {
   /// Link to use as the root (fixed to the base); empty: the URDF's own root link.
   std::string root_link;
+  /// package://NAME/PATH of a mesh resolves to FOLDER/PATH for an entry NAME → FOLDER; a package
+  /// not listed is looked for in ROS_PACKAGE_PATH (each entry E: E/NAME, or E itself when its
+  /// last component is NAME). file:///PATH is PATH; a relative path is taken from the folder of
+  /// the URDF file (the source name's folder). A mesh that does not resolve keeps an empty
+  /// VisualSpec::file and a note saying why (it is no error: only the report draws meshes).
+  std::map<std::string, std::string> packages;
   /// How error messages name the root_link option (scenario files: "model.urdf.root").
   std::string root_link_option = "UrdfOptions::root_link";
   /// Add a named point "<link>" at every link frame origin (so that scenario files can refer
@@ -75,5 +112,10 @@ ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt = {},
 /// Parses URDF text; `source_name` names it in error messages (e.g. a file name).
 ModelDescription parse_urdf(const std::string& xml, const std::string& source_name,
                             const UrdfOptions& opt = {}, std::vector<UrdfMimic>* mimics = nullptr);
+
+/// The same, with everything else the URDF holds in `extras` (overwritten): mimics are accepted.
+ModelDescription load_urdf(const std::string& path, const UrdfOptions& opt, UrdfExtras& extras);
+ModelDescription parse_urdf(const std::string& xml, const std::string& source_name, const UrdfOptions& opt,
+                            UrdfExtras& extras);
 
 }  // namespace refdyn::io

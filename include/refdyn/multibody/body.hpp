@@ -5,6 +5,7 @@
 ///     body i's frame in its parent's = P_i · J_i(q_i + offset_i),   P_i = (R, p)
 ///     J_i = rotation by the angle about `axis` (revolute) or translation along it (prismatic)
 ///     inertia about the body origin, body axes: m, h = m c, I = I_C − m [c]×²
+///     armature a: a joint-space inertia, M_ii += a (the rotor inertia reflected to the joint)
 ///
 /// One body per degree of freedom, parents before children, fixed joints and link offsets
 /// folded, exactly as build_model compiles a Model (model.hpp); a point is fixed on one body.
@@ -26,6 +27,7 @@ struct Body {
   S m = from_double<S>(0.0);        ///< mass
   Vec3T<S> h = zero3<S>();          ///< first moment m·c, body frame
   Mat3T<S> I = zero33<S>();         ///< rotational inertia about the body origin, body axes
+  S armature = from_double<S>(0.0); ///< joint armature (Model::armature), added to M_ii
 };
 
 template <class S>
@@ -57,6 +59,7 @@ Bodies<S> bodies_from_model(const Model& model) {
     b.m = from_double<S>(model.inertia[i].m);
     b.h = lift<S>(model.inertia[i].h);
     b.I = lift<S>(model.inertia[i].I);
+    b.armature = from_double<S>(model.armature[i]);
   }
   for (std::size_t k = 0; k < model.point_name.size(); ++k)
     out.points.push_back({model.point_body[k], lift<S>(model.point_position[k])});

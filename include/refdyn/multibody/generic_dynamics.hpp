@@ -53,14 +53,17 @@ void newton_euler_backward(const Bodies<S>& bodies, const Poses<S>& poses, const
   }
 }
 
-/// τ = M q̈ + c + g (gravity true) or M q̈ + c (false) at the poses' q → tau. qd, qdd: n values
-/// each, or nullptr for zero.
+/// τ = M q̈ + c + g (gravity true) or M q̈ + c (false) at the poses' q → tau, M including the
+/// joints' armature (Body::armature). qd, qdd: n values each, or nullptr for zero.
 template <class S>
 void inverse_dynamics(const Bodies<S>& bodies, const Poses<S>& poses, const Vec3& gravity, const S* qd, const S* qdd,
                       bool with_gravity, NewtonEulerWork<S>& work, std::vector<S>& tau) {
   const Vec3T<S> a_base = with_gravity ? scale(lift<S>(gravity), from_double<S>(-1.0)) : zero3<S>();
   forward_motion(bodies, poses, qd, qdd, a_base, false, work.motion);
   newton_euler_backward(bodies, poses, work.motion, work.f, work.n, tau);
+  if (qdd)  // the joints' armature: τ_i += a_i q̈_i
+    for (int i = 0; i < bodies.size(); ++i)
+      if (!is_zero(bodies.bodies[i].armature)) tau[i] = tau[i] + bodies.bodies[i].armature * qdd[i];
 }
 /// The same, returning τ (allocates its scratch).
 template <class S>
@@ -95,7 +98,7 @@ std::vector<S> mass_matrix(const Bodies<S>& bodies, const Poses<S>& poses) {
 /// its parent's frame by transform_inertia; then column j is the force (f, n) on composite body j
 /// under a unit joint-j acceleration at rest (f = u × h, n = I u for a revolute joint; f = m u,
 /// n = h × u for a prismatic one), carried to the root: M_ij = u_iᵀ n (revolute i) or u_iᵀ f
-/// (prismatic i) for every ancestor i of j. No velocities, no gravity: the straight code the
+/// (prismatic i) for every ancestor i of j; M_jj gains the joint's armature. No velocities, no gravity: the straight code the
 /// generator records on its tape (src/symbolic/emit_c.cpp), checked against mass_matrix and the
 /// fast kernels (tests/generic_dynamics_test.cpp) and, on the tape, against the engine
 /// (tests/symbolic_tape_test.cpp).
@@ -138,6 +141,7 @@ std::vector<S> crba(const Bodies<S>& bodies, const Poses<S>& poses) {
       nn = cross(hc[j], u);
     }
     M[static_cast<std::size_t>(j) * n + j] = B.type == JointType::Revolute ? dot(u, nn) : dot(u, f);
+    if (!is_zero(B.armature)) M[static_cast<std::size_t>(j) * n + j] = M[static_cast<std::size_t>(j) * n + j] + B.armature;
     for (int i = j; bodies.bodies[i].parent >= 0;) {
       const Vec3T<S> fp = mul(poses.local_R[i], f);
       nn = add(mul(poses.local_R[i], nn), cross(poses.local_p[i], fp));

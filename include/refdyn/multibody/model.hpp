@@ -19,6 +19,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -56,6 +57,11 @@ struct LinkSpec {
   SE3 link_offset;                  ///< L: link frame in the moved joint frame
   LinkInertia inertia;
   JointLimits limits;
+  /// Armature (rotor inertia reflected through the gear, I_r N², as MuJoCo and Drake call it)
+  /// [kg m² for a revolute joint, kg for a prismatic one]: a joint-space inertia added to the
+  /// joint's diagonal entry of M (τ_i gains armature·q̈_i; no gyroscopic effect of the rotor).
+  /// 0 for a fixed joint.
+  double armature = 0.0;
 };
 
 struct PointSpec {
@@ -64,12 +70,28 @@ struct PointSpec {
   Vec3 position = Vec3::Zero();     ///< in that link's frame
 };
 
+/// A link's visual geometry (a URDF <visual>): what the report draws; no part of the dynamics.
+struct VisualSpec {
+  enum class Shape { Mesh, Box, Cylinder, Sphere };
+  std::string link;                 ///< the link it is attached to
+  SE3 origin;                       ///< its pose in the link frame
+  Shape shape = Shape::Mesh;
+  Vec3 size = Vec3::Ones();         ///< box: edge lengths [m]; mesh: scale per axis
+  double radius = 0, length = 0;    ///< cylinder (along z: radius, length), sphere (radius) [m]
+  std::string uri;                  ///< mesh: the file name as written (package://, file://, a path)
+  std::string file;                 ///< mesh: the file it resolves to; empty when it did not (`note`)
+  std::string note;                 ///< why a mesh did not resolve
+  bool has_color = false;
+  std::array<double, 4> rgba{0.7, 0.7, 0.7, 1.0};  ///< material colour (has_color)
+};
+
 struct ModelDescription {
   std::string name = "model";
   SE3 base;                         ///< pose of the base frame in the world frame {0}
   Vec3 gravity = Vec3(0, 0, -9.81); ///< gravity acceleration in {0} [m/s²]
   std::vector<LinkSpec> links;
   std::vector<PointSpec> points;
+  std::vector<VisualSpec> visuals;  ///< drawn by the report (URDF <visual>); ignored by build_model
 
   /// Appends a link and returns its index.
   int add_link(const LinkSpec& l);
@@ -117,11 +139,17 @@ struct ModelData {
   std::vector<std::string> body_name, joint_name;
   std::vector<JointLimits> limits;
   std::vector<std::vector<int>> support; ///< ancestors of body i including i, root first
+  std::vector<double> armature;     ///< joint armature, added to M_ii (LinkSpec::armature)
 
   // --- points ---
   std::vector<std::string> point_name;
   std::vector<int> point_body;      ///< body index, -1: fixed in the world
   std::vector<Vec3> point_position; ///< in the body frame (world frame when body is -1)
+
+  // --- link frames (every link of the description, fixed ones included, in its order) ---
+  std::vector<std::string> frame_name;
+  std::vector<int> frame_body;      ///< the body the link was folded into, -1: the world
+  std::vector<SE3> frame_pose;      ///< the link frame in that body's frame (world frame, base included, for -1)
 };
 
 /// Immutable compiled model: one body per degree of freedom, parents before children. Made only
@@ -147,11 +175,21 @@ class Model {
   const std::vector<std::string> body_name, joint_name;
   const std::vector<JointLimits> limits;
   const std::vector<std::vector<int>> support; ///< ancestors of body i including i, root first
+  /// Joint armature a_i (LinkSpec::armature), part of the dynamics in every route:
+  /// M = M_rigid + diag(a), τ = M q̈ + c + g, T = ½ q̇ᵀ M q̇.
+  const std::vector<double> armature;
 
   // --- points ---
   const std::vector<std::string> point_name;
   const std::vector<int> point_body;      ///< body index, -1: fixed in the world
   const std::vector<Vec3> point_position; ///< in the body frame (world frame when body is -1)
+
+  // --- link frames: every link of the description (fixed ones included, in its order), the
+  // body it was folded into (-1: the world) and its pose in that body's frame (for -1 in the
+  // world frame, the base included); what draws a link's own geometry (the report's meshes) ---
+  const std::vector<std::string> frame_name;
+  const std::vector<int> frame_body;
+  const std::vector<SE3> frame_pose;
 
   int body_index(const std::string& link_name) const;  ///< throws with "did you mean"
   int point_index(const std::string& point) const;     ///< throws with "did you mean"

@@ -25,14 +25,14 @@ Mat4 trace_dT(const Model& model, const Data& data, int l, int i);
 /// T_ij^(l) = ∂²T^(l)/∂q_i∂q_j. Requires trace_kinematics.
 Mat4 trace_ddT(const Model& model, const Data& data, int l, int i, int j);
 
-/// M(q) by the trace formula → data.M_trace.
+/// M(q) by the trace formula, plus the joints' armature on the diagonal → data.M_trace.
 const Eigen::MatrixXd& trace_mass_matrix(const Model& model, Data& data, const Eigen::VectorXd& q);
 /// c(q, q̇) by the trace formula → data.c_trace (also fills data.Tdd, data.Td).
 const Eigen::VectorXd& trace_coriolis(const Model& model, Data& data, const Eigen::VectorXd& q,
                                       const Eigen::VectorXd& qd);
 /// g(q) by the trace formula → data.g_trace.
 const Eigen::VectorXd& trace_gravity(const Model& model, Data& data, const Eigen::VectorXd& q);
-/// Kinetic and potential energy by the trace formulas.
+/// Kinetic (armature included: ½ Σ a_i q̇_i²) and potential energy by the trace formulas.
 double trace_kinetic_energy(const Model& model, Data& data, const Eigen::VectorXd& q,
                             const Eigen::VectorXd& qd);
 double trace_potential_energy(const Model& model, Data& data, const Eigen::VectorXd& q);

@@ -116,6 +116,12 @@ struct Problem {
   /// for generate_symbolic, which keeps the parameters symbolic; empty for a URDF model or a
   /// Problem built in C++ (then the compiled model's numbers are used).
   std::optional<ModelNumbers> model_numbers;
+  /// What reading the model found worth saying, one line each (ModelSpec::notes, and an armature
+  /// of model.armature that replaces a URDF's): `refdyn check` prints them as notes.
+  std::vector<std::string> model_notes;
+  /// The visual geometry of the model's links (a URDF's <visual>s, meshes resolved; the report
+  /// draws them on the link frames, Model::frame_*).
+  std::vector<VisualSpec> visuals;
   Limits limits;
   /// Jerk-level problems (a constraint of `order: jerk`, docs/higher_order.md): their jerk rows
   /// (`constraints` has every row, of any order), the gain κ and the initial acceleration. They

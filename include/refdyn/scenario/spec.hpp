@@ -59,6 +59,7 @@ struct ModelNumbers {
     std::optional<Vec> com;
     std::vector<Quantity> inertia;  ///< as written: 3 (diagonal), 6 (Ixx Iyy Izz Ixy Ixz Iyz) or 9 (3x3, rows)
     bool inertia_matrix = false;    ///< the 9 values were written as a 3x3 list
+    std::optional<Quantity> armature;  ///< the joint's armature (links:/dh: key or model.armature)
   };
   struct Point {
     std::string name, link;
@@ -132,6 +133,9 @@ struct ModelSpec {
   /// A model read from URDF by the I/O layer (model.urdf), with its <mimic> couplings.
   std::optional<ModelDescription> urdf;
   std::vector<MimicSpec> mimics;
+  /// What the reader of the model says about it, one line each (a URDF's armature from Drake's
+  /// rotor tags; its <dynamics> ignored or turned into force elements): `refdyn check` prints them.
+  std::vector<std::string> notes;
 };
 
 struct PartitionSpec {
