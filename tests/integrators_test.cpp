@@ -419,3 +419,62 @@ TEST(Integrators, BadOptionsThrow) {
   x[1] = kNaN;
   expect_error_mentioning([&] { integrate(exponential(-1.0), x, IntegratorOptions{}); }, {"x0", "[1]"});
 }
+
+// Breakpoints (IntegratorOptions::breakpoints): ẋ = (t, a(t)) with a jumping from 1 to −2 at
+// b = 0.3337 (a piecewise-linear ẋ₁: x₁ is piecewise quadratic, which RK4 integrates exactly on
+// each part). With b a breakpoint every method lands on it and sees the left limit on the step
+// that ends there: RK4 is exact to rounding, Dormand–Prince and BDF to their tolerance; without
+// it RK4's step across b is off by O(h²). RK4's grid: equal steps per part, ends on b and t1,
+// every step end a sample.
+TEST(Integrators, BreakpointsAreLandedOnAndApproachedFromTheLeft) {
+  const double b = 0.3337, t1 = 1.0;
+  long right_at_b = 0;
+  auto f = [&](double t, const Eigen::VectorXd&, Eigen::VectorXd& dx) {
+    dx.resize(2);
+    dx[0] = t < b ? 1.0 : -2.0;
+    dx[1] = t < b ? t : -2.0 * t;
+    if (t == b) ++right_at_b;
+  };
+  auto exact = [&](double t) {
+    Eigen::Vector2d x;
+    x[0] = t < b ? t : b - 2.0 * (t - b);
+    x[1] = t < b ? 0.5 * t * t : 0.5 * b * b - (t * t - b * b);
+    return x;
+  };
+  for (const IntegratorMethod method : {IntegratorMethod::RK4, IntegratorMethod::DormandPrince45, IntegratorMethod::BDF}) {
+    SCOPED_TRACE(to_string(method));
+    IntegratorOptions o;
+    o.method = method;
+    o.t0 = 0;
+    o.t1 = t1;
+    o.step = 0.05;
+    o.breakpoints = {b};
+    std::vector<double> ts;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(2);
+    right_at_b = 0;
+    const OdeJacobian jac = [](double, const Eigen::VectorXd&, Eigen::MatrixXd& J) { J = Eigen::MatrixXd::Zero(2, 2); };
+    const IntegrationSummary s = integrate(f, x, o, [&](double t, const Eigen::VectorXd&) {
+      ts.push_back(t);
+      return true;
+    }, jac);
+    ASSERT_TRUE(s.ok()) << s.message;
+    const double tol = method == IntegratorMethod::RK4 ? 1e-14 : method == IntegratorMethod::BDF ? 1e-6 : 1e-8;
+    EXPECT_LE((x - exact(t1)).cwiseAbs().maxCoeff(), tol) << x.transpose() << " vs " << exact(t1).transpose();
+    EXPECT_GE(right_at_b, 1);  // the step after b starts on b itself (the right-hand side there)
+    if (method != IntegratorMethod::RK4) continue;
+    const Rk4Grid grid(o);
+    EXPECT_EQ(grid.steps(), 7 + 14);  // ⌈0.3337/0.05⌉ = 7 and ⌈0.6663/0.05⌉ = 14 steps
+    EXPECT_EQ(grid.end(6), b);
+    EXPECT_EQ(grid.end(grid.steps() - 1), t1);
+    EXPECT_LT(grid.stage_time(6, 1.0), b);
+    EXPECT_EQ(grid.start(7), b);
+    ASSERT_EQ(ts.size(), static_cast<size_t>(grid.steps()) + 1);
+    EXPECT_EQ(ts[7], b);
+    // without the breakpoint the step across b loses RK4's exactness
+    IntegratorOptions plain = o;
+    plain.breakpoints.clear();
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(2);
+    ASSERT_TRUE(integrate(f, y, plain).ok());
+    EXPECT_GT((y - exact(t1)).cwiseAbs().maxCoeff(), 1e-5);
+  }
+}

@@ -195,6 +195,26 @@ TEST(Sensitivity, StoredStagesGiveWhatEvaluatingTheDynamicsGives) {
 // s piecewise quadratic through the knots; its derivative in v_j at the grid's moving sample
 // times t_j(p) (t1 = end moves them) is differentiated here (central differences of the closed
 // form, which is smooth in p) and compared with the plan's sensitivities.
+/// The RK4 grid of a plan on a time law's parts (integrators.hpp, Rk4Grid: the knots are
+/// breakpoints, t1: end): the steps of each part at `step`, and the time of grid point j for the
+/// knots moved with the parameters (the counts kept: a small change moves the grid, it does not
+/// divide it again). Every step end is a sample.
+std::vector<long> part_steps(const std::vector<double>& knots, double step) {
+  std::vector<long> n;
+  for (size_t p = 0; p + 1 < knots.size(); ++p)
+    n.push_back(std::max(1L, std::lround(std::ceil((knots[p + 1] - knots[p]) / step - 1e-9))));
+  return n;
+}
+double grid_time(const std::vector<double>& knots, const std::vector<long>& n, size_t j) {
+  for (size_t p = 0; p < n.size(); ++p) {
+    const size_t np = static_cast<size_t>(n[p]);
+    if (j == np) return knots[p + 1];
+    if (j < np) return knots[p] + static_cast<double>(j) * (knots[p + 1] - knots[p]) / static_cast<double>(np);
+    j -= np;
+  }
+  return knots.back();
+}
+
 /// A rotor turned by Θ in task time Tp on a time law (`law`: the time_law's form and list over
 /// the parameters v1, v2, v3), rest to rest, ending at the law's end (`t1: end`).
 std::string rotor_on_a_law(const std::string& law, double step = 1e-4) {
@@ -216,13 +236,14 @@ TEST(Sensitivity, UnderAKnotSpeedLawTheMovingKnotsAreFollowed) {
   opt.parameters = {"v1", "v2", "v3"};
   const PlanSensitivity s = plan_sensitivity(*base.problem, base.plan, opt);
   const size_t N = base.plan.t.size() - 1;  // steps (every step is a sample)
-  // The closed form: the state at the j-th grid time t_j = j·t_end/N of the law with speeds v.
+  const std::vector<long> counts = part_steps(base.problem->time_law_knots, 1e-4);
+  // The closed form: the state at the j-th grid time (grid_time) of the law with speeds v.
   auto state = [&](const std::array<double, 3>& v3, size_t j) {
     const double Theta = 2, Tp = 1, dtau = Tp / 4;
     const double v[5] = {0, v3[0], v3[1], v3[2], 0};
-    double knots[5] = {0, 0, 0, 0, 0};
-    for (int i = 0; i < 4; ++i) knots[i + 1] = knots[i] + 2 * dtau / (v[i] + v[i + 1]);
-    const double t = static_cast<double>(j) * knots[4] / static_cast<double>(N);
+    std::vector<double> knots(5, 0.0);
+    for (size_t i = 0; i < 4; ++i) knots[i + 1] = knots[i] + 2 * dtau / (v[i] + v[i + 1]);
+    const double t = grid_time(knots, counts, j);
     int i = 0;
     while (i < 3 && t >= knots[i + 1]) ++i;
     const double h = t - knots[i], a = (v[i + 1] * v[i + 1] - v[i] * v[i]) / (2 * dtau);
@@ -328,7 +349,8 @@ TEST(Sensitivity, UnderATimeLawEveryParameterSubsetGivesTheSameColumns) {
 // against the closed form along the path (tests/topp_reference.hpp: hand-written 2R dynamics on
 // the closed-form inverse kinematics, the law's s, ṡ, s̈ in closed form; no refdyn code), with the
 // parameter requested alone and with others. The peak is differentiated at the plan's argmax
-// sample k* (the envelope rule): the closed form's effort at t_k* = k*·t_end(v)/N.
+// sample k* (the envelope rule): the closed form's effort at the k*-th time of the grid, which
+// moves with the knots (grid_time).
 TEST(Sensitivity, TheRetimedCircleMatchesTheClosedFormAloneAndInSubsets) {
   const int K = 16;
   const double Tp = 2.0, dtau = Tp / K;
@@ -364,15 +386,15 @@ TEST(Sensitivity, TheRetimedCircleMatchesTheClosedFormAloneAndInSubsets) {
     if (base.metrics[i].name == "peak_effort(q2)") metric = static_cast<long>(i);
   ASSERT_GE(metric, 0);
   const Metric& peak = base.metrics[static_cast<size_t>(metric)];
-  const size_t N = base.plan.t.size() - 1;  // every step a sample
-  // The closed form: q2's effort at the grid time t_k = k·t_end(v)/N of the law with speeds v.
+  const std::vector<long> counts = part_steps(base.problem->time_law_knots, 2e-4);
+  // The closed form: q2's effort at the k-th grid time (grid_time) of the law with speeds v.
   const test::TwoLinkArm arm;
   const test::Circle circle;
   auto effort = [&](const std::vector<double>& v, long k) {
     std::vector<double> knots(K + 1, 0.0);
     for (int i = 0; i < K; ++i)
       knots[static_cast<size_t>(i) + 1] = knots[static_cast<size_t>(i)] + 2 * dtau / (v[static_cast<size_t>(i)] + v[static_cast<size_t>(i) + 1]);
-    const double t = static_cast<double>(k) * knots[K] / static_cast<double>(N);
+    const double t = grid_time(knots, counts, static_cast<size_t>(k));
     int i = 0;
     while (i < K - 1 && t >= knots[static_cast<size_t>(i) + 1]) ++i;
     const double vi = v[static_cast<size_t>(i)], vn = v[static_cast<size_t>(i) + 1];
@@ -407,6 +429,51 @@ TEST(Sensitivity, TheRetimedCircleMatchesTheClosedFormAloneAndInSubsets) {
     }
   }
   std::printf("retimed circle: worst relative difference to the closed form %.2e\n", worst);
+}
+
+/// The 2R circle of examples/planar_2r_circle on a K-part knot-speed law with K − 1 scalar
+/// parameters v1 … v_{K−1} (uneven speeds), effort metrics, `t1: end`, RK4 at `step`.
+std::string circle_on_k_parts(int K, double step) {
+  std::string params, names;
+  for (int i = 1; i < K; ++i) {
+    params += "  v" + std::to_string(i) + ": " +
+              fmt(std::round(1e4 * (0.9 + 0.5 * std::sin(std::numbers::pi * i / K) + 0.05 * (i % 3))) / 1e4) + "\n";
+    names += (i > 1 ? ", v" : "v") + std::to_string(i);
+  }
+  return "name: circle\nparameters:\n  L1: 0.5\n  L2: 0.4\n  m1: 2.0\n  m2: 1.5\n  cx: 0.6\n  cy: 0.2\n  R: 0.15\n"
+         "  Tp: 2\n" + params +
+         "  ex0: cx + R\n  ey0: cy\n  q20: acos((ex0^2 + ey0^2 - L1^2 - L2^2)/(2*L1*L2))\n"
+         "  q10: atan2(ey0, ex0) - atan2(L2*sin(q20), L1 + L2*cos(q20))\n"
+         "model:\n  gravity: [0, -9.81, 0]\n  links:\n"
+         "    - {name: upper, joint: q1, parent: base, type: revolute, axis: [0, 0, 1],\n"
+         "       mass: m1, com: [L1/2, 0, 0], inertia: [0.001, m1*L1^2/12, m1*L1^2/12]}\n"
+         "    - {name: fore, joint: q2, parent: upper, type: revolute, axis: [0, 0, 1], origin: {xyz: [L1, 0, 0]},\n"
+         "       mass: m2, com: [L2/2, 0, 0], inertia: [0.001, m2*L2^2/12, m2*L2^2/12]}\n"
+         "  points:\n    E: {link: fore, position: [L2, 0, 0]}\n"
+         "constraints:\n"
+         "  - {name: ex, kind: point_coordinate, point: E, axis: x, function: cx + R*cos(2*pi*t/Tp)}\n"
+         "  - {name: ey, kind: point_coordinate, point: E, axis: y, function: cy + R*sin(2*pi*t/Tp)}\n"
+         "time_law: {task_duration: Tp, knot_speeds: [" + names + "]}\n"
+         "partition:\n  independent: []\n"
+         "baumgarte: {alpha: 100, beta: 50}\n"
+         "initial:\n  q: {q1: q10, q2: q20}\n  qd: {q1: 0, q2: 0}\n"
+         "integrator: {method: rk4, step: " + fmt(step) + ", t0: 0, t1: end}\n";
+}
+
+// Issue 34, item 2: the time law is evaluated natively under the sensitivities (no generated text
+// of every knot: K = 128 was refused at 65 536 characters), so a 128-part law is differentiated
+// like a 4-part one. Every metric and the state at four samples, for knot speeds at the start, in
+// the middle and at the end and for the task duration (which the law and the path both use),
+// against fourth-order central differences of whole plans (in the test, not the engine), 1e-5
+// relative: the columns are the derivatives of the computed plan (docs/sensitivity.md).
+TEST(Sensitivity, AtManyPartsTheLawsColumnsMatchCentralDifferences) {
+  check_against_differences(circle_on_k_parts(128, 1e-3), {"v1", "v64", "v127", "Tp"}, 1e-5);
+}
+
+// K = 512 (511 parameters): a knot speed's column of the state against central differences.
+TEST(Sensitivity, FiveHundredTwelvePartsPlanWithSensitivities) {
+  const std::string yaml = circle_on_k_parts(512, 1e-3);
+  check_against_differences(yaml, {"v300"}, 1e-5, 1e-3, kStates);
 }
 
 TEST(Sensitivity, BadRequestsAreRefusedWithAHint) {

@@ -645,3 +645,92 @@ TEST(TimeLawScenario, PlannedEffortsOfTheRetimedCircleConvergeToTheHandWrittenDy
 
 // The knot-speed law against the true time-optimal traversal, found by refdyn optimize:
 // tests/phase_plane_test.cpp.
+
+// TimeLaw::jet and duration_jet (what the sensitivities evaluate natively): ∂(s, ṡ, s̈)/∂θ at a
+// fixed t, for both forms, against central differences of laws rebuilt with one number moved
+// (h = 1e-7 relative, t kept inside its part); the start knot's share through knot_derivatives.
+// Budget: the laws are smooth in θ inside a part (away from the slope limiter's switch, where the
+// dual route takes the branch eval takes): truncation ~h², rounding ~1e-16/1e-7; tolerance 1e-6.
+TEST(TimeLawJet, DerivativesInTheLawsNumbersMatchCentralDifferences) {
+  std::mt19937 rng(43);
+  for (const TimeLawForm form : {TimeLawForm::knot_speeds, TimeLawForm::segments}) {
+    SCOPED_TRACE(form == TimeLawForm::knot_speeds ? "knot_speeds" : "segments");
+    const int K = 9;
+    std::vector<Number> values =
+        form == TimeLawForm::knot_speeds ? random_speeds(rng, K - 1) : random_segments(rng, K);
+    const double Tp = 1.7;
+    const TimeLaw law(form, Number(Tp), values);
+    const std::vector<std::vector<double>> dknots = law.knot_derivatives();
+    std::uniform_real_distribution<double> U(0, 1);
+    double worst = 0;
+    for (int sample = 0; sample < 60; ++sample) {
+      const int i = 1 + static_cast<int>(U(rng) * K) % K;
+      const double a = law.knots()[static_cast<size_t>(i) - 1], b = law.knots()[static_cast<size_t>(i)];
+      const double t = a + (b - a) * (0.2 + 0.6 * U(rng));
+      const TimeLaw::Jet j = law.jet(t);
+      ASSERT_EQ(j.knot, i - 1);
+      const TimeLawValue v = law.eval(t);
+      EXPECT_EQ(j.value.s, v.s);
+      EXPECT_EQ(j.value.dds, v.dds);
+      for (size_t q = 0; q <= values.size(); ++q) {  // θ_q
+        auto moved = [&](double e) {
+          std::vector<Number> w = values;
+          double T = Tp;
+          if (q == 0) T += e;
+          else w[q - 1].value += e;
+          const TimeLawValue r = TimeLaw(form, Number(T), w).eval(t);
+          return std::array<double, 3>{r.s, r.ds, r.dds};
+        };
+        const double e = 1e-7 * (q == 0 ? Tp : values[q - 1].value);
+        const std::array<double, 3> up = moved(e), down = moved(-e);
+        for (int k = 0; k < 3; ++k) {
+          double an = j.dknot[static_cast<size_t>(k)] * dknots[static_cast<size_t>(j.knot)][q];
+          for (int l = 0; l < 4; ++l)
+            if (j.theta[static_cast<size_t>(l)] == static_cast<int>(q)) an += j.d[static_cast<size_t>(k)][static_cast<size_t>(l)];
+          const double fd = (up[static_cast<size_t>(k)] - down[static_cast<size_t>(k)]) / (2 * e);
+          worst = std::max(worst, std::abs(an - fd) / std::max(1.0, std::abs(fd)));
+          EXPECT_NEAR(an, fd, 1e-6 * std::max(1.0, std::abs(fd))) << "k " << k << " theta " << q << " t " << t;
+        }
+      }
+    }
+    // the knots: ∂t_i/∂θ by the sums of duration_jet
+    for (size_t q = 0; q <= values.size(); ++q) {
+      const double e = 1e-7 * (q == 0 ? Tp : values[q - 1].value);
+      auto knots = [&](double d) {
+        std::vector<Number> w = values;
+        double T = Tp;
+        if (q == 0) T += d;
+        else w[q - 1].value += d;
+        return TimeLaw(form, Number(T), w).knots();
+      };
+      const std::vector<double> up = knots(e), down = knots(-e);
+      for (size_t i = 0; i < up.size(); ++i)
+        EXPECT_NEAR(dknots[i][q], (up[i] - down[i]) / (2 * e), 1e-6 * std::max(1.0, std::abs(dknots[i][q])));
+    }
+    std::printf("time law jet (%s): worst relative difference to central differences %.2e\n",
+                form == TimeLawForm::knot_speeds ? "knot_speeds" : "segments", worst);
+  }
+}
+
+// LocalTimeLawForm: under it a retimed function's symbolic form is f of the law's local form in
+// four symbols, of the same size for any K (the sensitivities bind them); without it the
+// piecewise text of every knot.
+TEST(TimeLawJet, TheLocalFormHasTheSameSizeForAnyK) {
+  std::vector<size_t> sizes;
+  for (int K : {4, 64, 512}) {
+    const auto law = std::make_shared<const TimeLaw>(TimeLawForm::knot_speeds, Number(2.0),
+                                                     std::vector<Number>(static_cast<size_t>(K) - 1, Number(1.0)));
+    const TimeFunctionPtr f = time_law_function(expression_time_function("0.6 + 0.15*cos(2*pi*t/2)"), law);
+    {
+      const LocalTimeLawForm local;
+      const std::optional<SymbolicForm> form = f->symbolic();
+      ASSERT_TRUE(form);
+      sizes.push_back(form->rows.at(0).size());
+      for (const char* name : kTimeLawSymbols) EXPECT_TRUE(form->parameters.count(name)) << name;
+      EXPECT_EQ(form->rows[0].find("if("), std::string::npos);
+    }
+    EXPECT_NE(f->symbolic()->rows.at(0).find("if("), std::string::npos);  // outside: the piecewise text
+  }
+  EXPECT_EQ(sizes[0], sizes[1]);
+  EXPECT_EQ(sizes[1], sizes[2]);
+}

@@ -1,5 +1,6 @@
 #include "refdyn/expression/time_law.hpp"
 
+#include "refdyn/common/dual.hpp"
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 
@@ -128,6 +129,95 @@ TimeLawValue TimeLaw::eval(double t) const {
   return v;
 }
 
+namespace {
+/// s, ṡ, s̈ on part i (1 … K) at time t over a scalar S (double or a dual number), from the part's
+/// start knot t_{i−1}, the task duration Tp and the part's numbers: segments a = d_{i−1}, b = d_i,
+/// c = d_{i+1} (a, c unused at the ends); knot_speeds a = v_{i−1}, b = v_i (v_0 = v_K = 0), c unused.
+/// The formulas of TimeLaw::eval (file comment of time_law.hpp).
+template <class S>
+std::array<S, 3> part_value(TimeLawForm form, size_t i, size_t K, double t, const S& start, const S& Tp, const S& a,
+                            const S& b, const S& c) {
+  const S dtau = Tp / static_cast<double>(K);
+  if (form == TimeLawForm::knot_speeds) {
+    const S h = t - start, acc = (b * b - a * a) / (2.0 * dtau);
+    return {dtau * static_cast<double>(i - 1) + h * (a + 0.5 * acc * h), a + acc * h, acc};
+  }
+  // the limited three-point slope of the knot between parts of durations x and y (eval's m_i)
+  auto slope = [&](const S& x, const S& y) {
+    const S p = dtau * (x * x + y * y) / (x * y * (x + y)), q = 3.0 * dtau / (x.v < y.v ? y : x);
+    return q.v < p.v ? q : p;
+  };
+  const S& h = b;
+  const S u = (t - start) / h;
+  const S ma = i > 1 ? slope(a, b) * h : S(0.0), mb = i < K ? slope(b, c) * h : S(0.0);
+  const S H01 = u * u * (3.0 - 2.0 * u), H10 = u * (u - 1.0) * (u - 1.0), H11 = u * u * (u - 1.0);
+  const S H01d = 6.0 * u * (1.0 - u), H10d = (3.0 * u - 1.0) * (u - 1.0), H11d = u * (3.0 * u - 2.0);
+  const S H01dd = 6.0 - 12.0 * u, H10dd = 6.0 * u - 4.0, H11dd = 6.0 * u - 2.0;
+  return {dtau * static_cast<double>(i - 1) + dtau * H01 + ma * H10 + mb * H11, (dtau * H01d + ma * H10d + mb * H11d) / h,
+          (dtau * H01dd + ma * H10dd + mb * H11dd) / (h * h)};
+}
+}  // namespace
+
+TimeLaw::Jet TimeLaw::jet(double t) const {
+  Jet j;
+  j.value = eval(t);
+  if (t < 0) return j;
+  if (t > knots_.back()) {  // at rest at Tp
+    j.theta[0] = 0;
+    j.d[0][0] = 1;
+    return j;
+  }
+  const size_t K = knots_.size() - 1;
+  size_t i = static_cast<size_t>(std::upper_bound(knots_.begin(), knots_.end(), t) - knots_.begin());
+  i = std::clamp<size_t>(i, 1, K);  // as eval: t in [t_{i−1}, t_i), the end in the last part
+  using D = ad::Dual<5>;  // directions: t_{i−1}, Tp, a, b, c
+  const bool speeds = form_ == TimeLawForm::knot_speeds;
+  // the part's numbers: index into values() (−1: none, the number is 0)
+  const long ia = static_cast<long>(i) - 2, ib = speeds ? (i < K ? static_cast<long>(i) - 1 : -1) : static_cast<long>(i) - 1,
+             ic = !speeds && i < K ? static_cast<long>(i) : -1;
+  auto number = [&](long idx, int dir) { return idx < 0 ? D(0.0) : D::variable(d_[static_cast<size_t>(idx)].value, dir); };
+  const std::array<D, 3> r = part_value<D>(form_, i, K, t, D::variable(knots_[i - 1], 0), D::variable(Tp_.value, 1),
+                                           number(ia, 2), number(ib, 3), number(ic, 4));
+  j.knot = static_cast<int>(i) - 1;
+  j.theta = {0, ia < 0 ? -1 : static_cast<int>(ia) + 1, ib < 0 ? -1 : static_cast<int>(ib) + 1,
+             ic < 0 ? -1 : static_cast<int>(ic) + 1};
+  for (int k = 0; k < 3; ++k) {
+    j.dknot[k] = r[k].d[0];
+    for (int l = 0; l < 4; ++l) j.d[k][l] = j.theta[l] < 0 ? 0.0 : r[k].d[l + 1];
+  }
+  return j;
+}
+
+TimeLaw::DurationJet TimeLaw::duration_jet(int i) const {
+  DurationJet j;
+  const size_t K = knots_.size() - 1;
+  if (form_ == TimeLawForm::segments) {
+    j.theta[0] = i;
+    j.d[0] = 1;
+    return j;
+  }
+  // δ_i = 2Δτ/(v_{i−1} + v_i), Δτ = Tp/K
+  const double delta = knots_[static_cast<size_t>(i)] - knots_[static_cast<size_t>(i) - 1];
+  const double sum = m_[static_cast<size_t>(i) - 1] + m_[static_cast<size_t>(i)];
+  j.theta[0] = 0;
+  j.d[0] = 2.0 / static_cast<double>(K) / sum;
+  if (i > 1) j.theta[1] = i - 1, j.d[1] = -delta / sum;
+  if (static_cast<size_t>(i) < K) j.theta[2] = i, j.d[2] = -delta / sum;
+  return j;
+}
+
+std::vector<std::vector<double>> TimeLaw::knot_derivatives() const {
+  const size_t K = knots_.size() - 1;
+  std::vector<std::vector<double>> D(K + 1, std::vector<double>(d_.size() + 1, 0.0));
+  for (size_t i = 1; i <= K; ++i) {
+    D[i] = D[i - 1];
+    const DurationJet dj = duration_jet(static_cast<int>(i));
+    for (int l = 0; l < 3; ++l)
+      if (dj.theta[l] >= 0) D[i][static_cast<size_t>(dj.theta[l])] += dj.d[l];
+  }
+  return D;
+}
+
 bool TimeLaw::has_texts() const {
   bool any = !Tp_.text.empty();
   for (const Number& d : d_) any = any || !d.text.empty();
@@ -204,6 +294,13 @@ std::string TimeLaw::symbolic_text() const {
 }
 
 namespace {
+thread_local bool local_form = false;  // LocalTimeLawForm alive in this thread
+}  // namespace
+
+LocalTimeLawForm::LocalTimeLawForm() : before_(local_form) { local_form = true; }
+LocalTimeLawForm::~LocalTimeLawForm() { local_form = before_; }
+
+namespace {
 class Retimed final : public TimeFunction {
  public:
   Retimed(TimeFunctionPtr f, TimeLawPtr law) : f_(std::move(f)), law_(std::move(law)) {}
@@ -221,10 +318,18 @@ class Retimed final : public TimeFunction {
   std::optional<SymbolicForm> symbolic() const override {
     std::optional<SymbolicForm> f = f_->symbolic();
     if (!f) return f;
-    const std::string s = law_->symbolic_text();
+    std::string s;
+    if (local_form) {  // LocalTimeLawForm: s(t) near t_c in the four symbols, bound by the caller
+      const auto& n = kTimeLawSymbols;
+      const std::string u = std::string("(t - ") + n[0] + ")";
+      s = std::string(n[1]) + " + " + n[2] + "*" + u + " + " + n[3] + "/2*" + u + "^2";
+      for (const char* name : n) f->parameters.emplace(name, 0.0);
+    } else {
+      s = law_->symbolic_text();
+      f->scenario_texts = f->scenario_texts || law_->has_texts();
+    }
     for (std::string& row : f->rows) row = replace_identifier(row, "t", s);
     for (auto& [name, text] : f->functions) text = replace_identifier(text, "t", s);
-    f->scenario_texts = f->scenario_texts || law_->has_texts();
     return f;
   }
 

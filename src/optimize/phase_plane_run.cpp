@@ -74,12 +74,21 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
     if (uses_identifier(Tp.text, v))
       c.fail(Tp, "time_law.task_duration", "phase_plane keeps the task's own duration: it must not use the variable '" + v + "'");
 
-  // The task in its own time.
+  // The task in its own time, sampled on the law's knots and densely between them: m equal steps
+  // per part of task time Δτ = Tp/K, m = max(16, ⌈4Δτ/step⌉) (the limits are imposed at these
+  // samples; between them the effort differs from a sample's by O(δτ²), ~1e-7 relative here, so
+  // that a plan of the answer at any step ≤ `step` stays within the limits to 1e-6).
   const auto path_start = std::chrono::steady_clock::now();
   ScenarioSpec own = spec_at(spec, s.variables, s.start);
   own.time_law = SpecValue{};
   own.integrator.t1 = SpecValue::scalar(Tp.text, Tp.where);
   own.initial.project = true;
+  {
+    const double step = spec.integrator.step ? c.number(spec.integrator.step, "integrator.step") : IntegratorOptions{}.step;
+    const double dtau = c.number(Tp, "time_law.task_duration") / static_cast<double>(K);
+    const double m = std::max(16.0, std::ceil(4 * dtau / step - 1e-9));
+    own.integrator.step = SpecValue::scalar(symbolic_number(dtau / m), spec.integrator.step.where);
+  }
   std::unique_ptr<Problem> problem;
   Plan plan;
   try {

@@ -600,6 +600,9 @@ void build_integrator(const SpecReader& c, const ScenarioSpec& spec, Problem& s)
     if (in.rtol) o.rtol = c.number(in.rtol, "integrator.rtol");
     if (in.atol) o.atol = c.number(in.atol, "integrator.atol");
     if (in.output_interval) o.output_interval = c.number(in.output_interval, "integrator.output_interval");
+    if (c.time_law)  // s̈ jumps at the knots: the integrators step onto them (IntegratorOptions::breakpoints)
+      for (double tk : c.time_law->knots())
+        if (tk > o.t0 && tk < o.t1 && (o.breakpoints.empty() || tk > o.breakpoints.back())) o.breakpoints.push_back(tk);
     o.min_step = in.min_step ? c.number(in.min_step, "integrator.min_step") : std::min(o.min_step, 0.5 * o.step);
     if (in.residual_from) s.residual_from = c.number(in.residual_from, "integrator.residual_from");
     if (in.residual_tolerance) {
@@ -837,10 +840,11 @@ std::unique_ptr<Problem> build_problem(const ScenarioSpec& spec) {
     s->texts.parameters.emplace_back(name, set != spec.parameter_values.end() ? symbolic_number(set->second.value) : value.text);
   }
   s->texts.t0 = spec.integrator.t0.text;
-  s->texts.t1 = t1_is_end(spec.integrator.t1) && c.time_law ? c.time_law->end_text() : spec.integrator.t1.text;
+  s->t1_is_law_end = t1_is_end(spec.integrator.t1) && c.time_law;
+  s->texts.t1 = s->t1_is_law_end ? std::string() : spec.integrator.t1.text;  // the law's end: its own derivative
   if (c.time_law) {
     s->time_law_knots = c.time_law->knots();
-    for (size_t i = 0; i < s->time_law_knots.size(); ++i) s->time_law_knot_texts.push_back(c.time_law->knot_text(i));
+    s->time_law = c.time_law;
   }
   build_constraints_and_forces(c, spec, *s);
   if (c.time_law && c.retimed == 0)

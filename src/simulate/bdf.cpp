@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <exception>
+#include <limits>
 #include <optional>
 
 namespace refdyn::detail {
@@ -35,6 +36,10 @@ struct Callbacks {
   Eigen::MatrixXd J;
   std::optional<NumericalFailure> failure;  // the first NumericalFailure raised by f or the Jacobian
   std::exception_ptr other;                 // any other exception: rethrown after the run
+  /// The breakpoint CVODE steps toward (IntegratorOptions::breakpoints; +inf: none): f and ∂f/∂x
+  /// are evaluated there, and past it, at the double below it (the left limit).
+  double stop = std::numeric_limits<double>::infinity();
+  double at(double t) const { return t >= stop ? std::nextafter(stop, -std::numeric_limits<double>::infinity()) : t; }
 };
 
 Eigen::Map<Eigen::VectorXd> view(N_Vector v) { return {N_VGetArrayPointer(v), N_VGetLength(v)}; }
@@ -55,7 +60,7 @@ int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void* user) {
   auto& c = *static_cast<Callbacks*>(user);
   return guarded(c, [&] {
     c.x = view(y);
-    c.f(Stage{}, t, c.x, c.dx);
+    c.f(Stage{}, c.at(t), c.x, c.dx);
     if (!c.dx.allFinite()) return 1;
     view(ydot) = c.dx;
     return 0;
@@ -66,7 +71,7 @@ int jacobian(sunrealtype t, N_Vector y, N_Vector, SUNMatrix J, void* user, N_Vec
   auto& c = *static_cast<Callbacks*>(user);
   return guarded(c, [&] {
     c.x = view(y);
-    c.jac(t, c.x, c.J);
+    c.jac(c.at(t), c.x, c.J);
     const auto n = static_cast<Eigen::Index>(SUNDenseMatrix_Rows(J));
     if (c.J.rows() != n || c.J.cols() != n)
       throw Error("integrate (bdf): the Jacobian has size " + std::to_string(c.J.rows()) + "x" +
@@ -114,14 +119,15 @@ void check(int flag, const char* what) {
   if (flag < 0) throw Error(std::string("integrate (bdf): SUNDIALS ") + what + " failed (flag " + std::to_string(flag) + ")");
 }
 
-void collect(void* mem, IntegrationSummary& s) {
+/// CVODE's counters since its last (re)start, added to those of the runs before (`before`).
+void collect(void* mem, IntegrationSummary& s, const IntegrationSummary& before = {}) {
   long v = 0;
-  CVodeGetNumSteps(mem, &v), s.steps = v;
-  CVodeGetNumRhsEvals(mem, &v), s.rhs_evaluations = v;
-  CVodeGetNumJacEvals(mem, &v), s.jacobian_evaluations = v;
-  CVodeGetNumNonlinSolvIters(mem, &v), s.newton_iterations = v;
-  CVodeGetNumNonlinSolvConvFails(mem, &v), s.newton_failures = v;
-  CVodeGetNumErrTestFails(mem, &v), s.error_test_failures = v;
+  CVodeGetNumSteps(mem, &v), s.steps = before.steps + v;
+  CVodeGetNumRhsEvals(mem, &v), s.rhs_evaluations = before.rhs_evaluations + v;
+  CVodeGetNumJacEvals(mem, &v), s.jacobian_evaluations = before.jacobian_evaluations + v;
+  CVodeGetNumNonlinSolvIters(mem, &v), s.newton_iterations = before.newton_iterations + v;
+  CVodeGetNumNonlinSolvConvFails(mem, &v), s.newton_failures = before.newton_failures + v;
+  CVodeGetNumErrTestFails(mem, &v), s.error_test_failures = before.error_test_failures + v;
   s.rejected_steps = s.newton_failures + s.error_test_failures;
 }
 
@@ -195,23 +201,43 @@ IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, E
   check(CVodeSetJacFn(cv.mem, jacobian), "CVodeSetJacFn");
   check(CVodeSetMaxOrd(cv.mem, o.max_order), "CVodeSetMaxOrd");
   check(CVodeSetMinStep(cv.mem, o.min_step), "CVodeSetMinStep");
-  check(CVodeSetStopTime(cv.mem, o.t1), "CVodeSetStopTime");  // the right-hand side is not asked past t1
+  // The breakpoints inside (t0, t1): CVODE stops on each (tstop) and restarts there (CVodeReInit).
+  std::vector<double> breaks;
+  for (double b : o.breakpoints)
+    if (b > o.t0 && b < o.t1 && (breaks.empty() || b > breaks.back())) breaks.push_back(b);
+  size_t next_break = 0;
+  if (!breaks.empty()) cb.stop = breaks[0];
+  check(CVodeSetStopTime(cv.mem, breaks.empty() ? o.t1 : breaks[0]), "CVodeSetStopTime");  // f is not asked past it
   if (projection) {
     check(CVodeSetProjFn(cv.mem, project), "CVodeSetProjFn");
     check(CVodeSetProjErrEst(cv.mem, SUNFALSE), "CVodeSetProjErrEst");
   }
 
   const double dt_out = o.output_interval > 0 ? o.output_interval : o.step;
+  IntegrationSummary restarted;  // CVODE's counters of the runs before the last restart
   for (long k = 1;; ++k) {
     const double tout = std::min(o.t0 + k * dt_out, o.t1);
     long taken = 0;
-    CVodeGetNumSteps(cv.mem, &taken);
-    check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - taken)), "CVodeSetMaxNumSteps");
+    int flag = 0;
     sunrealtype reached = o.t0;
-    const int flag = CVode(cv.mem, tout, cv.y, &reached, CV_NORMAL);
+    // Through the breakpoints before tout: to each, then a restart there.
+    while (next_break < breaks.size() && breaks[next_break] < tout) {
+      CVodeGetNumSteps(cv.mem, &taken);
+      check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - restarted.steps - taken)), "CVodeSetMaxNumSteps");
+      flag = CVode(cv.mem, breaks[next_break], cv.y, &reached, CV_NORMAL);
+      if (flag < 0) break;
+      collect(cv.mem, restarted, restarted);
+      const double b = breaks[next_break++];
+      check(CVodeReInit(cv.mem, b, cv.y), "CVodeReInit");
+      cb.stop = next_break < breaks.size() ? breaks[next_break] : std::numeric_limits<double>::infinity();
+      check(CVodeSetStopTime(cv.mem, next_break < breaks.size() ? breaks[next_break] : o.t1), "CVodeSetStopTime");
+    }
+    CVodeGetNumSteps(cv.mem, &taken);
+    check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - restarted.steps - taken)), "CVodeSetMaxNumSteps");
+    if (flag >= 0) flag = CVode(cv.mem, tout, cv.y, &reached, CV_NORMAL);
     if (cb.other) std::rethrow_exception(cb.other);
     if (flag < 0) {
-      collect(cv.mem, s);
+      collect(cv.mem, s, restarted);
       sunrealtype h = 0;
       CVodeGetCurrentStep(cv.mem, &h);
       if (cb.failure) {
@@ -228,21 +254,21 @@ IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, E
     if (projection) try {
         projection(tout, x);
       } catch (const NumericalFailure& e) {
-        collect(cv.mem, s);
+        collect(cv.mem, s, restarted);
         s.status = IntegrationStatus::NumericalFailure;
         s.message = e.what();
         return s;
       }
     s.t_end = tout;
     if (obs && !obs(tout, x)) {
-      collect(cv.mem, s);
+      collect(cv.mem, s, restarted);
       s.status = IntegrationStatus::Stopped;
       s.message = "stopped by the observer at t = " + fmt(tout) + " s";
       return s;
     }
     if (tout >= o.t1) break;
   }
-  collect(cv.mem, s);
+  collect(cv.mem, s, restarted);
   s.t_end = o.t1;
   return s;
 }

@@ -336,15 +336,19 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     const ReferenceStages& st = plan.stages;
     if (st.steps == 0 || st.n != n)
       throw Error("simulate_closed_loop: the plan has no recorded RK4 stages for this plant (hint: plan with RK4)");
-    const long nsteps = std::lround(std::ceil((io.t1 - io.t0) / io.step - 1e-9));
-    const double h = (io.t1 - io.t0) / nsteps;
-    if (std::abs(io.t0 - st.t0) > 1e-12 || std::abs(h - st.h) > 1e-12 * st.h)
+    const Rk4Grid grid(io);
+    const long nsteps = grid.steps();
+    const double h = grid.uniform() ? grid.uniform_step() : (io.t1 - io.t0) / static_cast<double>(nsteps);
+    if (std::abs(io.t0 - st.t0) > 1e-12 || std::abs(h - st.h) > 1e-12 * st.h || io.breakpoints != st.breakpoints)
       throw Error(expected_got("closed-loop RK4 grid", "t0 = " + fmt(st.t0) + " and step = " + fmt(st.h) + " (the plan's)",
-                               "t0 = " + fmt(io.t0) + ", step = " + fmt(h)));
+                               "t0 = " + fmt(io.t0) + ", step = " + fmt(h) +
+                                   (io.breakpoints != st.breakpoints ? " on other breakpoints" : "")));
     // Samples beyond the recorded stages use the plan's samples (only the final time).
-    const long usable = std::min<long>(nsteps, st.steps);
+    long usable = std::min<long>(nsteps, st.steps);
+    // On a grid with breakpoints a shorter run ends on one (its grid is then the same up to there).
+    while (!grid.uniform() && usable < nsteps && usable > 0 && grid.part(usable) == grid.part(usable - 1)) --usable;
     IntegratorOptions o = io;
-    o.t1 = io.t0 + usable * h;
+    o.t1 = grid.uniform() ? io.t0 + usable * h : usable > 0 ? grid.end(usable - 1) : io.t0;
     // The stage hook says which recorded reference stage belongs to this evaluation.
     auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
       const double* s = st.stage(stage.step, stage.stage);
@@ -352,9 +356,15 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       plant_derivative(plant, plant_forces, controller, w, options.effort_limit, t, x.data(), dx.data());
     };
     const long every = io.output_interval > 0 ? std::max(1L, std::lround(io.output_interval / h)) : 1L;
+    // The steps whose ends are output samples (the plan's grid, Rk4Grid), after t0's (step 0).
+    std::vector<long> sample_step{0};
+    for (long k = 0; !grid.uniform() && k < nsteps; ++k)
+      if (grid.sample(k)) sample_step.push_back(k + 1);
     long sample = 0;
     auto obs = [&](double t, const Eigen::VectorXd& x) {
-      const long step = sample * every;
+      const long step = grid.uniform() ? sample * every
+                        : static_cast<size_t>(sample) < sample_step.size() ? sample_step[static_cast<size_t>(sample)]
+                                                                            : st.steps;
       ++sample;
       if (step < st.steps) {
         const double* s = st.stage(step, 0);

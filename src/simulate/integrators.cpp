@@ -10,6 +10,7 @@
 #include <boost/numeric/odeint/external/eigen/eigen.hpp>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 namespace refdyn {
 
@@ -77,25 +78,67 @@ void IntegratorOptions::validate() const {
        step);
 }
 
+Rk4Grid::Rk4Grid(const IntegratorOptions& o) : t0_(o.t0), t1_(o.t1) {
+  steps_ = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+  h_ = (o.t1 - o.t0) / steps_;  // exact landing on t1
+  every_ = o.output_interval > 0 ? std::max(1L, std::lround(o.output_interval / h_)) : 1L;
+  std::vector<double> b{o.t0};  // the parts' ends: the breakpoints inside (t0, t1), then t1
+  for (double t : o.breakpoints)
+    if (t > b.back() && t < o.t1) b.push_back(t);
+  if (b.size() == 1) return;  // none: the uniform grid
+  b.push_back(o.t1);
+  for (size_t j = 0; j + 1 < b.size(); ++j) {
+    const long n = std::max(1L, std::lround(std::ceil((b[j + 1] - b[j]) / o.step - 1e-9)));
+    const double h = (b[j + 1] - b[j]) / static_cast<double>(n);
+    for (long k = 0; k < n; ++k) {
+      times_.push_back(b[j] + static_cast<double>(k) * h);
+      steps_h_.push_back(h);
+      parts_.push_back(static_cast<int>(j));
+      ends_on_break_.push_back(k + 1 == n && j + 2 < b.size());
+    }
+  }
+  times_.push_back(o.t1);
+  steps_ = static_cast<long>(steps_h_.size());
+  samples_.assign(steps_h_.size(), o.output_interval > 0 ? 0 : 1);
+  if (o.output_interval > 0) {
+    double next = o.t0 + o.output_interval;
+    for (size_t k = 0; k < steps_h_.size(); ++k) {
+      const double t = times_[k + 1];
+      if (t >= next - 1e-9 * steps_h_[k] || k + 1 == steps_h_.size()) {
+        samples_[k] = 1;
+        while (next <= t + 1e-9 * steps_h_[k]) next += o.output_interval;
+      }
+    }
+  }
+}
+
+double Rk4Grid::stage_time(long k, double c) const {
+  if (times_.empty()) return t0_ + k * h_ + c * h_;
+  const size_t u = static_cast<size_t>(k);
+  if (c == 1.0 && ends_on_break_[u]) return std::nextafter(times_[u + 1], -std::numeric_limits<double>::infinity());
+  return times_[u] + c * steps_h_[u];
+}
+
 Rk4Workspace::Rk4Workspace(Eigen::Index n) : k1(n), k2(n), k3(n), k4(n), tmp(n) {}
 
 namespace {
-// One RK4 step; f(stage, t, x, dx) with stage 0..3.
+// One RK4 step; f(stage, t, x, dx) with stage 0..3; the last stage at t_end (t + h, or the
+// left limit at a breakpoint: Rk4Grid::stage_time).
 template <class F>
-void rk4_stages(const F& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
+void rk4_stages(const F& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w, double t_end) {
   f(0, t, x, w.k1);
   w.tmp = x + (0.5 * h) * w.k1;
   f(1, t + 0.5 * h, w.tmp, w.k2);
   w.tmp = x + (0.5 * h) * w.k2;
   f(2, t + 0.5 * h, w.tmp, w.k3);
   w.tmp = x + h * w.k3;
-  f(3, t + h, w.tmp, w.k4);
+  f(3, t_end, w.tmp, w.k4);
   x += (h / 6.0) * (w.k1 + 2.0 * w.k2 + 2.0 * w.k3 + w.k4);
 }
 }  // namespace
 
 void rk4_step(const OdeRhs& f, double t, double h, Eigen::VectorXd& x, Rk4Workspace& w) {
-  rk4_stages([&f](int, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(tt, xx, dx); }, t, h, x, w);
+  rk4_stages([&f](int, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) { f(tt, xx, dx); }, t, h, x, w, t + h);
 }
 
 namespace {
@@ -103,9 +146,8 @@ namespace {
 IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& o,
                                  const OdeObserver& obs, const OdeProjection& projection) {
   IntegrationSummary s;
-  const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
-  const double h = (o.t1 - o.t0) / nsteps;  // exact landing on t1
-  const long every = o.output_interval > 0 ? std::max(1L, std::lround(o.output_interval / h)) : 1L;
+  const Rk4Grid grid(o);
+  const long nsteps = grid.steps();
   Rk4Workspace w(x.size());
   Eigen::VectorXd x_prev = x;
   s.t_end = o.t0;
@@ -120,12 +162,12 @@ IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const
       s.message = "stopped at t = " + fmt(s.t_end) + " s after max_steps = " + std::to_string(o.max_steps);
       return s;
     }
-    const double t = o.t0 + k * h;
+    const double t = grid.start(k), h = grid.size(k);
     x_prev = x;
     try {
       rk4_stages([&f, k](int stage, double tt, const Eigen::VectorXd& xx, Eigen::VectorXd& dx) {
         f(Stage{k, stage}, tt, xx, dx);
-      }, t, h, x, w);
+      }, t, h, x, w, grid.stage_time(k, 1.0));
     } catch (const NumericalFailure& e) {
       x = x_prev;
       s.status = IntegrationStatus::NumericalFailure;
@@ -141,7 +183,7 @@ IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const
       return s;
     }
     ++s.steps;
-    s.t_end = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
+    s.t_end = grid.end(k);
     if (projection) try {
         projection(s.t_end, x);
       } catch (const NumericalFailure& e) {
@@ -149,7 +191,7 @@ IntegrationSummary integrate_rk4(const OdeStageRhs& f, Eigen::VectorXd& x, const
         s.message = e.what();
         return s;
       }
-    if (obs && ((k + 1) % every == 0 || k + 1 == nsteps) && !obs(s.t_end, x)) {
+    if (obs && grid.sample(k) && !obs(s.t_end, x)) {
       s.status = IntegrationStatus::Stopped;
       s.message = "stopped by the observer at t = " + fmt(s.t_end) + " s";
       return s;
@@ -164,8 +206,18 @@ IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, con
   using Stepper = ode::runge_kutta_dopri5<Eigen::VectorXd, double, Eigen::VectorXd, double, ode::vector_space_algebra>;
   IntegrationSummary s;
   long evals = 0;
+  // The breakpoints inside (t0, t1) (IntegratorOptions::breakpoints): a step toward the next one
+  // (`to_break`) ends on it and evaluates there at the double below it (the left limit); the
+  // stepper restarts on it.
+  std::vector<double> breaks;
+  for (double b : o.breakpoints)
+    if (b > o.t0 && b < o.t1 && (breaks.empty() || b > breaks.back())) breaks.push_back(b);
+  size_t next_break = 0;
+  bool to_break = false;
   auto sys = [&](const Eigen::VectorXd& xx, Eigen::VectorXd& dx, double t) {
     ++evals;
+    if (to_break && t >= breaks[next_break])
+      t = std::nextafter(breaks[next_break], -std::numeric_limits<double>::infinity());
     f(Stage{}, t, xx, dx);
   };
   auto stepper = ode::make_dense_output(o.atol, o.rtol, Stepper());
@@ -193,11 +245,25 @@ IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, con
                     " s (the solution is stiff or singular there)";
         break;
       }
-      // Do not step past t1: shrink the proposed step.
-      if (stepper.current_time() + stepper.current_time_step() > o.t1)
-        stepper.initialize(stepper.current_state(), stepper.current_time(), o.t1 - stepper.current_time());
+      // Do not step past t1 or the next breakpoint: shrink the proposed step.
+      const double bound = next_break < breaks.size() ? breaks[next_break] : o.t1;
+      const double proposed = stepper.current_time_step();
+      to_break = false;
+      const double reach = stepper.current_time() + stepper.current_time_step();
+      if (next_break < breaks.size() ? reach >= bound : reach > bound) {
+        to_break = next_break < breaks.size();
+        stepper.initialize(stepper.current_state(), stepper.current_time(), bound - stepper.current_time());
+      }
       const long before = evals;
-      const auto span = stepper.do_step(sys);
+      auto span = stepper.do_step(sys);
+      // On a breakpoint (up to rounding of t + h): there exactly, and the stepper restarts there
+      // with the step it proposed before (its derivative at the breakpoint is the right limit).
+      const bool landed = to_break && span.second >= bound - 1e-14 * std::max(1.0, std::abs(bound));
+      to_break = false;
+      if (landed) {
+        span.second = bound;
+        ++next_break;
+      }
       const long used = evals - before;
       s.rejected_steps += std::max(0L, used / 6 - 1);
       if (!stepper.current_state().allFinite()) {
@@ -221,7 +287,9 @@ IntegrationSummary integrate_dopri(const OdeStageRhs& f, Eigen::VectorXd& x, con
       s.t_end = span.second;
       if (projection && !stop) {
         projection(s.t_end, x);  // a NumericalFailure is caught below
-        stepper.initialize(x, s.t_end, stepper.current_time_step());
+        stepper.initialize(x, s.t_end, landed ? proposed : stepper.current_time_step());
+      } else if (landed) {
+        stepper.initialize(x, s.t_end, proposed);
       }
       if (stop) {
         s.status = IntegrationStatus::Stopped;

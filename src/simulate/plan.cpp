@@ -125,13 +125,21 @@ class StageRecorder {
       : st_(st), on_(o.method == IntegratorMethod::RK4), per_stage_(3 * static_cast<size_t>(n)),
         extra_(static_cast<size_t>(extra)) {
     if (!on_) return;
-    const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
+    const Rk4Grid grid(o);
     st_.t0 = o.t0;
-    st_.h = (o.t1 - o.t0) / nsteps;
+    st_.h = grid.uniform() ? grid.uniform_step() : (o.t1 - o.t0) / static_cast<double>(grid.steps());
+    st_.breakpoints = o.breakpoints;
+    if (!grid.uniform())
+      for (long k = 0; k < grid.steps(); ++k) ends_.push_back(grid.end(k));
     st_.n = n;
     st_.extra_size = extra;
   }
   bool on() const { return on_; }
+  /// The steps completed by time t (a sample's time: a step end).
+  long steps_until(double t) const {
+    if (ends_.empty()) return std::lround((t - st_.t0) / st_.h);
+    return static_cast<long>(std::upper_bound(ends_.begin(), ends_.end(), t) - ends_.begin());
+  }
   /// Where this stage's 3n values go (grows the storage as needed).
   double* slot(const Stage& stage) {
     const size_t at = (static_cast<size_t>(stage.step) * 4 + stage.stage) * per_stage_;
@@ -159,6 +167,7 @@ class StageRecorder {
   ReferenceStages& st_;
   bool on_;
   size_t per_stage_, extra_;
+  std::vector<double> ends_;  ///< with breakpoints: every step's end (Rk4Grid)
 };
 
 /// A run that stopped on a singular or ill-conditioned system: whether the constraint Jacobian A
@@ -342,7 +351,7 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
                 fmt(tol) + ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
                 fmt(s.t_end) + " s (hint: a smaller step, stronger Baumgarte gains, or a task that stays in the "
                 "workspace)";
-    if (stages.on()) s.steps = std::lround((s.t_end - options.t0) / plan.stages.h);
+    if (stages.on()) s.steps = stages.steps_until(s.t_end);
   }
   stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;
@@ -488,7 +497,7 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
                 fmt(s.t_end) + " s (hint: a smaller step — at the jerk level these rows are stabilized by "
                 "d/dt psi + kappa psi = 0 and the Baumgarte gains, whose fastest mode RK4 must resolve — weaker "
                 "gains, or a task that stays in the workspace)";
-    if (stages.on()) s.steps = std::lround((s.t_end - options.t0) / plan.stages.h);
+    if (stages.on()) s.steps = stages.steps_until(s.t_end);
   }
   stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;

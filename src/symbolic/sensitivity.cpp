@@ -24,6 +24,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/expression/expression.hpp"
+#include "refdyn/expression/time_law.hpp"
 #include "refdyn/symbolic/sensitivity.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 
@@ -86,6 +87,7 @@ Eigen::RowVectorXd text_derivative(const Problem& problem, const std::string& te
                                    const std::map<std::string, Eigen::RowVectorXd>& D, int np) {
   Eigen::RowVectorXd d = Eigen::RowVectorXd::Zero(np);
   if (text.empty() || problem.texts.parameters.empty()) return d;
+  if (const auto it = D.find(text); it != D.end()) return it->second;  // a parameter's name
   std::vector<std::string> names;
   std::vector<double> x;
   for (const auto& [name, _] : problem.texts.parameters) {
@@ -117,6 +119,7 @@ struct Texts {
 };
 
 Texts symbolic_texts(const Problem& problem) {
+  const LocalTimeLawForm local;  // a time law as its local form in four symbols (LawDirections)
   const SymbolicReferenceDynamics sym = generate_symbolic(problem);
   const SymbolicReferenceDynamics::Impl& S = sym.impl();
   if (S.jerk)
@@ -229,7 +232,11 @@ std::shared_ptr<const Tapes> tapes_for(const Problem& problem, const Texts& text
 /// Evaluates the tapes at one point and solves the KKT system along directions.
 class Evaluator {
  public:
-  Evaluator(const Tapes& T, const Eigen::VectorXd& pvals) : T_(T), pvals_(pvals), x_(T.nv) {
+  /// law, law_var: the time law and the positions of its local form's symbols among the tapes'
+  /// variables (kTimeLawSymbols; −1: not used), bound at each evaluation to t and s, ṡ, s̈ at t.
+  Evaluator(const Tapes& T, const Eigen::VectorXd& pvals, const TimeLaw* law = nullptr,
+            std::array<int, 4> law_var = {-1, -1, -1, -1})
+      : T_(T), pvals_(pvals), x_(T.nv), law_(law), law_var_(law_var) {
     GR_.resize(T.n + T.m, T.nv);
     GZ_.resize(T.nz, T.nv);
     g_.resize(T.nv);
@@ -245,6 +252,12 @@ class Evaluator {
     x_.segment(T_.o_qdd, n) = qdd;
     if (m) x_.segment(T_.o_lam, m) = lam;
     if (pvals_.size() > 0) x_.tail(pvals_.size()) = pvals_;
+    if (law_) {
+      const TimeLawValue v = law_->eval(t);
+      const double local[4] = {t, v.s, v.ds, v.dds};
+      for (int k = 0; k < 4; ++k)
+        if (law_var_[k] >= 0) x_[law_var_[k]] = local[k];
+    }
     residual_max_ = 0;
     for (int i = 0; i < n + m; ++i) {
       grad(T_.R[i], GR_, i, value_);
@@ -313,6 +326,55 @@ class Evaluator {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   ExpressionWorkspace ws_;
   double value_ = 0, residual_max_ = 0;
+  const TimeLaw* law_;
+  std::array<int, 4> law_var_;
+};
+
+/// The time law's numbers and knots differentiated in the chosen parameters, natively: θ (the
+/// task duration and the law's values, TimeLaw::values) through their scenario texts, the knots
+/// t_i by the sums of the parts' durations (TimeLaw::duration_jet), and s, ṡ, s̈ at a fixed t by
+/// TimeLaw::jet. Cost O(K·np) once, then O(np) per evaluation, for any K.
+class LawDerivatives {
+ public:
+  LawDerivatives(const Problem& problem, const std::map<std::string, Eigen::RowVectorXd>& D, int np)
+      : law_(problem.time_law.get()) {
+    if (!law_) return;
+    const std::vector<Number>& values = law_->values();
+    theta_.setZero(static_cast<Eigen::Index>(values.size()) + 1, np);
+    theta_.row(0) = text_derivative(problem, law_->task_duration_number().text, D, np);
+    for (size_t j = 0; j < values.size(); ++j)
+      theta_.row(static_cast<Eigen::Index>(j) + 1) = text_derivative(problem, values[j].text, D, np);
+    const int K = law_->segments();
+    knots_.setZero(K + 1, np);
+    for (int i = 1; i <= K; ++i) {
+      knots_.row(i) = knots_.row(i - 1);
+      const TimeLaw::DurationJet dj = law_->duration_jet(i);
+      for (int l = 0; l < 3; ++l)
+        if (dj.theta[l] >= 0) knots_.row(i) += dj.d[l] * theta_.row(dj.theta[l]);
+    }
+  }
+  const TimeLaw* law() const { return law_; }
+  /// ∂t_i/∂p of knot i (0 … K).
+  Eigen::RowVectorXd knot(int i) const { return knots_.row(i); }
+  /// The local form's symbols along a direction with ∂t/∂p = tdot at t: rows t_c, s, ṡ, s̈ of V
+  /// (at positions `rows`, −1: unused): ∂σ/∂p at fixed t + σ̇ tdot (σ̇ of s̈ is s⃛).
+  void directions(double t, const Eigen::RowVectorXd& tdot, const std::array<int, 4>& rows, Eigen::MatrixXd& V) const {
+    const TimeLaw::Jet j = law_->jet(t);
+    const double rate[3] = {j.value.ds, j.value.dds, j.value.ddds};
+    if (rows[0] >= 0) V.row(rows[0]) = tdot;
+    for (int k = 0; k < 3; ++k) {
+      if (rows[k + 1] < 0) continue;
+      auto r = V.row(rows[k + 1]);
+      r = rate[k] * tdot;
+      for (int l = 0; l < 4; ++l)
+        if (j.theta[l] >= 0 && j.d[k][l] != 0) r += j.d[k][l] * theta_.row(j.theta[l]);
+      if (j.knot >= 0 && j.dknot[k] != 0) r += j.dknot[k] * knots_.row(j.knot);
+    }
+  }
+
+ private:
+  const TimeLaw* law_;
+  Eigen::MatrixXd theta_, knots_;  ///< ∂θ/∂p (1 + values × np), ∂t_i/∂p (K + 1 × np)
 };
 
 }  // namespace
@@ -345,6 +407,7 @@ void check_scope(const Problem& problem, const SensitivityOptions& options) {
 
 void check_sensitivity_request(const Problem& problem, const SensitivityOptions& options) {
   check_scope(problem, options);
+  const LocalTimeLawForm local;      // as plan_sensitivity generates them (symbolic_texts)
   (void)generate_symbolic(problem);  // every kind has a symbolic form
 }
 
@@ -359,28 +422,46 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
   std::vector<std::string> pvars;
   for (const auto& s : texts.symbols)
     if (D.count(s) && !D.at(s).isZero(0)) pvars.push_back(s);
+  // The time law's local form (LocalTimeLawForm): its symbols are variables, bound at each
+  // evaluation, their directions from LawDerivatives.
+  const LawDerivatives law(problem, D, np);
+  std::array<int, 4> law_pos{-1, -1, -1, -1};  // among pvars
+  for (int k = 0; k < 4; ++k)
+    if (law.law() && std::find(texts.symbols.begin(), texts.symbols.end(), kTimeLawSymbols[k]) != texts.symbols.end()) {
+      law_pos[k] = static_cast<int>(pvars.size());
+      pvars.push_back(kTimeLawSymbols[k]);
+    }
   const std::shared_ptr<const Tapes> tp = tapes_for(problem, texts, pvars);
   const Tapes& T = *tp;
   const int n = T.n, m = T.m, nz = T.nz, nx = 2 * n + nz, npv = static_cast<int>(pvars.size());
-  Eigen::VectorXd pvals(npv);
-  Eigen::MatrixXd Dp(npv, np);
+  Eigen::VectorXd pvals = Eigen::VectorXd::Zero(npv);
+  Eigen::MatrixXd Dp = Eigen::MatrixXd::Zero(npv, np);
+  std::array<int, 4> law_var{-1, -1, -1, -1}, law_row{-1, -1, -1, -1};  // in x (Evaluator), rows of V
   for (int k = 0; k < npv; ++k) {
+    const auto at = std::find(law_pos.begin(), law_pos.end(), k);
+    if (at != law_pos.end()) {
+      law_var[at - law_pos.begin()] = T.o_p + k;
+      law_row[at - law_pos.begin()] = T.o_p + k;
+      continue;
+    }
     pvals[k] = problem.parameters.at(pvars[k]);
     Dp.row(k) = D.at(pvars[k]);
   }
+  const bool law_local = law_row[0] >= 0 || law_row[1] >= 0 || law_row[2] >= 0 || law_row[3] >= 0;
   if (!text_derivative(problem, problem.texts.t0, D, np).isZero(0))
     throw Error("sensitivities: integrator.t0 depends on a chosen parameter (not supported: write t0 as a number)");
   PlanSensitivity out;
   out.parameters = options.parameters;
-  out.dt_end = text_derivative(problem, problem.texts.t1, D, np);
+  out.dt_end = problem.t1_is_law_end && law.law() ? law.knot(law.law()->segments())
+                                                  : text_derivative(problem, problem.texts.t1, D, np);
 
   auto rd = problem.make_reference_dynamics();
-  Evaluator ev(T, pvals);
+  Evaluator ev(T, pvals, law_local ? law.law() : nullptr, law_var);
   // Directions: rows t | q | q̇ | z | q̈ | λ | p (the last only for parameter columns).
-  // `tdot`: ∂t/∂p of the evaluation time (a time on the plan's grid moves when t1 does).
+  // `tdot`: ∂t/∂p of the evaluation time t (a time on the plan's grid moves when t1 does).
   // One buffer for every stage (the rows of q̈ and λ stay zero unless a caller fills them).
   Eigen::MatrixXd V_buffer(T.nv, np);
-  auto directions = [&](const Eigen::MatrixXd& S, const Eigen::RowVectorXd& tdot) -> Eigen::MatrixXd& {
+  auto directions = [&](const Eigen::MatrixXd& S, double t, const Eigen::RowVectorXd& tdot) -> Eigen::MatrixXd& {
     Eigen::MatrixXd& V = V_buffer;
     V.setZero();
     V.row(0) = tdot;
@@ -388,6 +469,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
     V.middleRows(T.o_qd, n) = S.middleRows(n, n);
     if (nz) V.middleRows(T.o_z, nz) = S.bottomRows(nz);
     if (npv) V.bottomRows(npv) = Dp;
+    if (law_local) law.directions(t, tdot, law_row, V);
     return V;
   };
   Eigen::VectorXd xdot(nx);
@@ -417,7 +499,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
       rd->derivative(t, x, xdot);
       ev.at(t, x, rd->qdd(), rd->lambda(), outputs);
     }
-    ev.along(directions(S, tdot), dqdd, dlam, dzdot);
+    ev.along(directions(S, t, tdot), dqdd, dlam, dzdot);
     K.resize(nx, np);
     K.topRows(n) = S.middleRows(n, n);
     K.middleRows(n, n) = dqdd;
@@ -451,7 +533,7 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
     auto solve_dependent = [&](const Eigen::MatrixXd& G, int offset, const std::vector<int>& rows, int block,
                                const Eigen::VectorXd& moved, const char* what) {
       if (rows.empty() || dep.empty()) return;
-      const Eigen::MatrixXd V = directions(S, no_time);
+      const Eigen::MatrixXd V = directions(S, t0, no_time);
       Eigen::MatrixXd r(rows.size(), np), K(rows.size(), dep.size());
       for (size_t i = 0; i < rows.size(); ++i) {
         r.row(i) = G.row(rows[i]) * V;
@@ -470,76 +552,85 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
     solve_dependent(ev.phid_gradient(), T.o_qd, vel, 1, problem.initial_dqd, "velocity");
   }
 
-  // The sample bookkeeping of integrate_rk4 (the plan's grid).
+  // The plan's grid (Rk4Grid, as integrate_rk4 steps it).
   const IntegratorOptions& o = problem.integrator;
-  const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
-  const double h = (o.t1 - o.t0) / nsteps;
-  const long every = o.output_interval > 0 ? std::max(1L, std::lround(o.output_interval / h)) : 1L;
+  const Rk4Grid grid(o);
+  const long nsteps = grid.steps();
   const size_t samples = plan.t.size();
   Eigen::MatrixXd Ss;
-  // ∂t/∂p of a time of the grid: t0 + (k + c)·h with h = (t1 − t0)/nsteps.
+  // ∂t/∂p of the grid's times. Uniform grid: t0 + (k + c)·h with h = (t1 − t0)/nsteps, so a time
+  // moves by (t − t0)/(t1 − t0)·∂t1/∂p. With breakpoints (a time law's knots, IntegratorOptions::
+  // breakpoints) each part [b_j, b_{j+1}] has its own n_j equal steps, and its grid moves with its
+  // ends: b_j + (k + c)/n_j·(b_{j+1} − b_j). The knots, where s̈ jumps, stay on the grid as they
+  // move, so the RK4 map differentiated as it is follows them: no jump condition is needed.
   auto time_rate = [&](double t) -> Eigen::RowVectorXd { return (t - t0) / (t1 - t0) * out.dt_end; };
+  std::vector<Eigen::RowVectorXd> part_end;  // ∂b_j/∂p, j = 0 … B + 1
+  std::vector<long> part_first;               // the first step of each part
+  if (!grid.uniform()) {
+    part_end.push_back(Eigen::RowVectorXd::Zero(np));
+    for (long k = 0; k < nsteps; ++k)
+      if (k == 0 || grid.part(k) != grid.part(k - 1)) part_first.push_back(k);
+    part_first.push_back(nsteps);
+    const std::vector<double>& knots = problem.time_law_knots;
+    for (size_t j = 1; j + 1 < part_first.size(); ++j) {
+      const double b = grid.start(part_first[j]);
+      const auto it = std::find(knots.begin(), knots.end(), b);
+      if (!law.law() || it == knots.end())
+        throw Error("sensitivities: the integrator's breakpoint t = " + fmt(b) + " s is not a knot of the time law");
+      part_end.push_back(law.knot(static_cast<int>(it - knots.begin())));
+    }
+    part_end.push_back(out.dt_end);
+  }
+  // ∂/∂p of the start of step k and of its size.
+  Eigen::RowVectorXd dstart(np), dh(np);
+  auto step_rates = [&](long k) {
+    if (grid.uniform()) {
+      dstart = time_rate(grid.start(k));
+      dh = out.dt_end / static_cast<double>(nsteps);
+      return;
+    }
+    const size_t j = static_cast<size_t>(grid.part(k));
+    const double nj = static_cast<double>(part_first[j + 1] - part_first[j]);
+    dh = (part_end[j + 1] - part_end[j]) / nj;
+    dstart = part_end[j] + static_cast<double>(k - part_first[j]) * dh;
+  };
+  // ∂t/∂p of stage time t = start + c h of step k (after step_rates(k)).
+  auto stage_rate = [&](double t, double c) -> Eigen::RowVectorXd {
+    return grid.uniform() ? time_rate(t) : Eigen::RowVectorXd(dstart + c * dh);
+  };
   // A sample's evaluation is also the first stage of the next step (same t, x, S): kept.
   Eigen::MatrixXd K_sample;
   Eigen::VectorXd xdot_sample;
-  auto record = [&](double t, const Eigen::VectorXd& xs, const Eigen::MatrixXd& Sx, long step) {
-    const Eigen::RowVectorXd tdot = time_rate(t);
+  auto record = [&](double t, const Eigen::RowVectorXd& tdot, const Eigen::VectorXd& xs, const Eigen::MatrixXd& Sx,
+                    long step) {
     rate(t, xs, Sx, tdot, K_sample, true, step, 0);
     xdot_sample = xdot;
-    Eigen::MatrixXd& V = directions(Sx, tdot);  // the buffer, with the changes of q̈ and λ, which τ reads
+    Eigen::MatrixXd& V = directions(Sx, t, tdot);  // the buffer, with the changes of q̈ and λ, which τ reads
     V.middleRows(T.o_qdd, n) = dqdd;
     if (m) V.middleRows(T.o_lam, m) = dlam;
     Eigen::MatrixXd dph(m, np);
     for (int r = 0; r < m; ++r)
       dph.row(r) = (problem.constraints.row_order(r) == 1 ? ev.phid_gradient() : ev.phi_gradient()).row(r) * V;
     out.t.push_back(t);
+    out.dt.push_back(tdot);
     out.dx.push_back(Sx);
     out.dqdd.push_back(dqdd);
     out.deffort.push_back(ev.effort_gradient() * V);
     out.dphi.push_back(std::move(dph));
   };
-  record(t0, x, S, -1);  // evaluated (not the stored stage): the check below compares the two routes
+  record(t0, time_rate(t0), x, S, -1);  // evaluated (not the stored stage): the check below compares the two routes
   if (!(ev.residual() <= 1e-7 * ev.scale(rd->qdd(), rd->lambda())))
     throw Error("sensitivities: the generated equations do not match the reference dynamics at t0 (KKT residual " +
                 fmt(ev.residual()) + "); please report this scenario");
   // The RK4 map x⁺ = x + h/6 (k₁ + 2k₂ + 2k₃ + k₄), stages at t + c h, differentiated as it is,
-  // with h = (t1 − t0)/nsteps and the stage times moving when t1 does.
-  const Eigen::RowVectorXd dh = out.dt_end / static_cast<double>(nsteps);
-  // The time law's knots inside (t0, t1): there s̈ jumps, and the knots move with the parameters
-  // (∂t_k/∂p from their texts). The RK4 map, differentiated with its stages on their (moving)
-  // grid, does not see a discontinuity move past them; the solution of the ODE does: at a moving
-  // jump of the right-hand side, S⁺ = S⁻ + (f⁻ − f⁺) ∂t_k/∂p (the sensitivity jump condition),
-  // here with the knot's motion relative to the grid's, applied in the step that holds t_k with
-  // the state interpolated there. Without it the derivatives were off by ~1 % on a knot-speed
-  // law (tests/sensitivity_test.cpp, UnderAKnotSpeedLawTheMovingKnotsAreFollowed).
-  // Every knot whose motion relative to the grid is not zero counts, also one whose own time
-  // does not depend on the requested parameters: under `t1: end` the grid moves with every
-  // knot speed (time_rate), so such a knot moves relative to it (tests/sensitivity_test.cpp,
-  // UnderATimeLawEveryParameterSubsetGivesTheSameColumns).
-  struct Knot {
-    double t;
-    Eigen::RowVectorXd rel;  ///< ∂t_k/∂p − ∂t_grid(t_k)/∂p
-  };
-  std::vector<Knot> knots;
-  for (size_t i = 0; i < problem.time_law_knots.size() && i < problem.time_law_knot_texts.size(); ++i) {
-    const double tk = problem.time_law_knots[i];
-    if (tk > t0 && tk < o.t1) {
-      Knot kn{tk, text_derivative(problem, problem.time_law_knot_texts[i], D, np) - time_rate(tk)};
-      if (!kn.rel.isZero(0)) {
-        out.knot_t.push_back(tk);
-        out.knot_dt.push_back(kn.rel);
-        knots.push_back(std::move(kn));
-      }
-    }
-  }
-  size_t next_knot = 0;
-  Eigen::VectorXd f_before(nx), f_after(nx), xk(nx);
+  // with h and the stage times moving with the grid.
   static constexpr double c[4] = {0.0, 0.5, 0.5, 1.0}, w[4] = {1.0, 2.0, 2.0, 1.0};
   Eigen::MatrixXd Kst[4], Sacc(nx, np);
   Eigen::VectorXd kst[4], xs(nx), xacc(nx);
   bool sampled = true;  // the step starts on a sample (recorded, its evaluation kept)
   for (long k = 0; k < nsteps && out.t.size() < samples; ++k) {
-    const double t = t0 + k * h;
+    const double t = grid.start(k), h = grid.size(k);
+    step_rates(k);
     xacc.setZero();
     Sacc.setZero();
     for (int st = 0; st < 4; ++st) {
@@ -549,32 +640,21 @@ PlanSensitivity plan_sensitivity(const Problem& problem, const Plan& plan, const
         xs += (c[st] * h) * kst[st - 1];
         Ss += (c[st] * h) * Kst[st - 1] + c[st] * kst[st - 1] * dh;
       }
-      const double ts = t + c[st] * h;
+      const double ts = st == 3 ? grid.stage_time(k, 1.0) : t + c[st] * h;  // as integrate_rk4
       if (st == 0 && sampled) {
         Kst[0].swap(K_sample);
         kst[0].swap(xdot_sample);
       } else {
-        rate(ts, xs, Ss, time_rate(ts), Kst[st], false, k, st);
+        rate(ts, xs, Ss, stage_rate(ts, c[st]), Kst[st], false, k, st);
         kst[st] = xdot;
       }
       xacc += w[st] * kst[st];
       Sacc += w[st] * Kst[st];
     }
-    const double tn = (k + 1 == nsteps) ? o.t1 : o.t0 + (k + 1) * h;
-    for (; next_knot < knots.size() && knots[next_knot].t <= tn; ++next_knot) {
-      const Knot& kn = knots[next_knot];
-      if (kn.t <= t) continue;
-      xk = x + ((kn.t - t) / h) * ((h / 6.0) * xacc);  // the state at t_k (linear in the step)
-      rd->derivative(std::nextafter(kn.t, -std::numeric_limits<double>::infinity()), xk, f_before);
-      rd->derivative(kn.t, xk, f_after);
-      // Relative to the grid: the stage times move too (time_rate), and the map's derivative
-      // already follows the solution along them; only the knot's motion past them is a jump.
-      S += (f_before - f_after) * kn.rel;
-    }
     x += (h / 6.0) * xacc;
     S += (h / 6.0) * Sacc + (1.0 / 6.0) * xacc * dh;
-    sampled = (k + 1) % every == 0 || k + 1 == nsteps;
-    if (sampled) record(tn, x, S, k + 1);
+    sampled = grid.sample(k);
+    if (sampled) record(grid.end(k), grid.uniform() ? time_rate(grid.end(k)) : Eigen::RowVectorXd(dstart + dh * 1.0), x, S, k + 1);
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
@@ -603,21 +683,18 @@ Eigen::MatrixXd metric_gradients(const Problem& problem, const Plan& plan, const
         if (mt.sample >= 0) G.row(i) = mt.sign * s.dphi[k].row(mt.joint);
         break;
       case MetricKind::EffortEnergy: {
-        // trapezoid: Σ ½ Δt_k (|τ_k|² + |τ_{k+1}|²); the intervals scale with t1 − t0
+        // trapezoid: Σ ½ Δt_k (|τ_k|² + |τ_{k+1}|²); the intervals move with the samples (on a
+        // uniform grid they scale with t1 − t0; with breakpoints each part's with its ends)
         Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(np);
+        const bool uniform = problem.integrator.breakpoints.empty() || s.dt.size() < static_cast<size_t>(K);
         for (long j = 0; j + 1 < K && j + 1 < static_cast<long>(plan.actuator_effort.size()); ++j) {
           const double dt = plan.t[j + 1] - plan.t[j];
           const Eigen::VectorXd &a = plan.actuator_effort[j], &b = plan.actuator_effort[j + 1];
           g += dt * (a.transpose() * s.deffort[j] + b.transpose() * s.deffort[j + 1]);
-          g += 0.5 * (a.squaredNorm() + b.squaredNorm()) * dt / (t1 - t0) * s.dt_end;
-        }
-        // A knot moving past the samples moves the jump of |τ|² with it: (|τ⁻|² − |τ⁺|²) times
-        // its motion relative to the grid (the samples on either side; first order in the step).
-        for (size_t q = 0; q < s.knot_t.size(); ++q) {
-          const auto it = std::upper_bound(plan.t.begin(), plan.t.begin() + K, s.knot_t[q]);
-          const long j = static_cast<long>(it - plan.t.begin());
-          if (j <= 0 || j >= K || j >= static_cast<long>(plan.actuator_effort.size())) continue;
-          g += (plan.actuator_effort[j - 1].squaredNorm() - plan.actuator_effort[j].squaredNorm()) * s.knot_dt[q];
+          if (uniform)
+            g += 0.5 * (a.squaredNorm() + b.squaredNorm()) * dt / (t1 - t0) * s.dt_end;
+          else
+            g += 0.5 * (a.squaredNorm() + b.squaredNorm()) * (s.dt[j + 1] - s.dt[j]);
         }
         G.row(i) = g;
         break;

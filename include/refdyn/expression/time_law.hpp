@@ -25,6 +25,7 @@
 #include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/expression/time_function.hpp"
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -55,6 +56,34 @@ class TimeLaw {
   const std::vector<double>& knots() const { return knots_; }  ///< t_0 = 0, t_1, …, t_K
   /// Knot slope m_i = ṡ(t_i) (i = 0..K); for the knot_speeds form v_i.
   double slope(int i) const { return m_[i]; }
+  /// The law's numbers as written: task_duration and d_1 … d_K (segments) or v_1 … v_{K−1}
+  /// (knot_speeds). Below, θ_0 = task_duration and θ_{1+j} = values()[j].
+  const Number& task_duration_number() const { return Tp_; }
+  const std::vector<Number>& values() const { return d_; }
+
+  /// s, ṡ, s̈ at a fixed t and their exact derivatives in the law's numbers θ, by code (dual
+  /// numbers through the same part formulas as eval): the part i holding t depends on its start
+  /// knot t_{i−1} (which depends on every part before it: knot_derivatives) and directly on at most
+  /// four θ (segments: Tp, d_{i−1}, d_i, d_{i+1}; knot_speeds: Tp, v_{i−1}, v_i). For any K the
+  /// cost is constant. Outside [0, end] the law is constant (0 before, Tp after: ∂s/∂Tp = 1).
+  struct Jet {
+    TimeLawValue value;                          ///< eval(t)
+    int knot = -1;                               ///< i − 1 (−1: t outside the law)
+    std::array<int, 4> theta{-1, -1, -1, -1};    ///< the θ the part depends on directly (−1: none)
+    std::array<std::array<double, 4>, 3> d{};    ///< d[k][l] = ∂(s, ṡ, s̈)_k/∂θ_{theta[l]}
+    std::array<double, 3> dknot{};               ///< ∂(s, ṡ, s̈)_k/∂t_{i−1}
+  };
+  Jet jet(double t) const;
+  /// ∂t_i/∂θ for i = 0 … K as dense rows over θ (K + 1 rows of 1 + values().size()), each the
+  /// sum of the parts' durations' derivatives before it (t_0 = 0): O(K²) numbers, for tests; the
+  /// sensitivities accumulate the same sums in the chosen parameters (duration_jet).
+  std::vector<std::vector<double>> knot_derivatives() const;
+  /// ∂(t_i − t_{i−1})/∂θ of part i = 1 … K: at most three θ (−1: none).
+  struct DurationJet {
+    std::array<int, 3> theta{-1, -1, -1};
+    std::array<double, 3> d{};
+  };
+  DurationJet duration_jet(int i) const;
   /// s(t) as a text of the expression language in t: a chain of if(t < t_i, piece_i, …) with the
   /// durations (or knot speeds) and Tp written as their scenario texts (parameter names stay
   /// symbols); for knot_speeds the knot times t_i are written as sums of 2Δτ/(v_j + v_{j+1}).
@@ -73,6 +102,28 @@ class TimeLaw {
   std::vector<double> knots_, m_;
 };
 using TimeLawPtr = std::shared_ptr<const TimeLaw>;
+
+/// The symbols of the local form of s(t) (LocalTimeLawForm): t_c, s(t_c), ṡ(t_c), s̈(t_c).
+inline constexpr std::array<const char*, 4> kTimeLawSymbols{"rd_tl_t", "rd_tl_s", "rd_tl_ds", "rd_tl_dds"};
+
+/// While an object of this type lives (in this thread), symbolic() of a function on a time law
+/// (time_law_function) writes s(t) not as the law's piecewise text but as its local form
+///     rd_tl_s + rd_tl_ds·(t − rd_tl_t) + rd_tl_dds·(t − rd_tl_t)²/2,
+/// in the four symbols kTimeLawSymbols, which the caller binds to t_c = t and to s, ṡ, s̈ of the
+/// law at t (TimeLaw::eval): at t = t_c its value and its first two time derivatives are the
+/// law's, exactly, so constraints of order ≤ 2 and their γ differentiated from it are exact; the
+/// text has the same size for any K. The sensitivities (symbolic/sensitivity.hpp) evaluate the law
+/// natively this way; `refdyn generate` writes the piecewise text (symbolic_text).
+class LocalTimeLawForm {
+ public:
+  LocalTimeLawForm();
+  ~LocalTimeLawForm();
+  LocalTimeLawForm(const LocalTimeLawForm&) = delete;
+  LocalTimeLawForm& operator=(const LocalTimeLawForm&) = delete;
+
+ private:
+  bool before_;
+};
 
 /// f(s(t)): f' ṡ, f'' ṡ² + f' s̈, f''' ṡ³ + 3 f'' ṡ s̈ + f' s⃛ (Faà di Bruno). Its symbolic form is
 /// f's with every `t` replaced by the text of s(t).

@@ -97,9 +97,11 @@ struct Problem {
   /// The knot times t_0 = 0, t_1, …, t_K of the scenario's time law (empty: none); the parts
   /// of the per-part metrics (simulate/metrics.hpp).
   std::vector<double> time_law_knots;
-  /// The same knot times as texts of the scenario's parameters (TimeLaw::knot_text): the
-  /// sensitivities follow the knots, where s̈ jumps, as they move (symbolic/sensitivity.hpp).
-  std::vector<std::string> time_law_knot_texts;
+  /// The scenario's time law itself (null: none): the sensitivities evaluate it and its
+  /// derivatives in its numbers natively (symbolic/sensitivity.hpp).
+  TimeLawPtr time_law;
+  /// integrator.t1 was written `end`: t1 is the time law's end and moves with its numbers.
+  bool t1_is_law_end = false;
   /// The plan stops (status ResidualExceeded, exit 4) at the first sample with t >= residual_from
   /// whose constraint residual max |Phi| exceeds this: beyond it the plan no longer meets its
   /// task (`integrator.residual_tolerance`, docs/scenario.md).

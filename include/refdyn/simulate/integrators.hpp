@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace refdyn {
 
@@ -29,6 +30,12 @@ struct IntegratorOptions {
   double min_step = 1e-12;       ///< Dormand–Prince, BDF: smaller steps mean the run has collapsed
   long max_steps = 100'000'000;  ///< accepted steps over the whole run
   int max_order = 5;             ///< BDF: highest order, 1…5 (BDF1 = implicit Euler)
+  /// Times in (t0, t1), increasing, where the right-hand side may jump (a time law's knots, where
+  /// s̈ does): RK4 takes equal steps of at most `step` on each part between them (Rk4Grid), so
+  /// its steps land on them; Dormand–Prince and BDF stop there and restart. A step that ends on
+  /// a breakpoint evaluates its last stages at the double just below it (the left limit), the
+  /// next step starts at the breakpoint itself. Empty: none (RK4's uniform grid).
+  std::vector<double> breakpoints;
   /// Throws refdyn::Error naming the bad field.
   void validate() const;
 };
@@ -121,6 +128,41 @@ using OdeStageRhs = std::function<void(const Stage& stage, double t, const Eigen
 IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, const IntegratorOptions& options,
                                     const OdeObserver& observer = {}, const OdeJacobian& jacobian = {},
                                     const OdeProjection& projection = {});
+
+/// The RK4 grid of `o`: step k runs from start(k) to end(k) (end of the last: exactly t1).
+/// Without breakpoints N = ⌈(t1 − t0)/step⌉ equal steps h = (t1 − t0)/N, start(k) = t0 + k h,
+/// and every ⌊output_interval/h⌉-th step end is an output sample (output_interval 0: each).
+/// With breakpoints b_1 < … < b_B each part [b_j, b_{j+1}] (b_0 = t0, b_{B+1} = t1) takes
+/// ⌈(b_{j+1} − b_j)/step⌉ equal steps, so step ends land on the breakpoints; the output samples
+/// are every step end for output_interval 0, else the first step end at or after each multiple of
+/// output_interval past t0, and the last. stage_time(k, c) is the time of RK4's stage at
+/// start(k) + c·h(k), or just below end(k) (std::nextafter) when c = 1 and end(k) is a
+/// breakpoint: the right-hand side's left limit there.
+class Rk4Grid {
+ public:
+  explicit Rk4Grid(const IntegratorOptions& o);
+  long steps() const { return steps_; }
+  double start(long k) const { return times_.empty() ? t0_ + k * h_ : times_[static_cast<size_t>(k)]; }
+  double end(long k) const {
+    return k + 1 == steps_ ? t1_ : times_.empty() ? t0_ + (k + 1) * h_ : times_[static_cast<size_t>(k) + 1];
+  }
+  double size(long k) const { return times_.empty() ? h_ : steps_h_[static_cast<size_t>(k)]; }
+  double stage_time(long k, double c) const;
+  bool sample(long k) const {  ///< end(k) is an output sample
+    return times_.empty() ? (k + 1) % every_ == 0 || k + 1 == steps_ : samples_[static_cast<size_t>(k)] != 0;
+  }
+  /// The part (0 … B) that step k lies in, and its first step (with breakpoints; else 0).
+  int part(long k) const { return parts_.empty() ? 0 : parts_[static_cast<size_t>(k)]; }
+  bool uniform() const { return times_.empty(); }
+  double uniform_step() const { return h_; }  ///< h of the uniform grid (no breakpoints)
+
+ private:
+  double t0_ = 0, t1_ = 0, h_ = 0;
+  long steps_ = 0, every_ = 1;
+  std::vector<double> times_, steps_h_;  ///< with breakpoints: step starts (and t1), step sizes
+  std::vector<char> samples_, ends_on_break_;
+  std::vector<int> parts_;
+};
 
 /// One classical RK4 step of size h in place, with caller-provided scratch (k1..k4, tmp: size
 /// of x). No heap allocation.

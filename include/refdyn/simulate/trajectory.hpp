@@ -14,6 +14,7 @@ namespace refdyn {
 /// The reference's RK4 stage values, recorded once (see the header comment).
 struct ReferenceStages {
   double t0 = 0, h = 0;
+  std::vector<double> breakpoints; ///< the grid's breakpoints (IntegratorOptions::breakpoints, Rk4Grid)
   long steps = 0;                  ///< complete steps recorded
   int n = 0;
   std::vector<double> data;        ///< per step, per stage (4), [q̂, q̂̇, q̂̈] (3n doubles)

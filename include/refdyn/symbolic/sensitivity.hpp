@@ -31,11 +31,10 @@ struct PlanSensitivity {
   std::vector<Eigen::MatrixXd> deffort;     ///< per sample: ∂τ/∂p of the actuator effort (n × np)
   std::vector<Eigen::MatrixXd> dphi;        ///< per sample: ∂Φ/∂p of the constraint rows (m × np)
   Eigen::RowVectorXd dt_end;                ///< ∂t_end/∂p (a final time written with a parameter)
-  /// A time law's knots inside (t0, t1) whose time depends on the parameters, and the motion of
-  /// each relative to the plan's (moving) grid, ∂t_k/∂p − ∂t_grid(t_k)/∂p: where s̈ jumps, for the
-  /// jump terms of the state and of integrals over the plan (effort_energy).
-  std::vector<double> knot_t;
-  std::vector<Eigen::RowVectorXd> knot_dt;
+  /// per sample: ∂t/∂p of its time (the grid moves with t1 and, on a time law's knots, with each
+  /// knot: IntegratorOptions::breakpoints); the columns of dx, dqdd, … are total derivatives at
+  /// the moving sample.
+  std::vector<Eigen::RowVectorXd> dt;
   double seconds = 0;                       ///< wall time of the sensitivity computation
 };
 
