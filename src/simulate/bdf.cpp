@@ -220,8 +220,10 @@ IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, E
     long taken = 0;
     int flag = 0;
     sunrealtype reached = o.t0;
-    // Through the breakpoints before tout: to each, then a restart there.
-    while (next_break < breaks.size() && breaks[next_break] < tout) {
+    // Through the breakpoints up to tout: to each, then a restart there (on tout itself the state
+    // is the one CVODE stopped with).
+    bool on_break = false;
+    while (next_break < breaks.size() && breaks[next_break] <= tout) {
       CVodeGetNumSteps(cv.mem, &taken);
       check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - restarted.steps - taken)), "CVodeSetMaxNumSteps");
       flag = CVode(cv.mem, breaks[next_break], cv.y, &reached, CV_NORMAL);
@@ -231,10 +233,11 @@ IntegrationSummary integrate_bdf(const OdeStageRhs& f, const OdeJacobian& jac, E
       check(CVodeReInit(cv.mem, b, cv.y), "CVodeReInit");
       cb.stop = next_break < breaks.size() ? breaks[next_break] : std::numeric_limits<double>::infinity();
       check(CVodeSetStopTime(cv.mem, next_break < breaks.size() ? breaks[next_break] : o.t1), "CVodeSetStopTime");
+      on_break = b == tout;
     }
     CVodeGetNumSteps(cv.mem, &taken);
     check(CVodeSetMaxNumSteps(cv.mem, std::max(1L, o.max_steps - restarted.steps - taken)), "CVodeSetMaxNumSteps");
-    if (flag >= 0) flag = CVode(cv.mem, tout, cv.y, &reached, CV_NORMAL);
+    if (flag >= 0 && !on_break) flag = CVode(cv.mem, tout, cv.y, &reached, CV_NORMAL);
     if (cb.other) std::rethrow_exception(cb.other);
     if (flag < 0) {
       collect(cv.mem, s, restarted);
