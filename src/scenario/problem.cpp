@@ -661,7 +661,8 @@ void build_limits(const SpecReader& c, const ScenarioSpec& spec, Problem& s) {
     const SpecValue& at = spec.integrator.value ? spec.integrator.value : spec.root;
     double samples;
     if (o.method == IntegratorMethod::RK4) {
-      const double steps = std::ceil(span / o.step - 1e-9);
+      // with breakpoints (a time law's knots) each part has its own ⌈part/step⌉ steps: at most one more per part
+      const double steps = std::ceil(span / o.step - 1e-9) + static_cast<double>(o.breakpoints.size());
       if (steps > static_cast<double>(lim.max_steps))
         c.fail(at, "integrator",
                "(t1 - t0)/step = " + count_text(steps) + " steps, more than limits.max_steps = " + std::to_string(lim.max_steps) +
