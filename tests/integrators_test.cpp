@@ -478,3 +478,36 @@ TEST(Integrators, BreakpointsAreLandedOnAndApproachedFromTheLeft) {
     EXPECT_GT((y - exact(t1)).cwiseAbs().maxCoeff(), 1e-5);
   }
 }
+
+// No stage is evaluated past t1: on the last step t + h can round one ulp above t1 (here
+// t1 = 1.063 with step 0.05: (n − 1)·h + h = t1 + 2.2e-16, with and without a breakpoint), and a
+// time law is at rest past its end, so such a stage saw s̈ = 0 instead of the final deceleration
+// (+3.3 % effort at the last sample of the 8-part rotor: tests/phase_plane_test.cpp). The last
+// stage of every RK4 step is at the step's end as the grid holds it (on a breakpoint: below it).
+TEST(Integrators, NoStageIsEvaluatedPastT1) {
+  const double t1 = 1.063;
+  for (const bool with_break : {false, true}) {
+    for (const IntegratorMethod method : {IntegratorMethod::RK4, IntegratorMethod::DormandPrince45}) {
+      SCOPED_TRACE(std::string(to_string(method)) + (with_break ? ", breakpoint 0.3337" : ", no breakpoint"));
+      IntegratorOptions o;
+      o.method = method;
+      o.t0 = 0;
+      o.t1 = t1;
+      o.step = 0.05;
+      if (with_break) o.breakpoints = {0.3337};
+      double latest = -1;
+      auto f = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
+        latest = std::max(latest, t);
+        dx = -x;
+      };
+      Eigen::VectorXd x = Eigen::VectorXd::Ones(1);
+      ASSERT_TRUE(integrate(f, x, o).ok());
+      EXPECT_EQ(latest, t1);
+      if (method != IntegratorMethod::RK4) continue;
+      const Rk4Grid grid(o);
+      const long last = grid.steps() - 1;
+      EXPECT_GT(grid.start(last) + grid.size(last), t1);  // the rounding this test is about
+      for (long k = 0; k < grid.steps(); ++k) EXPECT_LE(grid.stage_time(k, 1.0), grid.end(k)) << "step " << k;
+    }
+  }
+}
