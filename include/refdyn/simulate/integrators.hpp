@@ -136,8 +136,9 @@ IntegrationSummary integrate_staged(const OdeStageRhs& f, Eigen::VectorXd& x, co
 /// ⌈(b_{j+1} − b_j)/step⌉ equal steps, so step ends land on the breakpoints; the output samples
 /// are every step end for output_interval 0, else the first step end at or after each multiple of
 /// output_interval past t0, and the last. stage_time(k, c) is the time of RK4's stage at
-/// start(k) + c·h(k), or just below end(k) (std::nextafter) when c = 1 and end(k) is a
-/// breakpoint: the right-hand side's left limit there.
+/// start(k) + c·h(k), never past t1 (start + h can round one ulp past it, and past t1 a time law
+/// is at rest): with breakpoints the c = 1 stage is at end(k) itself, and just below end(k)
+/// (std::nextafter) when end(k) is a breakpoint, the right-hand side's left limit there.
 class Rk4Grid {
  public:
   explicit Rk4Grid(const IntegratorOptions& o);
