@@ -597,6 +597,7 @@ std::string AuxiliaryTexts::ref(int id, int level) {
     memo_.erase(id);
     return name_[id];
   }
+  if (uses_[id] < 2) memo_.erase(id);  // used once: not asked for again
   return low_at(n, level) ? "(" + s + ")" : s;
 }
 
