@@ -1,30 +1,36 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/: expression parser, scenario parser,
 # problem builder, code generator on random chains) with clang and
-# -fsanitize=fuzzer,address,undefined into build-fuzz/, and runs each for SECONDS (default 60).
+# -fsanitize=fuzzer,address,undefined into build-asan/ (the sanitizer suite's build, configured
+# the same way: scripts/test-sanitizers.sh), and runs each for SECONDS (default 60), JOBS
+# targets at a time.
 #   bash scripts/fuzz.sh [SECONDS]
 # Seed corpora are made at run time from tests/data/** and examples/**/*.yaml (nothing is
 # committed). A finding (crash, any exception other than refdyn::Error, leak, UB, timeout,
-# out-of-memory) stops that target; its input is kept as build-fuzz/findings/<target>/crash-*,
+# out-of-memory) stops that target; its input is kept as build-asan/findings/<target>/crash-*,
 # leak-*, timeout-* or oom-*, and the script exits 1 after running all targets.
-# Environment: FUZZ_BUILD_DIR (build-fuzz), FUZZ_OUT (build-fuzz/findings), FUZZ_TARGETS (both),
+# Environment: FUZZ_BUILD_DIR (build-asan), FUZZ_OUT (build-asan/findings), FUZZ_TARGETS (both),
 # FUZZ_CORPUS_DIR (keep the grown corpora there instead of a temporary folder), JOBS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${1:-60}
 [[ "$SECS" =~ ^[0-9]+$ ]] || { echo "usage: scripts/fuzz.sh [SECONDS]" >&2; exit 1; }
-BUILD_DIR=${FUZZ_BUILD_DIR:-build-fuzz}
+BUILD_DIR=${FUZZ_BUILD_DIR:-${ASAN_BUILD_DIR:-build-asan}}
 OUT=${FUZZ_OUT:-$BUILD_DIR/findings}
 TARGETS=${FUZZ_TARGETS:-expression_fuzz scenario_fuzz problem_fuzz generate_fuzz}
 JOBS=${JOBS:-$(nproc)}
-CXX_FUZZ=${CXX_FUZZ:-clang++-14}
+CXX_FUZZ=${CXX_FUZZ:-${SANITIZER_CXX:-clang++-14}}
+CC_FUZZ=${CC_FUZZ:-${SANITIZER_CC:-clang-14}}
 
 bash scripts/install-deps.sh
 mkdir -p "$BUILD_DIR"
-# -O1 -g1, as the sanitizer build: line tables for the reports' file:line are all a finding needs
+# The configuration of scripts/test-sanitizers.sh (-O1 -g1, clang, ASan + UBSan): after the
+# sanitizer suite the library is up to date and only the four fuzz executables are compiled
 # (the stage's measured time is in docs/testing.md, "CI time").
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DCMAKE_CXX_COMPILER="$CXX_FUZZ" \
-  -DREFDYN_FUZZ=ON > "$BUILD_DIR/configure.log" 2>&1 || { cat "$BUILD_DIR/configure.log"; exit 1; }
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
+  -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1" -DCMAKE_CXX_COMPILER="$CXX_FUZZ" -DCMAKE_C_COMPILER="$CC_FUZZ" \
+  -DREFDYN_SANITIZE=address,undefined -DREFDYN_FUZZ=ON > "$BUILD_DIR/configure.log" 2>&1 ||
+  { cat "$BUILD_DIR/configure.log"; exit 1; }
 # shellcheck disable=SC2086
 cmake --build "$BUILD_DIR" -j "$JOBS" --target $TARGETS
 
@@ -67,10 +73,9 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 SYMB=$(command -v llvm-symbolizer-14 || command -v llvm-symbolizer || true)
 [[ -n "$SYMB" ]] && export ASAN_SYMBOLIZER_PATH=$SYMB
 
-status=0
-for t in $TARGETS; do
+run_target() {  # TARGET: runs one target for SECS, prints its result; exit 1 on a finding
+  local t=$1 log="$OUT/$1.log" rc execs
   mkdir -p "$OUT/$t"
-  log="$OUT/$t.log"
   echo "fuzz: $t for ${SECS}s (seeds: $(ls "$WORK/$t" | wc -l), findings go to $OUT/$t/, log $log)"
   set +e
   "$BUILD_DIR/fuzz/$t" -max_total_time="$SECS" -rss_limit_mb=2048 -timeout=20 -max_len=8192 \
@@ -80,12 +85,27 @@ for t in $TARGETS; do
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   if [[ $rc -eq 0 ]]; then
     echo "fuzz: $t: OK, ${execs:-?} executions in ${SECS}s, no finding"
-  else
-    status=1
-    echo "fuzz: $t: FINDING (exit $rc) after ${execs:-?} executions; input kept:" \
-         "$(ls -t "$OUT/$t" | head -1 | sed "s|^|$OUT/$t/|")"
-    grep -m1 -E 'ERROR: |runtime error:|terminate called|uncaught exception|==ERROR' "$log" || true
-    echo "fuzz: full report in $log"
+    return 0
   fi
+  echo "fuzz: $t: FINDING (exit $rc) after ${execs:-?} executions; input kept:" \
+       "$(ls -t "$OUT/$t" | head -1 | sed "s|^|$OUT/$t/|")"
+  grep -m1 -E 'ERROR: |runtime error:|terminate called|uncaught exception|==ERROR' "$log" || true
+  echo "fuzz: full report in $log"
+  return 1
+}
+
+# JOBS targets at a time (each libFuzzer process uses one core).
+status=0
+declare -a pids=()
+for t in $TARGETS; do
+  run_target "$t" &
+  pids+=($!)
+  if (( ${#pids[@]} >= JOBS )); then
+    wait "${pids[0]}" || status=1
+    pids=("${pids[@]:1}")
+  fi
+done
+for p in "${pids[@]}"; do
+  wait "$p" || status=1
 done
 exit $status

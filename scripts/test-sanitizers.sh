@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
-# Builds refdyn with AddressSanitizer + UndefinedBehaviorSanitizer (gcc; -O1 -g1, assertions and
+# Builds refdyn with AddressSanitizer + UndefinedBehaviorSanitizer (clang; -O1 -g1, assertions and
 # Eigen's bounds checks on, no -march=native, no benchmarks) into build-asan/ and runs the
 # whole CTest suite there. Any sanitizer report fails the test that triggered it.
+# The same build holds the libFuzzer targets (REFDYN_FUZZ=ON: everything also carries the
+# fuzzer's coverage instrumentation), so scripts/fuzz.sh reuses it instead of compiling the
+# library a third time (docs/testing.md, "CI time").
 #   bash scripts/test-sanitizers.sh            # REFDYN_SANITIZE=address,undefined
-#   REFDYN_SANITIZE=undefined bash scripts/test-sanitizers.sh
-# Environment: ASAN_BUILD_DIR (build-asan), REFDYN_SANITIZE, JOBS (nproc).
+#   REFDYN_SANITIZE=undefined bash scripts/test-sanitizers.sh    # gcc or clang, no fuzz targets
+#   SANITIZER_CXX=g++ SANITIZER_CC=gcc bash scripts/test-sanitizers.sh   # gcc, no fuzz targets
+# Environment: ASAN_BUILD_DIR (build-asan), REFDYN_SANITIZE, SANITIZER_CXX (clang++-14),
+# SANITIZER_CC (clang-14), JOBS (nproc).
 # Tests that interpose malloc (allocation counters) are not built with ASan (tests/CMakeLists.txt).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,8 +17,13 @@ bash scripts/install-deps.sh
 BUILD_DIR=${ASAN_BUILD_DIR:-build-asan}
 SAN=${REFDYN_SANITIZE:-address,undefined}
 JOBS=${JOBS:-$(nproc)}
+CXX_SAN=${SANITIZER_CXX:-clang++-14}
+CC_SAN=${SANITIZER_CC:-clang-14}
+FUZZ=OFF
+if [[ "$CXX_SAN" == clang* && "$SAN" == *address* ]]; then FUZZ=ON; fi
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
-  -DREFDYN_SANITIZE="$SAN"
+  -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1" -DCMAKE_CXX_COMPILER="$CXX_SAN" -DCMAKE_C_COMPILER="$CC_SAN" \
+  -DREFDYN_SANITIZE="$SAN" -DREFDYN_FUZZ=$FUZZ
 cmake --build "$BUILD_DIR" -j "$JOBS"
 # halt_on_error: the first report ends the test (non-zero exit); leaks are reports too.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:halt_on_error=1:strict_string_checks=1:check_initialization_order=1}

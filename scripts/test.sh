@@ -2,7 +2,8 @@
 # The whole test suite (= CI, .ci/run):
 #   1. builds everything (library, CLI, tests, benchmarks, examples) into build/ and runs CTest;
 #   2. the sanitizer suite: ASan + UBSan build in build-asan/, CTest (scripts/test-sanitizers.sh);
-#   3. each libFuzzer target for 60 s (scripts/fuzz.sh, build-fuzz/).
+#   3. each libFuzzer target for 60 s, two at a time (scripts/fuzz.sh; its targets are built in
+#      build-asan/, which the sanitizer stage compiled with the fuzzer's instrumentation).
 # Every stage runs even if an earlier one failed; the script prints one line per stage and
 # exits non-zero if any failed. For a quick local run:
 #   REFDYN_SANITIZERS=0 REFDYN_FUZZ_SECONDS=0 bash scripts/test.sh
@@ -42,19 +43,19 @@ if [[ "${REFDYN_SANITIZERS:-1}" != 0 ]]; then
   stage "sanitizers: ASan + UBSan build + tests (build-asan)" env JOBS="$JOBS" bash scripts/test-sanitizers.sh
 fi
 if [[ "$FUZZ_SECONDS" != 0 ]]; then
-  # Exploratory fuzzing reports what it finds (input kept in build-fuzz/findings/) but does not
+  # Exploratory fuzzing reports what it finds (input kept in build-asan/findings/) but does not
   # fail the suite unless REFDYN_FUZZ_FATAL=1: a new finding is a new issue to fix, not a
   # regression of what was merged (the reproducers of past findings are regression tests: they
   # are in the seed corpus and in the unit tests).
   if [[ "${REFDYN_FUZZ_FATAL:-0}" == 1 ]]; then
-    stage "fuzzing: ${FUZZ_SECONDS} s per target (build-fuzz)" env JOBS="$JOBS" bash scripts/fuzz.sh "$FUZZ_SECONDS"
+    stage "fuzzing: ${FUZZ_SECONDS} s per target (build-asan)" env JOBS="$JOBS" bash scripts/fuzz.sh "$FUZZ_SECONDS"
   else
     fuzz_start=$SECONDS
-    echo "==== test.sh: fuzzing: ${FUZZ_SECONDS} s per target (build-fuzz; findings reported, not fatal)"
+    echo "==== test.sh: fuzzing: ${FUZZ_SECONDS} s per target (build-asan; findings reported, not fatal)"
     if env JOBS="$JOBS" bash scripts/fuzz.sh "$FUZZ_SECONDS"; then
       summary+=("PASS  fuzzing: ${FUZZ_SECONDS} s per target, no finding ($((SECONDS - fuzz_start)) s)")
     else
-      summary+=("NOTE  fuzzing: a finding or a build failure, see above and build-fuzz/findings/ ($((SECONDS - fuzz_start)) s)")
+      summary+=("NOTE  fuzzing: a finding or a build failure, see above and build-asan/findings/ ($((SECONDS - fuzz_start)) s)")
     fi
   fi
 fi

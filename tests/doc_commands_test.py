@@ -39,7 +39,7 @@ SKIP = [
     (r"^(nice -n \d+ )?cmake\b", "configure/build/install step"),
     (r"^cd build && ctest\b|^ctest\b", "test runner (the suite itself)"),
     (r"^valgrind\b", "test runner (valgrind build)"),
-    (r"^(\./)?build/bench/|^build-fuzz/", "benchmark or fuzzer executable"),
+    (r"^(\./)?build/bench/|^build-asan/fuzz/", "benchmark or fuzzer executable"),
     (r"^mpirun\b", "MPI launch (tests/mpi_test.sh runs track --mpi when built with MPI)"),
     (r"^(for|case|done|do)\b", "shell loop of the valgrind recipe"),
     (r"^\S+\s+\|\|\s+echo", "shell loop of the valgrind recipe"),

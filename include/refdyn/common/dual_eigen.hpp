@@ -67,16 +67,9 @@ using VectorX = Eigen::Matrix<S, Eigen::Dynamic, 1>;
 
 /// x = A⁻¹ b for a square A (LU with partial pivoting of the values). Returns false when A is
 /// singular to working precision (reciprocal condition below 1e-13; x is then left unset).
-inline bool solve_square(const MatrixX<double>& A, const MatrixX<double>& B, MatrixX<double>& X) {
-  if (A.rows() == 0) {
-    X.resize(0, B.cols());
-    return true;
-  }
-  Eigen::PartialPivLU<MatrixX<double>> lu(A);
-  if (!(lu.rcond() > 1e-13)) return false;
-  X = lu.solve(B);
-  return true;
-}
+/// Out of line (src/common/dual_eigen.cpp): the LU's instantiation would cost every includer
+/// ~3 CPU-seconds.
+bool solve_square(const MatrixX<double>& A, const MatrixX<double>& B, MatrixX<double>& X);
 /// The same over dual numbers: the values by one factorization, each derivative direction k by
 /// the same factorization, X_k = A⁻¹(B_k − A_k X) (exact: the derivative of A⁻¹B).
 template <int N>

@@ -112,7 +112,8 @@ class ActuatedModel {
   std::vector<int> ind_, dep_;
 };
 
-extern template class ActuatedModel<double>;
-extern template class ActuatedModel<JacobianScalar>;
+// Instantiated for double and JacobianScalar in src/simulate/actuation.cpp, where the members are
+// defined. No `extern template` here: it would instantiate the class (its Eigen members over dual
+// numbers) in every file that includes this header, ~5 CPU-seconds each (docs/testing.md, "CI time").
 
 }  // namespace refdyn
