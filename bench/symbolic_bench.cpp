@@ -1,6 +1,7 @@
-// refdyn generate: generation time for the paper's 3-DOF manipulator and the 7-DOF URDF arm
-// (target: 7 DOF in under 10 s), and the generated C's ẋ = f(t, x) against the numeric
-// engine (ReferenceDynamics::derivative) on the same problems, in the same run.
+// refdyn generate: generation time for the paper's 3-DOF manipulator, the 7-DOF URDF arm and the
+// test arms of tests/data/urdf (6 joints; 7 joints and a 2-finger hand; rounded π in their joint
+// origins), and the generated C's ẋ = f(t, x) against the numeric engine
+// (ReferenceDynamics::derivative) on the same problems, in the same run (target: ≤ 0.5).
 //   build/bench/symbolic_bench
 #include "bench_report.hpp"
 
@@ -8,6 +9,8 @@
 #include "refdyn/symbolic/symbolic.hpp"
 
 #include "arm/reference_dynamics.h"
+#include "arm6/reference_dynamics.h"
+#include "arm7_hand/reference_dynamics.h"
 #include "paper/reference_dynamics.h"
 
 #include <chrono>
@@ -18,6 +21,7 @@
 namespace {
 
 std::string example(const std::string& name) {
+  if (name == "arm6" || name == "arm7_hand") return std::string(REFDYN_SOURCE_DIR) + "/tests/data/urdf/" + name + ".yaml";
   return std::string(REFDYN_SOURCE_DIR) + "/examples/" + name + "/" + name + ".yaml";
 }
 
@@ -70,7 +74,7 @@ void BM_Generated(benchmark::State& state, const std::string& name) {
 
 int main(int argc, char** argv) {
   // One generation of each, timed once, with the sizes of the code it writes.
-  for (const char* name : {"paper", "urdf_arm_line"}) {
+  for (const char* name : {"paper", "urdf_arm_line", "arm6", "arm7_hand"}) {
     const auto problem = refdyn::io::load_problem(example(name));
     const auto t0 = std::chrono::steady_clock::now();
     const refdyn::SymbolicReferenceDynamics g = refdyn::generate_symbolic(*problem);
@@ -91,12 +95,19 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("rhs_engine/arm_7dof", BM_Engine, std::string("urdf_arm_line"));
   benchmark::RegisterBenchmark("rhs_generated/arm_7dof", BM_Generated<arm_params, arm_default_params, arm_rhs>,
                                std::string("urdf_arm_line"));
+  benchmark::RegisterBenchmark("rhs_engine/arm6", BM_Engine, std::string("arm6"));
+  benchmark::RegisterBenchmark("rhs_generated/arm6", BM_Generated<arm6_params, arm6_default_params, arm6_rhs>,
+                               std::string("arm6"));
+  benchmark::RegisterBenchmark("rhs_engine/arm7_hand", BM_Engine, std::string("arm7_hand"));
+  benchmark::RegisterBenchmark("rhs_generated/arm7_hand",
+                               BM_Generated<arm7_hand_params, arm7_hand_default_params, arm7_hand_rhs>,
+                               std::string("arm7_hand"));
   if (!refdyn_bench::initialize_with_defaults(argc, argv)) return 1;
   refdyn_bench::Reporter reporter;
   benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
   std::printf("\nmedians (CPU time per call) and ratio generated / engine, same run:\n");
-  for (const char* m : {"paper_3dof", "arm_7dof"}) {
+  for (const char* m : {"paper_3dof", "arm_7dof", "arm6", "arm7_hand"}) {
     const double e = reporter.stats["rhs_engine/" + std::string(m)].median();
     const double g = reporter.stats["rhs_generated/" + std::string(m)].median();
     std::printf("  %-12s engine %10s   generated C %10s   ratio %s\n", m, refdyn_bench::fmt_ns(e).c_str(),

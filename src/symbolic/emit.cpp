@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <sstream>
 
@@ -365,7 +366,18 @@ std::string SymbolicReferenceDynamics::json() const {
   symbolic_detail::Tape tape;
   symbolic_detail::TapeScope scope(tape);
   symbolic_detail::FromGinac conv(tape, [](const GiNaC::symbol& s) { return s.get_name(); }, true);
-  auto str = [&](const ex& e) { return json_quote(symbolic_detail::expression_text(tape, conv(e))); };
+  // Two passes over the same sequence of expressions: the first puts them on the tape, the
+  // second prints them with auxiliaries aux(k) for the shared or long sub-expressions.
+  std::vector<int> roots;
+  std::size_t next = 0;
+  std::unique_ptr<symbolic_detail::AuxiliaryTexts> texts;
+  auto str = [&](const ex& e) -> std::string {
+    if (!texts) {
+      roots.push_back(conv(e));
+      return std::string();
+    }
+    return json_quote((*texts)(roots.at(next++)));
+  };
   auto ints = [](const std::vector<int>& v) {
     std::string s = "[";
     for (size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
@@ -374,7 +386,8 @@ std::string SymbolicReferenceDynamics::json() const {
   std::ostringstream o;
   o << "{\n  \"generator\": \"refdyn generate\",\n  \"name\": " << json_quote(S.name) << ",\n"
     << "  \"syntax\": \"refdyn expression language: q(j), qd(j) joint coordinates and velocities, state(k) force-element "
-       "states, t time, named parameters\",\n"
+       "states, t time, named parameters, aux(k) the k-th entry of auxiliaries (shared sub-expressions, each naming only "
+       "earlier ones)\",\n"
     << "  \"joints\": [";
   for (int i = 0; i < n; ++i) o << (i ? ", " : "") << json_quote(S.joints[i]);
   o << "],\n  \"states\": [";
@@ -384,47 +397,61 @@ std::string SymbolicReferenceDynamics::json() const {
     o << (k ? ", " : "") << json_quote(S.param_names[k]) << ": " << double_text(S.param_values[k], 17);
   o << "},\n  \"baumgarte\": {\"alpha\": " << double_text(S.alpha, 17) << ", \"beta\": " << double_text(S.beta, 17)
     << ", \"beta_first_order\": " << double_text(S.beta1, 17) << "},\n"
-    << "  \"independent\": " << ints(S.independent) << ",\n  \"dependent\": " << ints(S.dependent) << ",\n"
-    << "  \"M\": [";
-  for (int i = 0; i < n; ++i) {
-    o << (i ? ",\n        [" : "[");
-    for (int j = 0; j < n; ++j) o << (j ? ", " : "") << str(S.M[i * n + j]);
-    o << "]";
+    << "  \"independent\": " << ints(S.independent) << ",\n  \"dependent\": " << ints(S.dependent) << ",\n";
+  const std::string head = o.str();
+  auto body = [&](std::ostringstream& o) {
+    o << "  \"M\": [";
+    for (int i = 0; i < n; ++i) {
+      o << (i ? ",\n        [" : "[");
+      for (int j = 0; j < n; ++j) o << (j ? ", " : "") << str(S.M[i * n + j]);
+      o << "]";
+    }
+    o << "],\n  \"c\": [";
+    for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.c[i]);
+    o << "],\n  \"g\": [";
+    for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.g[i]);
+    o << "],\n  \"Q\": [";
+    for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.Q[i]);
+    o << "],\n  \"zdot\": [";
+    for (int k = 0; k < S.nz; ++k) o << (k ? ", " : "") << str(S.zdot[k]);
+    o << "],\n  \"constraints\": [";
+    for (int r = 0; r < m; ++r) {
+      o << (r ? ",\n" : "\n") << "    {\"name\": " << json_quote(S.row_names[r]) << ", \"origin\": " << json_quote(S.row_origin[r])
+        << ", \"order\": " << (S.row_order[r] == 3 ? "\"jerk\"" : S.row_order[r] == 2 ? "\"acceleration\"" : S.row_order[r] ? "\"velocity\"" : "\"position\"")
+        << ",\n     \"phi\": " << str(S.phi[r])
+        << ",\n     \"phid\": " << str(S.phid[r]) << ",\n     \"A\": [";
+      for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.A[r * n + i]);
+      o << "],\n     \"gamma\": " << str(S.gamma[r]) << "}";
+    }
+    o << (m ? "\n  " : "") << "]";
+    if (S.jerk) {
+      // the gains appear as rd_alpha, rd_beta, rd_beta1, rd_kappa (fields of the C parameters)
+      auto list = [&](const std::vector<ex>& v, int from, int count) {
+        std::string t = "[";
+        for (int i = 0; i < count; ++i) t += (i ? ", " : "") + str(v[from + i]);
+        return t + "]";
+      };
+      o << ",\n  \"jerk\": {\"kappa\": " << double_text(S.kappa, 17) << ",\n    \"R\": " << list(S.R, 0, n)
+        << ",\n    \"Rdot\": " << list(S.Rdot, 0, n) << ",\n    \"rows\": [";
+      for (int r = 0; r < m; ++r)
+        o << (r ? ",\n" : "\n") << "      {\"Gdot\": " << list(S.Gdot, r * n, n) << ",\n       \"psi\": " << str(S.psi[r])
+          << ",\n       \"b\": " << str(S.b[r]) << "}";
+      o << (m ? "\n    " : "") << "]}";
+    }
+    o << "\n}\n";
+  };
+  {
+    std::ostringstream first;
+    body(first);
   }
-  o << "],\n  \"c\": [";
-  for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.c[i]);
-  o << "],\n  \"g\": [";
-  for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.g[i]);
-  o << "],\n  \"Q\": [";
-  for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.Q[i]);
-  o << "],\n  \"zdot\": [";
-  for (int k = 0; k < S.nz; ++k) o << (k ? ", " : "") << str(S.zdot[k]);
-  o << "],\n  \"constraints\": [";
-  for (int r = 0; r < m; ++r) {
-    o << (r ? ",\n" : "\n") << "    {\"name\": " << json_quote(S.row_names[r]) << ", \"origin\": " << json_quote(S.row_origin[r])
-      << ", \"order\": " << (S.row_order[r] == 3 ? "\"jerk\"" : S.row_order[r] == 2 ? "\"acceleration\"" : S.row_order[r] ? "\"velocity\"" : "\"position\"")
-      << ",\n     \"phi\": " << str(S.phi[r])
-      << ",\n     \"phid\": " << str(S.phid[r]) << ",\n     \"A\": [";
-    for (int i = 0; i < n; ++i) o << (i ? ", " : "") << str(S.A[r * n + i]);
-    o << "],\n     \"gamma\": " << str(S.gamma[r]) << "}";
-  }
-  o << (m ? "\n  " : "") << "]";
-  if (S.jerk) {
-    // the gains appear as rd_alpha, rd_beta, rd_beta1, rd_kappa (fields of the C parameters)
-    auto list = [&](const std::vector<ex>& v, int from, int count) {
-      std::string t = "[";
-      for (int i = 0; i < count; ++i) t += (i ? ", " : "") + str(v[from + i]);
-      return t + "]";
-    };
-    o << ",\n  \"jerk\": {\"kappa\": " << double_text(S.kappa, 17) << ",\n    \"R\": " << list(S.R, 0, n)
-      << ",\n    \"Rdot\": " << list(S.Rdot, 0, n) << ",\n    \"rows\": [";
-    for (int r = 0; r < m; ++r)
-      o << (r ? ",\n" : "\n") << "      {\"Gdot\": " << list(S.Gdot, r * n, n) << ",\n       \"psi\": " << str(S.psi[r])
-        << ",\n       \"b\": " << str(S.b[r]) << "}";
-    o << (m ? "\n    " : "") << "]}";
-  }
-  o << "\n}\n";
-  return o.str();
+  texts = std::make_unique<symbolic_detail::AuxiliaryTexts>(tape, roots);
+  std::ostringstream rest;
+  body(rest);
+  std::string out = head + "  \"auxiliaries\": [";
+  const auto& aux = texts->auxiliaries();
+  for (std::size_t k = 0; k < aux.size(); ++k) out += (k ? ",\n    " : "\n    ") + json_quote(aux[k]);
+  out += aux.empty() ? "],\n" : "\n  ],\n";
+  return out + rest.str();
 }
 
 }  // namespace refdyn

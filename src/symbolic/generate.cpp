@@ -12,6 +12,7 @@
 #include <cctype>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <mutex>
 
 namespace refdyn {
@@ -195,6 +196,17 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
   const Model& model = problem.model;
   const int n = model.nq;
   const ConstraintSet& cs = problem.constraints;
+  // Derivatives by the chain rule over the graph (TotalRate: each node once, so shared
+  // sub-expressions stay shared; GiNaC's diff would unfold the graph into a tree): along the
+  // motion with q̇ (Φ̇, γ: t → 1, q → q̇, q̇ held), and the partials by q_i, q̇_i, q̈_i (A).
+  GiNaC::exmap motion{{S.t, 1}};
+  for (int i = 0; i < n; ++i) motion[S.q[i]] = S.qd[i];
+  TotalRate along(motion);
+  std::vector<std::unique_ptr<TotalRate>> by_q(n), by_qd(n), by_qdd(n);  // made when needed
+  auto partial = [](std::vector<std::unique_ptr<TotalRate>>& by, const GiNaC::realsymbol& s, int i, const ex& f) {
+    if (!by[i]) by[i] = std::make_unique<TotalRate>(GiNaC::exmap{{s, 1}});
+    return (*by[i])(f);
+  };
   S.phi.assign(S.m, 0);
   S.phid.assign(S.m, 0);
   S.gamma.assign(S.m, 0);
@@ -250,7 +262,7 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
         // imposed exactly (A q̈ = −γ, no stabilisation); Φ and Φ̇ are reported as 0, as the engine does.
         GiNaC::exmap zero;
         for (int i = 0; i < n; ++i) zero[S.qdd[i]] = 0;
-        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qdd[i]);
+        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = partial(by_qdd, S.qdd[i], i, f);
         S.gamma[row] = f.subs(zero, GiNaC::subs_options::no_pattern);
         S.phi[row] = 0;
         S.phid[row] = 0;
@@ -258,23 +270,16 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
         for (int i = 0; i < n; ++i)
           if (f.has(S.qd[i]))
             throw Error(where + ": a position constraint depends on the velocity " + model.joint_name[i]);
-        ex fd = f.diff(S.t);
-        for (int i = 0; i < n; ++i) {
-          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.q[i]);
-          fd += S.A[static_cast<size_t>(row) * n + i] * S.qd[i];
-        }
-        ex g = fd.diff(S.t);
-        for (int i = 0; i < n; ++i) g += fd.diff(S.q[i]) * S.qd[i];
+        // Φ̇ = A q̇ + ∂Φ/∂t, γ = Σ ∂Φ̇/∂q_i q̇_i + ∂Φ̇/∂t
+        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = partial(by_q, S.q[i], i, f);
+        const ex fd = along(f);
         S.phid[row] = fd;
-        S.gamma[row] = g;
+        S.gamma[row] = along(fd);
       } else {
-        ex g = f.diff(S.t);
-        for (int i = 0; i < n; ++i) {
-          S.A[static_cast<size_t>(row) * n + i] = f.diff(S.qd[i]);
-          g += f.diff(S.q[i]) * S.qd[i];
-        }
+        // A = ∂c/∂q̇, γ = Σ ∂c/∂q_i q̇_i + ∂c/∂t
+        for (int i = 0; i < n; ++i) S.A[static_cast<size_t>(row) * n + i] = partial(by_qd, S.qd[i], i, f);
         S.phid[row] = f;
-        S.gamma[row] = g;
+        S.gamma[row] = along(f);
       }
     }
   }
@@ -444,6 +449,15 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     to_jerk[S.qdd[i]] = S.qddd[i];
   }
   TotalRate point_jerk(to_jerk);
+  // point velocities Σ ∂r/∂q_i q̇_i and accelerations d/dt of them along the motion (q → q̇,
+  // q̇ → q̈), each node's rate once
+  GiNaC::exmap to_velocity, to_acceleration;
+  for (int i = 0; i < n; ++i) {
+    to_velocity[S.q[i]] = S.qd[i];
+    to_acceleration[S.q[i]] = S.qd[i];
+    to_acceleration[S.qd[i]] = S.qdd[i];
+  }
+  TotalRate point_velocity(to_velocity), point_acceleration(to_acceleration);
   for (size_t p = 0; p < model.point_name.size(); ++p) {
     const int b = sm.bodies.points[p].body;
     const Vec3s r = multibody::point_position(sm.bodies.points[p], sm.poses);
@@ -451,13 +465,11 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     const std::string& P = model.point_name[p];
     static const char* axes[] = {"x", "y", "z"};
     for (int k = 0; k < 3; ++k) {
-      ex v = 0;
-      for (int i = 0; i < n; ++i) v += r[k].diff(S.q[i]) * S.qd[i];
+      const ex v = point_velocity(r[k]);
       B.bind(std::string(axes[k]) + "(" + P + ")", r[k]);
       B.bind(std::string("v") + axes[k] + "(" + P + ")", v);
       if (acceleration_rows) {  // point accelerations only where an acceleration row may use them
-        ex a = 0;
-        for (int i = 0; i < n; ++i) a += v.diff(S.q[i]) * S.qd[i] + r[k].diff(S.q[i]) * S.qdd[i];
+        const ex a = point_acceleration(v);
         B.bind(std::string("a") + axes[k] + "(" + P + ")", a);
         if (S.jerk) B.bind(std::string("j") + axes[k] + "(" + P + ")", point_jerk(a));
       }

@@ -40,6 +40,62 @@ ex number(double v) {
 }
 
 namespace {
+ex constant_evalf(const ex& v) { return v.evalf(); }
+ex constant_derivative(const ex&, unsigned) { return 0; }
+
+/// True if e names no symbol (numbers, π, model constants, and operations on them).
+bool constant_only(const ex& e) {
+  if (is_a<GiNaC::symbol>(e)) return false;
+  for (size_t i = 0; i < e.nops(); ++i)
+    if (!constant_only(e.op(i))) return false;
+  return true;
+}
+
+/// True if e still holds a call of the function with this serial (GiNaC left it unevaluated).
+bool has_call(const ex& e, unsigned serial) {
+  if (is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_serial() == serial) return true;
+  for (size_t i = 0; i < e.nops(); ++i)
+    if (has_call(e.op(i), serial)) return true;
+  return false;
+}
+
+double value_of(const ex& x) { return GiNaC::ex_to<GiNaC::numeric>(x.evalf()).to_double(); }
+
+/// GiNaC's f(x), or the double f(x) as a model constant when x is a constant GiNaC leaves f of.
+ex function_of(const ex& x, const ex& exact_result, unsigned serial, double (*f)(double)) {
+  if (!constant_only(x) || !has_call(exact_result, serial)) return exact_result;
+  return model_constant(f(value_of(x)));
+}
+}  // namespace
+
+unsigned serial_constant() {
+  static const unsigned serial = GiNaC::function::register_new(
+      GiNaC::function_options("rd_const", 1).evalf_func(constant_evalf).derivative_func(constant_derivative));
+  return serial;
+}
+
+ex model_constant(double v) {
+  if (v == std::trunc(v) && std::fabs(v) < 9007199254740992.0) return number(v);
+  const ex c = GiNaC::function(serial_constant(), number(std::fabs(v)));
+  return v < 0 ? -c : c;
+}
+
+ex sin_of(const ex& x) {
+  static const unsigned serial = GiNaC::ex_to<GiNaC::function>(GiNaC::sin(GiNaC::symbol("x"))).get_serial();
+  return function_of(x, GiNaC::sin(x), serial, [](double v) { return std::sin(v); });
+}
+
+ex cos_of(const ex& x) {
+  static const unsigned serial = GiNaC::ex_to<GiNaC::function>(GiNaC::cos(GiNaC::symbol("x"))).get_serial();
+  return function_of(x, GiNaC::cos(x), serial, [](double v) { return std::cos(v); });
+}
+
+ex sqrt_of(const ex& x) {
+  if (constant_only(x) && has_call(x, serial_constant())) return model_constant(std::sqrt(value_of(x)));
+  return GiNaC::sqrt(x);
+}
+
+namespace {
 struct Exact : GiNaC::map_function {
   ex operator()(const ex& e) override {
     if (is_a<GiNaC::numeric>(e)) {
@@ -71,7 +127,7 @@ Mat3s rotation(const Mat3& R) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       const double v = R(i, j);
-      S[3 * i + j] = std::fabs(v) <= tol ? ex(0) : std::fabs(v - 1) <= tol ? ex(1) : std::fabs(v + 1) <= tol ? ex(-1) : number(v);
+      S[3 * i + j] = std::fabs(v) <= tol ? ex(0) : std::fabs(v - 1) <= tol ? ex(1) : std::fabs(v + 1) <= tol ? ex(-1) : model_constant(v);
     }
   return S;
 }

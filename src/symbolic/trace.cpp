@@ -375,7 +375,9 @@ int FromGinac::norm(const ex& e) {
     const std::pair<unsigned, const char*> piecewise[] = {{serial_abs(), "fabs"},     {serial_sgn(), "rd_sgn"},
                                                           {serial_min(), "rd_min"},   {serial_max(), "rd_max"},
                                                           {serial_step(), "rd_step"}, {serial_clamp(), "rd_clamp"}};
-    if (s == serial_if_lt() || s == serial_if_le()) {
+    if (s == serial_constant()) {
+      id = a[0];  // a model constant: the number
+    } else if (s == serial_if_lt() || s == serial_if_le()) {
       id = tape_.cond(s == serial_if_lt(), a[0], a[1], a[2], a[3]);
     } else {
       const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
@@ -492,68 +494,117 @@ std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>
 }
 
 namespace {
-/// The expression language's text of a node; `level` as in the C emitter (0 any, 1 right of −,
-/// 2 factor, 3 divisor, 4 base of a power).
+/// The expression language's text of node n, its operands written by sub(operand, level); level
+/// as in the C emitter (0 any, 1 right of −, 2 factor, 3 divisor, 4 base of a power).
+template <class Sub>
+std::string op_text(const Tape& t, const Tape::Node& n, Sub&& sub) {
+  switch (n.op) {
+    case Tape::Op::Const: {
+      std::string s = double_text(std::fabs(n.value), 17);
+      return n.value < 0 ? "-" + s : s;
+    }
+    case Tape::Op::Leaf: return n.text;
+    case Tape::Op::Add: {
+      int a = n.args[0], b = n.args[1];
+      if (t.node(a).op == Tape::Op::Const) std::swap(a, b);
+      if (t.node(b).op == Tape::Op::Const && t.node(b).value < 0) return sub(a, 0) + " - " + double_text(-t.node(b).value, 17);
+      return sub(a, 0) + " + " + sub(b, 0);
+    }
+    case Tape::Op::Sub: return sub(n.args[0], 0) + " - " + sub(n.args[1], 1);
+    case Tape::Op::Mul: return sub(n.args[0], 2) + "*" + sub(n.args[1], 2);
+    case Tape::Op::Div: return sub(n.args[0], 2) + "/" + sub(n.args[1], 3);
+    case Tape::Op::Neg: return "-" + sub(n.args[0], 2);
+    case Tape::Op::Pow: return sub(n.args[0], 4) + "^" + double_text(n.value, 17);
+    case Tape::Op::Call: {
+      static const std::map<std::string, std::string> names = {
+          {"fabs", "abs"}, {"rd_min", "min"}, {"rd_max", "max"}, {"rd_step", "step"}, {"rd_clamp", "clamp"}};
+      if (n.text == "rd_sgn") return "if(" + sub(n.args[0], 0) + " >= 0, 1, -1)";
+      if (n.text == "pow") return sub(n.args[0], 4) + "^" + sub(n.args[1], 4);
+      const auto nm = names.find(n.text);
+      std::string s = (nm == names.end() ? n.text : nm->second) + "(";
+      for (size_t i = 0; i < n.args.size(); ++i) s += (i ? ", " : "") + sub(n.args[i], 0);
+      return s + ")";
+    }
+    case Tape::Op::Cond:
+      return "if(" + sub(n.args[0], 0) + (n.value != 0 ? " < " : " <= ") + sub(n.args[1], 0) + ", " + sub(n.args[2], 0) +
+             ", " + sub(n.args[3], 0) + ")";
+  }
+  return "";
+}
+
+/// Whether node n's text needs parentheses as an operand of the given level.
+bool low_at(const Tape::Node& n, int level) {
+  const auto op = n.op;
+  if (op == Tape::Op::Add || op == Tape::Op::Sub) return level >= 1;
+  if (op == Tape::Op::Neg || (op == Tape::Op::Const && n.value < 0)) return level >= 1;
+  if (op == Tape::Op::Mul || op == Tape::Op::Div) return level >= 3;
+  if (op == Tape::Op::Pow || (op == Tape::Op::Call && n.text == "pow")) return level >= 4;
+  return false;
+}
+
 std::string text_of(const Tape& t, int id, int level, std::map<int, std::string>& memo) {
   const Tape::Node& n = t.node(id);
   std::string s;
-  bool low = false;  // needs parentheses at this level
   const auto it = memo.find(id);
   if (it != memo.end()) {
     s = it->second;
   } else {
-    auto sub = [&](int a, int l) { return text_of(t, a, l, memo); };
-    switch (n.op) {
-      case Tape::Op::Const: {
-        s = double_text(std::fabs(n.value), 17);
-        if (n.value < 0) s = "-" + s;
-        break;
-      }
-      case Tape::Op::Leaf: s = n.text; break;
-      case Tape::Op::Add: {
-        int a = n.args[0], b = n.args[1];
-        if (t.node(a).op == Tape::Op::Const) std::swap(a, b);
-        if (t.node(b).op == Tape::Op::Const && t.node(b).value < 0)
-          s = sub(a, 0) + " - " + double_text(-t.node(b).value, 17);
-        else
-          s = sub(a, 0) + " + " + sub(b, 0);
-        break;
-      }
-      case Tape::Op::Sub: s = sub(n.args[0], 0) + " - " + sub(n.args[1], 1); break;
-      case Tape::Op::Mul: s = sub(n.args[0], 2) + "*" + sub(n.args[1], 2); break;
-      case Tape::Op::Div: s = sub(n.args[0], 2) + "/" + sub(n.args[1], 3); break;
-      case Tape::Op::Neg: s = "-" + sub(n.args[0], 2); break;
-      case Tape::Op::Pow: s = sub(n.args[0], 4) + "^" + double_text(n.value, 17); break;
-      case Tape::Op::Call: {
-        static const std::map<std::string, std::string> names = {
-            {"fabs", "abs"}, {"rd_min", "min"}, {"rd_max", "max"}, {"rd_step", "step"}, {"rd_clamp", "clamp"}};
-        if (n.text == "rd_sgn") {
-          s = "if(" + sub(n.args[0], 0) + " >= 0, 1, -1)";
-        } else if (n.text == "pow") {
-          s = sub(n.args[0], 4) + "^" + sub(n.args[1], 4);
-        } else {
-          const auto nm = names.find(n.text);
-          s = (nm == names.end() ? n.text : nm->second) + "(";
-          for (size_t i = 0; i < n.args.size(); ++i) s += (i ? ", " : "") + sub(n.args[i], 0);
-          s += ")";
-        }
-        break;
-      }
-      case Tape::Op::Cond:
-        s = "if(" + sub(n.args[0], 0) + (n.value != 0 ? " < " : " <= ") + sub(n.args[1], 0) + ", " + sub(n.args[2], 0) +
-            ", " + sub(n.args[3], 0) + ")";
-        break;
-    }
+    s = op_text(t, n, [&](int a, int l) { return text_of(t, a, l, memo); });
     if (s.size() < 4096) memo.emplace(id, s);
   }
-  const auto op = n.op;
-  if (op == Tape::Op::Add || op == Tape::Op::Sub) low = level >= 1;
-  if (op == Tape::Op::Neg || (op == Tape::Op::Const && n.value < 0)) low = level >= 1;
-  if (op == Tape::Op::Mul || op == Tape::Op::Div) low = level >= 3;
-  if (op == Tape::Op::Pow || (op == Tape::Op::Call && n.text == "pow")) low = level >= 4;
-  return low ? "(" + s + ")" : s;
+  return low_at(n, level) ? "(" + s + ")" : s;
 }
 }  // namespace
+
+AuxiliaryTexts::AuxiliaryTexts(const Tape& tape, const std::vector<int>& roots, std::size_t shared, std::size_t single)
+    : t_(tape), shared_(shared), single_(single), uses_(tape.size(), 0), name_(tape.size()) {
+  // uses: the operand edges of the graph reachable from the roots (each node's operands once),
+  // and one per root
+  std::vector<char> seen(tape.size(), 0);
+  std::vector<int> stack;
+  for (int r : roots) {
+    ++uses_[r];
+    stack.push_back(r);
+  }
+  while (!stack.empty()) {
+    const int id = stack.back();
+    stack.pop_back();
+    if (seen[id]) continue;
+    seen[id] = 1;
+    for (int a : t_.node(id).args) {
+      ++uses_[a];
+      if (!seen[a]) stack.push_back(a);
+    }
+  }
+}
+
+std::string AuxiliaryTexts::body(int id) {
+  const auto it = memo_.find(id);
+  if (it != memo_.end()) return it->second;
+  std::string s = op_text(t_, t_.node(id), [&](int a, int l) { return ref(a, l); });
+  memo_.emplace(id, s);
+  return s;
+}
+
+std::string AuxiliaryTexts::ref(int id, int level) {
+  if (!name_[id].empty()) return name_[id];
+  const Tape::Node& n = t_.node(id);
+  std::string s = body(id);
+  if (n.op != Tape::Op::Const && n.op != Tape::Op::Leaf &&
+      ((uses_[id] >= 2 && s.size() >= shared_) || s.size() >= single_)) {
+    aux_.push_back(std::move(s));
+    name_[id] = "aux(" + std::to_string(aux_.size()) + ")";
+    memo_.erase(id);
+    return name_[id];
+  }
+  if (uses_[id] < 2) memo_.erase(id);  // used once: not asked for again
+  return low_at(n, level) ? "(" + s + ")" : s;
+}
+
+std::string AuxiliaryTexts::operator()(int id) {
+  if (!name_[id].empty()) return name_[id];
+  return body(id);
+}
 
 std::string expression_text(const Tape& tape, int id) {
   std::map<int, std::string> memo;

@@ -130,9 +130,32 @@ class FromGinac {
 std::string emit(const Tape& tape, const std::vector<std::pair<std::string, int>>& outputs, bool cse,
                  const std::string& indent, long& temporaries, long& operations);
 
-/// A node as a text of refdyn's expression language (the JSON writer): whole, no temporaries;
-/// `^` for powers, abs, min, max, step, clamp and if() for the piecewise functions.
+/// A node as a text of refdyn's expression language: whole, no temporaries; `^` for powers, abs,
+/// min, max, step, clamp and if() for the piecewise functions.
 std::string expression_text(const Tape& tape, int id);
+
+/// Texts of the expression language with auxiliaries (the JSON writer): a sub-expression used
+/// twice or more whose text has `shared` characters or more, or any of `single` or more, is
+/// written once as an auxiliary aux(k) (k from 1, numbered in the order they are first needed;
+/// each one's text names only earlier ones), so the texts grow with the graph, not with its
+/// expansion into a tree.
+class AuxiliaryTexts {
+ public:
+  /// `roots`: every node that will be printed (for counting uses).
+  AuxiliaryTexts(const Tape& tape, const std::vector<int>& roots, std::size_t shared = 80, std::size_t single = 2000);
+  std::string operator()(int id);
+  const std::vector<std::string>& auxiliaries() const { return aux_; }
+
+ private:
+  std::string body(int id);              ///< the node's text, its operands by name or text
+  std::string ref(int id, int level);    ///< an operand: its name, or its text (parenthesized)
+  const Tape& t_;
+  std::size_t shared_, single_;
+  std::vector<int> uses_;
+  std::vector<std::string> name_;
+  std::vector<std::string> aux_;
+  std::map<int, std::string> memo_;
+};
 
 }  // namespace refdyn::symbolic_detail
 
