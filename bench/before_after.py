@@ -29,6 +29,9 @@ import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from compare_ratios import medians  # noqa: E402  (Google Benchmark JSON -> median CPU ns per row)
+
 DEFAULT_BENCHES = ["dynamics_bench", "reference_dynamics_bench", "implicit_bench"]
 
 
@@ -61,12 +64,7 @@ def run(binary, regex, repetitions, core):
             data = json.load(f)
     finally:
         os.unlink(out)
-    med = {}
-    for b in data.get("benchmarks", []):
-        if b.get("run_type") == "aggregate" and b.get("aggregate_name") == "median":
-            scale = {"ns": 1.0, "us": 1e3, "ms": 1e6, "s": 1e9}[b.get("time_unit", "ns")]
-            med[b["run_name"]] = b["cpu_time"] * scale
-    return med
+    return medians(data)
 
 
 def fmt_ns(x):

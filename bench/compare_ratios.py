@@ -52,8 +52,13 @@ def run_bench(binary, regex, repetitions):
             data = json.load(f)
     finally:
         os.unlink(out)
+    return medians(data)
+
+
+def medians(data):
+    """Median CPU time (ns) per benchmark name from Google Benchmark's JSON (aggregates)."""
     med = {}
-    for b in data["benchmarks"]:
+    for b in data.get("benchmarks", []):
         if b.get("run_type") == "aggregate" and b.get("aggregate_name") == "median":
             scale = {"ns": 1.0, "us": 1e3, "ms": 1e6, "s": 1e9}[b.get("time_unit", "ns")]
             med[b["run_name"]] = b["cpu_time"] * scale
