@@ -104,7 +104,7 @@ void build(Bench& b) {
                                                   b.ex_expr->options());
   const int n = b.ex->model.nq;
   b.x0 = b.rd_proj->make_state(b.ex->q0(), VectorXd::Zero(n));
-  b.plan = plan_motion(*b.rd_proj, b.x0, b.ex->integrator());
+  b.plan = plan_motion(*b.rd_proj, b.x0, {b.ex->integrator()});
   if (!b.plan.summary.ok()) fatal(("planning the paper motion failed: " + b.plan.summary.message).c_str());
   for (int k = 0; k < kStates; ++k) {
     const double tk = 0.3 + 0.6 * k;
@@ -398,11 +398,11 @@ void register_all(Bench* b) {
   reg_states("constraints/expr_rows", [b, rows](int k) { rows(b->ex_expr->constraints, *b->ev_expr, k); });
   // 4. The spec run.
   reg_run("plan/run5s", [b] {
-    const Plan p = plan_motion(*b->rd_proj, b->x0, b->ex->integrator());
+    const Plan p = plan_motion(*b->rd_proj, b->x0, {b->ex->integrator()});
     benchmark::DoNotOptimize(p.x.back().data());
   });
   reg_run("plan/run5s_lagrange", [b] {
-    const Plan p = plan_motion(*b->rd_lag, b->x0, b->ex->integrator());
+    const Plan p = plan_motion(*b->rd_lag, b->x0, {b->ex->integrator()});
     benchmark::DoNotOptimize(p.x.back().data());
   });
   // 5. The study.

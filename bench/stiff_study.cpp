@@ -50,7 +50,7 @@ Result run(const Case& c, IntegratorOptions o, long max_steps = 50'000'000) {
   rec.residual_tolerance = std::numeric_limits<double>::infinity();
   const auto t0 = std::chrono::steady_clock::now();
   Result r;
-  r.plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), o, 0.0, {}, rec);
+  r.plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), {o, 0.0, rec});
   r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

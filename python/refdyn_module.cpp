@@ -415,11 +415,8 @@ py::dict run_variants(const std::string& source, bool is_text, const std::string
   return d;
 }
 
-}  // namespace
-
-PYBIND11_MODULE(_refdyn, m) {
-  m.doc() = "refdyn: task-based motion planning from reference dynamics (compiled part)";
-
+/// refdyn.Error (ValueError) and refdyn.NumericalFailure, translated from the C++ exceptions.
+void bind_errors(py::module_& m) {
   static py::exception<Error> error(m, "Error", PyExc_ValueError);
   static py::exception<NumericalFailure> numerical(m, "NumericalFailure", error.ptr());
   // Translators registered later are tried first: the more specific one last.
@@ -432,8 +429,10 @@ PYBIND11_MODULE(_refdyn, m) {
       error(e.what());
     }
   });
+}
 
-  // ------------------------------------------------------------ Model
+/// refdyn.Model: a compiled multibody model and its algorithms; models from URDF.
+void bind_model(py::module_& m) {
   py::class_<PyModel, std::shared_ptr<PyModel>>(m, "Model",
       "A compiled multibody model with its own workspace. Functions take q, qd, ... as 1-D arrays of size nq "
       "and return new float64 arrays. Not thread-safe (one workspace); copy() for another.")
@@ -507,8 +506,10 @@ PYBIND11_MODULE(_refdyn, m) {
         return urdf_model(io::parse_urdf(xml, source, urdf_options(root, points), &mimics));
       }, py::arg("xml"), py::arg("source_name") = "<string>", py::arg("root_link") = "",
       py::arg("points_for_links") = true);
+}
 
-  // ------------------------------------------------------------ Problem
+/// refdyn.Problem: a built scenario; load_problem, parse_problem.
+void bind_problem(py::module_& m) {
   py::class_<Problem, std::shared_ptr<Problem>>(m, "Problem", "A built scenario (io::load_problem / parse_problem).")
       .def_readonly("file", &Problem::file)
       .def_readonly("name", &Problem::name)
@@ -586,8 +587,10 @@ PYBIND11_MODULE(_refdyn, m) {
         }
         return std::shared_ptr<Problem>(std::move(p));
       }, py::arg("yaml"), py::arg("source_name") = "<string>");
+}
 
-  // ------------------------------------------------------------ Results
+/// refdyn.Results: what a run recorded, as arrays and dicts.
+void bind_results(py::module_& m) {
   py::class_<PyResults, std::shared_ptr<PyResults>>(m, "Results")
       .def_property_readonly("ok", [](const PyResults& r) { return r.results.ok(); })
       .def_property_readonly("wall_time", [](const PyResults& r) { return r.results.wall_time; })
@@ -618,7 +621,10 @@ PYBIND11_MODULE(_refdyn, m) {
       .def("write", [](const PyResults& r, const std::string& dir) {
         io::write_results(dir, *r.problem, r.results, io::summary_json(*r.problem, r.results));
       }, py::arg("dir"), "Writes plan.csv, feasibility.json, sweep.csv, summary.json, track_<name>.csv as the CLI does.");
+}
 
+/// check, generate, run_variants, optimize: the command-line tools as functions.
+void bind_tools(py::module_& m) {
   m.def("check", [](const std::string& source, bool is_text, const std::string& source_name) {
         io::CheckReport r;
         {
@@ -693,6 +699,10 @@ PYBIND11_MODULE(_refdyn, m) {
         return d;
       }, py::arg("source"), py::arg("is_text"), py::arg("source_name"), py::arg("method"), py::arg("budget"),
       "optimize_scenario without the GIL: the summary as a dict, the history as NumPy arrays.");
+}
+
+/// sensitivity and run: planning and tracking without the GIL.
+void bind_runs(py::module_& m) {
   m.def("sensitivity", [](const std::shared_ptr<Problem>& p, const std::vector<std::string>& parameters) {
         SensitivityOptions o;
         o.parameters = parameters;
@@ -745,4 +755,19 @@ PYBIND11_MODULE(_refdyn, m) {
       }, py::arg("problem"), py::arg("track") = false, py::arg("progress") = py::none(), py::arg("jobs") = 1,
       "io::run_problem without the GIL. progress: None or callable(what, t, t0, t1); jobs: threads for the "
       "experiments (0: every core; the results do not depend on it).");
+}
+
+}  // namespace
+
+// Each bind_* above is one area of the module (as Pinocchio's expose-*.cpp files are). They stay
+// in one translation unit: pybind11's headers cost ~20 CPU-seconds per file to compile.
+PYBIND11_MODULE(_refdyn, m) {
+  m.doc() = "refdyn: task-based motion planning from reference dynamics (compiled part)";
+
+  bind_errors(m);
+  bind_model(m);
+  bind_problem(m);
+  bind_results(m);
+  bind_tools(m);
+  bind_runs(m);
 }

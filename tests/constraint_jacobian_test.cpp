@@ -212,27 +212,11 @@ int check_state(const Model& model, const ConstraintSet& set, double t, const Ei
 }
 
 // The random models of constraints_test with points tip, mid (on a link) and anchor (world).
-struct Case {
-  std::string label;
-  ModelDescription desc;
-};
+using Case = test::RandomModelCase;
 std::vector<Case> model_zoo(std::mt19937& rng, int dof) {
-  std::vector<Case> out;
-  for (int variant = 0; variant < 8; ++variant) {
-    test::RandomChainOptions o;
-    o.dof = dof;
-    o.prismatic_fraction = 0.35;
-    o.modified_dh = variant & 1;
-    o.tree = variant & 2;
-    o.with_fixed_joints = variant & 4;
-    std::string label = std::string(o.modified_dh ? "modified" : "standard") + (o.tree ? " tree" : " chain") +
-                        (o.with_fixed_joints ? " +fixed" : "") + " n=" + std::to_string(dof);
-    ModelDescription d = test::random_chain(rng, o);
-    d.add_point("mid", d.links[d.links.size() / 2].name, Vec3(0.15, -0.25, 0.2));
-    d.add_point("anchor", "world", Vec3(0.4, -0.3, 0.8));
-    out.push_back({label, d});
-  }
-  return out;
+  test::ZooOptions o;
+  o.dof_in_label = true;
+  return test::model_zoo(rng, dof, o);
 }
 
 using test::all_kinds;

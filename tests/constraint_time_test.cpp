@@ -268,23 +268,13 @@ int check_motion(const Model& model, const ConstraintSet& set, double t, const E
   return 2 * (3 * set.rows() + set.rows() * n);
 }
 
-/// random_chain's tip plus "mid" on a middle link and "anchor" in the world (all_kinds' points).
-std::vector<std::pair<std::string, ModelDescription>> model_zoo(std::mt19937& rng, int dof) {
-  std::vector<std::pair<std::string, ModelDescription>> out;
-  for (int variant = 0; variant < 4; ++variant) {
-    test::RandomChainOptions o;
-    o.dof = dof;
-    o.prismatic_fraction = 0.35;
-    o.modified_dh = variant & 1;
-    o.tree = variant & 2;
-    ModelDescription d = test::random_chain(rng, o);
-    d.add_point("mid", d.links[d.links.size() / 2].name, Vec3(0.15, -0.25, 0.2));
-    d.add_point("anchor", "world", Vec3(0.4, -0.3, 0.8));
-    out.emplace_back(std::string(o.modified_dh ? "modified" : "standard") + (o.tree ? " tree" : " chain") +
-                         " n=" + std::to_string(dof),
-                     d);
-  }
-  return out;
+/// random_chain's tip plus "mid" on a middle link and "anchor" in the world (all_kinds' points);
+/// the zoo without fixed links.
+std::vector<test::RandomModelCase> model_zoo(std::mt19937& rng, int dof) {
+  test::ZooOptions o;
+  o.variants = 4;
+  o.dof_in_label = true;
+  return test::model_zoo(rng, dof, o);
 }
 
 /// Rheonomic rows with time functions of every type, and expression rows of orders 0, 1, 2 in t.

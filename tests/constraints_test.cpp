@@ -27,29 +27,8 @@ namespace {
 constexpr double kH = 1e-5;
 constexpr double kTol = 1e-7;
 
-struct Case {
-  std::string label;
-  ModelDescription desc;
-};
-
-std::vector<Case> model_zoo(std::mt19937& rng, int dof) {
-  std::vector<Case> out;
-  for (int variant = 0; variant < 8; ++variant) {
-    test::RandomChainOptions o;
-    o.dof = dof;
-    o.prismatic_fraction = 0.35;
-    o.modified_dh = variant & 1;
-    o.tree = variant & 2;
-    o.with_fixed_joints = variant & 4;
-    std::string label = std::string(o.modified_dh ? "modified" : "standard") + (o.tree ? " tree" : " chain") +
-                        (o.with_fixed_joints ? " +fixed" : "");
-    ModelDescription d = test::random_chain(rng, o);
-    d.add_point("mid", d.links[d.links.size() / 2].name, Vec3(0.15, -0.25, 0.2));
-    d.add_point("anchor", "world", Vec3(0.4, -0.3, 0.8));
-    out.push_back({label, d});
-  }
-  return out;
-}
+using Case = test::RandomModelCase;
+using test::model_zoo;
 
 using test::all_kinds;
 using test::random_unit;

@@ -22,7 +22,7 @@ namespace {
 struct Fixture {
   models::PaperExample ex;
   ReferenceDynamics rd{ex.model, ex.forces, ex.constraints, ex.options()};
-  Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), ex.integrator(), 0.5);
+  Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), {ex.integrator(), 0.5});
 };
 
 Fixture& fixture() {

@@ -67,7 +67,7 @@ Planned plan_scenario(std::unique_ptr<Problem> sc) {
     return p;
   }
   p.rd = std::make_unique<ReferenceDynamics>(s.model, s.forces, s.constraints, s.options);
-  p.plan = plan_motion(*p.rd, p.rd->make_state(s.q0, s.qd0), s.integrator, s.residual_from);
+  p.plan = plan_motion(*p.rd, p.rd->make_state(s.q0, s.qd0), {s.integrator, s.residual_from});
   return p;
 }
 
@@ -510,13 +510,13 @@ TEST(Examples, PaperScenarioFileMatchesTheBuiltInExample) {
   IntegratorOptions io_file = sc->integrator;
   io_file.t1 = 1.0;
   ReferenceDynamics rd_file(sc->model, sc->forces, sc->constraints, sc->options);
-  const Plan from_file = plan_motion(rd_file, rd_file.make_state(sc->q0, sc->qd0), io_file, sc->residual_from);
+  const Plan from_file = plan_motion(rd_file, rd_file.make_state(sc->q0, sc->qd0), {io_file, sc->residual_from});
 
   models::PaperExample ex;
   IntegratorOptions io_ref = ex.integrator();
   io_ref.t1 = 1.0;
   ReferenceDynamics rd_ref(ex.model, ex.forces, ex.constraints, ex.options());
-  const Plan builtin = plan_motion(rd_ref, rd_ref.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), io_ref);
+  const Plan builtin = plan_motion(rd_ref, rd_ref.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), {io_ref});
 
   ASSERT_TRUE(from_file.summary.ok()) << from_file.summary.message;
   ASSERT_TRUE(builtin.summary.ok()) << builtin.summary.message;

@@ -187,7 +187,7 @@ TEST(JerkDynamics, ParticleWithPrescribedTangentialJerkMovesOnAStraightLine) {
     IntegratorOptions io;
     io.step = h;
     io.t1 = 3.0;
-    const Plan plan = plan_jerk_motion(jd, x0, io, RecordOptions{{m.point_index("P")}});
+    const Plan plan = plan_jerk_motion(jd, x0, {io, 0.0, RecordOptions{{m.point_index("P")}}});
     ASSERT_TRUE(plan.summary.ok()) << plan.summary.message;
     double worst = 0, worst_qc = 0, worst_row = 0;
     for (size_t k = 0; k < plan.size(); ++k) {
@@ -285,7 +285,7 @@ TEST(JerkScenario, OrderJerkPlansLikeTheLibraryRoute) {
   IntegratorOptions io;
   io.step = 0.01;
   io.t1 = 3.0;
-  const Plan b = plan_jerk_motion(jd, x0, io, RecordOptions{{0}});
+  const Plan b = plan_jerk_motion(jd, x0, {io, 0.0, RecordOptions{{0}}});
   ASSERT_EQ(a.size(), b.size());
   for (size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a.x[k], b.x[k]) << "sample " << k;
   EXPECT_EQ(a.state_names, (std::vector<std::string>{"acc_th", "acc_r"}));

@@ -15,30 +15,16 @@ using refdyn::test::near;
 
 namespace {
 
-struct Case {
-  std::string label;
-  ModelDescription desc;
-};
+using Case = test::RandomModelCase;
 
-/// Revolute + prismatic, standard + modified DH, chains + trees, with and without fixed links.
+/// The zoo (test::model_zoo) with 40 % prismatic joints, "mid" at (0.1, −0.2, 0.3) and "anchor"
+/// at (1, 2, 3).
 std::vector<Case> model_zoo(std::mt19937& rng, int dof) {
-  std::vector<Case> out;
-  for (int variant = 0; variant < 8; ++variant) {
-    test::RandomChainOptions o;
-    o.dof = dof;
-    o.prismatic_fraction = 0.4;
-    o.modified_dh = variant & 1;
-    o.tree = variant & 2;
-    o.with_fixed_joints = variant & 4;
-    std::string label = std::string(o.modified_dh ? "modified" : "standard") + (o.tree ? " tree" : " chain") +
-                        (o.with_fixed_joints ? " +fixed" : "");
-    ModelDescription d = test::random_chain(rng, o);
-    // A second point on a middle link (a different branch in a tree) and one fixed in the world.
-    d.add_point("mid", d.links[d.links.size() / 2].name, Vec3(0.1, -0.2, 0.3));
-    d.add_point("anchor", "world", Vec3(1, 2, 3));
-    out.push_back({label, d});
-  }
-  return out;
+  test::ZooOptions o;
+  o.prismatic_fraction = 0.4;
+  o.mid = Vec3(0.1, -0.2, 0.3);
+  o.anchor = Vec3(1, 2, 3);
+  return test::model_zoo(rng, dof, o);
 }
 
 Eigen::VectorXd unit(int n, int i) { return Eigen::VectorXd::Unit(n, i); }

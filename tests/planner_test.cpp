@@ -105,7 +105,7 @@ TEST(Planner, OrderTwoPlansLikePlanMotion) {
   ReferenceDynamics rd(p->model, p->forces, p->constraints, p->options);
   RecordOptions record{p->report_point_indices()};
   record.residual_tolerance = p->residual_tolerance;
-  const Plan b = plan_motion(rd, rd.make_state(p->q0, p->qd0), p->integrator, p->residual_from, {}, record);
+  const Plan b = plan_motion(rd, rd.make_state(p->q0, p->qd0), {p->integrator, p->residual_from, record});
   expect_same_plan(a, b);
   EXPECT_GT(a.stages.data.size(), 0u);
 
@@ -144,7 +144,7 @@ TEST(Planner, JerkPlansLikePlanJerkMotion) {
 
   JerkDynamics jd(p->model, p->jerk_constraints, JerkDynamicsOptions{40.0}, &p->forces);
   const Eigen::VectorXd x0 = jd.initial_state(0.0, p->q0, p->qd0, &p->qdd0);
-  const Plan b = plan_jerk_motion(jd, x0, p->integrator, RecordOptions{p->report_point_indices()});
+  const Plan b = plan_jerk_motion(jd, x0, {p->integrator, 0.0, RecordOptions{p->report_point_indices()}});
   expect_same_plan(a, b);
   // The old entry point (a ReferenceDynamics that a jerk problem does not use) plans the same.
   const auto rd = p->make_reference_dynamics();

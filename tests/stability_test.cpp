@@ -62,7 +62,7 @@ TEST(Stability, StiffPaperPlanUnderRk4IsReportedAsStiff) {
   p.t1 = 0.5;
   models::PaperExample ex(p);
   ReferenceDynamics rd(ex.model, ex.forces, ex.constraints, ex.options());
-  const Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), ex.integrator());
+  const Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), {ex.integrator()});
   ASSERT_FALSE(plan.summary.ok());
   const std::string& m = plan.summary.message;
   EXPECT_EQ(m.rfind("the integration is unstable at step h = 0.001 s: the problem is stiff", 0), 0u) << m;
@@ -73,7 +73,7 @@ TEST(Stability, StiffPaperPlanUnderRk4IsReportedAsStiff) {
   soft.t1 = 0.5;
   models::PaperExample ex_soft(soft);
   ReferenceDynamics rd_soft(ex_soft.model, ex_soft.forces, ex_soft.constraints, ex_soft.options());
-  EXPECT_TRUE(plan_motion(rd_soft, rd_soft.make_state(ex_soft.q0(), Eigen::VectorXd::Zero(3)), ex_soft.integrator()).summary.ok());
+  EXPECT_TRUE(plan_motion(rd_soft, rd_soft.make_state(ex_soft.q0(), Eigen::VectorXd::Zero(3)), {ex_soft.integrator()}).summary.ok());
 }
 
 // Two rows that say the same thing: A is singular (rank 1 of 2), which no partition can fix.
@@ -89,7 +89,7 @@ TEST(Stability, SingularConstraintJacobianIsToldFromABadPartition) {
   ReferenceDynamics rd(ex.model, ex.forces, rows, o);
   IntegratorOptions io = ex.integrator();
   io.t1 = 0.01;
-  const Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), io);
+  const Plan plan = plan_motion(rd, rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3)), {io});
   ASSERT_EQ(plan.summary.status, IntegrationStatus::NumericalFailure) << plan.summary.message;
   const std::string& m = plan.summary.message;
   EXPECT_NE(m.find("the constraint Jacobian A is singular"), std::string::npos) << m;

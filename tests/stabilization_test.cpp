@@ -38,7 +38,7 @@ Outcome plan_text(const std::string& yaml, const std::string& name) {
   r.problem = io::parse_problem(yaml, name);
   Problem& s = *r.problem;
   r.rd = std::make_unique<ReferenceDynamics>(s.model, s.forces, s.constraints, s.options);
-  r.plan = plan_motion(*r.rd, r.rd->make_state(s.q0, s.qd0), s.integrator, s.residual_from);
+  r.plan = plan_motion(*r.rd, r.rd->make_state(s.q0, s.qd0), {s.integrator, s.residual_from});
   for (size_t k = 0; k < r.plan.phi.size(); ++k) {
     r.worst_phi = std::max(r.worst_phi, r.plan.phi[k].cwiseAbs().maxCoeff());
     for (int row = 0; row < s.constraints.rows(); ++row)

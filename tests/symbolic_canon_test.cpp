@@ -1,9 +1,9 @@
-// The canonical graph the generated code is written from (src/symbolic/trace.hpp, private to the
+// The canonical graph the generated code is written from (src/symbolic/tape.hpp, private to the
 // generator): expressions that GiNaC may build in different forms from run to run — the order of
 // its operands follows address-seeded hashes, and some simplifications follow that order — are
 // one node. The forms are built here with hold(), which keeps GiNaC from evaluating them.
 // The whole-program check (refdyn generate twice, byte-identical files): symbolic_test.cpp.
-#include "../src/symbolic/trace.hpp"
+#include "../src/symbolic/tape.hpp"
 #include "refdyn/multibody/generic_dynamics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "test_support.hpp"

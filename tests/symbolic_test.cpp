@@ -434,7 +434,7 @@ std::string file_text(const fs::path& p) {
 }
 
 // `refdyn generate` in separate processes (address-space randomization on: GiNaC's hash order
-// moves from run to run) writes byte-identical files: the writers are canonical (trace.hpp).
+// moves from run to run) writes byte-identical files: the writers are canonical (tape.hpp).
 TEST(GenerateCommand, WritesTheSameTextInEveryRun) {
   {
     std::ifstream aslr("/proc/sys/kernel/randomize_va_space");

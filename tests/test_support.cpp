@@ -98,6 +98,25 @@ LinkInertia random_inertia(std::mt19937& rng) {
 }
 }  // namespace
 
+std::vector<RandomModelCase> model_zoo(std::mt19937& rng, int dof, const ZooOptions& zoo) {
+  std::vector<RandomModelCase> out;
+  for (int variant = 0; variant < zoo.variants; ++variant) {
+    RandomChainOptions o;
+    o.dof = dof;
+    o.prismatic_fraction = zoo.prismatic_fraction;
+    o.modified_dh = variant & 1;
+    o.tree = variant & 2;
+    o.with_fixed_joints = variant & 4;
+    std::string label = std::string(o.modified_dh ? "modified" : "standard") + (o.tree ? " tree" : " chain") +
+                        (o.with_fixed_joints ? " +fixed" : "") + (zoo.dof_in_label ? " n=" + std::to_string(dof) : "");
+    ModelDescription d = random_chain(rng, o);
+    d.add_point("mid", d.links[d.links.size() / 2].name, zoo.mid);
+    d.add_point("anchor", "world", zoo.anchor);
+    out.push_back({label, d});
+  }
+  return out;
+}
+
 ModelDescription random_chain(std::mt19937& rng, const RandomChainOptions& opt) {
   std::uniform_real_distribution<double> ang(-3.14159, 3.14159), len(-0.6, 0.6), uni(0.0, 1.0);
   std::vector<DHRow> rows;

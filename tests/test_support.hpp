@@ -82,6 +82,19 @@ Vec3 reference_point_position(const ModelDescription& d, const Eigen::VectorXd& 
 std::vector<int> movable_links(const ModelDescription& d);
 
 
+/// The kinematics and constraint tests' random models (one zoo, drawn in this order from rng):
+/// revolute + prismatic joints, standard + modified DH, chains + trees, and with `variants` = 8
+/// also with fixed links; random_chain's tip plus "mid" on a middle link and "anchor" in the
+/// world. Labels: "standard chain", "modified tree +fixed", …, with " n=<dof>" when asked.
+struct ZooOptions {
+  double prismatic_fraction = 0.35;
+  Vec3 mid{0.15, -0.25, 0.2};
+  Vec3 anchor{0.4, -0.3, 0.8};
+  int variants = 8;            ///< 4: no fixed links
+  bool dof_in_label = false;
+};
+std::vector<RandomModelCase> model_zoo(std::mt19937& rng, int dof, const ZooOptions& o = {});
+
 /// A constraint from a factory, named.
 ConstraintPtr renamed(NewConstraint c, const std::string& name);
 /// A random unit vector (never from a nearly zero draw).

@@ -1,10 +1,7 @@
 // The C++ API in one page: plan the paper's motion (docs/paper_example.md §5) and write a CSV
 // with t, q, q̇, q̈, bristle states, E, Φ, Φ̇, drive torque and constraint forces.
 //   build/examples/plan_paper_motion [out.csv]
-#include "refdyn/simulate/closed_loop.hpp"
-#include "refdyn/simulate/plan.hpp"
-#include "refdyn/io/output.hpp"
-#include "refdyn/models/paper_example.hpp"
+#include "refdyn/refdyn.hpp"  // the whole API (or only the headers used: simulate/plan.hpp, io/output.hpp, ...)
 
 #include <cstdio>
 
@@ -13,7 +10,7 @@ int main(int argc, char** argv) {
   models::PaperExample ex;  // model, flexible drive, LuGre friction, ellipse + height constraints
   ReferenceDynamics rd(ex.model, ex.forces, ex.constraints, ex.options());  // ψ1 independent, α=100, β=50
   const Eigen::VectorXd x0 = rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3));
-  const Plan plan = plan_motion(rd, x0, ex.integrator(), /*residual_from=*/0.5);  // RK4, h = 1e-3, 0..5 s
+  const Plan plan = plan_motion(rd, x0, {ex.integrator(), /*residual_from=*/0.5});  // RK4, h = 1e-3, 0..5 s
   if (!plan.summary.ok()) {
     std::fprintf(stderr, "plan stopped: %s\n", plan.summary.message.c_str());
     return 4;

@@ -14,7 +14,7 @@ PaperStudy run_paper_study(const PaperStudyOptions& o) {
   PaperExample& ex = *s.example;
   s.rd = std::make_unique<ReferenceDynamics>(ex.model, ex.forces, ex.constraints, ex.options());
   const Eigen::VectorXd x0 = s.rd->make_state(ex.q0(), Eigen::VectorXd::Zero(ex.model.nv));
-  s.plan = plan_motion(*s.rd, x0, ex.integrator(), 0.5);
+  s.plan = plan_motion(*s.rd, x0, {ex.integrator(), 0.5});
 
   s.plant_friction.add(std::make_shared<LuGreFriction>(ex.model, "psi1", o.example.lugre_rot));
   s.plant_friction.add(std::make_shared<LuGreFriction>(ex.model, "psi2", o.example.lugre_rot));

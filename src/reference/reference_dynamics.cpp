@@ -127,26 +127,7 @@ void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
   partition_set_ = true;
 }
 
-// The small dense glue of the projection route (factor_partition, solve_projection) is written
-// as plain loops over column-major storage, with every size, index list and buffer in a local
-// (restrict) pointer: for the sizes of interest (m, n of a few) Eigen's dynamic-size expression
-// set-up costs more than the flops, and stores through double* would otherwise force the
-// members to be reloaded in every iteration. The loops are templates on the sizes: N = 0 reads
-// n, m at run time; the common small (n, m) pairs are instantiated with compile-time sizes,
-// which the compiler unrolls completely (one source, no second copy of the algorithm). The
-// partitioned solve (solve_projection_sized) exists only for those fixed pairs; every other size
-// takes solve_projection_orthonormal (header comment: why). The KKT route (solve_lagrange) is
-// dispatched the same way onto fixed- or dynamic-size Eigen objects.
-#define REFDYN_FIXED_DISPATCH(call, args)                     \
-  if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
-  if (n_ == 3 && m_ == 1) return call<3, 1> args;             \
-  if (n_ == 3 && m_ == 2) return call<3, 2> args;             \
-  if (n_ == 4 && m_ == 1) return call<4, 1> args;             \
-  if (n_ == 4 && m_ == 2) return call<4, 2> args;             \
-  if (n_ == 4 && m_ == 3) return call<4, 3> args;
-#define REFDYN_SIZED_DISPATCH(call, args) \
-  REFDYN_FIXED_DISPATCH(call, args)       \
-  return call<0, 0> args;
+#include "sized_dispatch.hpp"  // REFDYN_FIXED_DISPATCH, REFDYN_SIZED_DISPATCH (why: there)
 
 bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
 
@@ -288,8 +269,31 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
   return cond_;
 }
 
+// ẋ = [q̇; q̈; ż], stage by stage (each stage is a member below, in this order).
 void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
-  const int n = n_, m = m_, nz = forces_.num_states();
+  read_state(t, x, xdot);
+  const double* z = forces_.num_states() ? x.data() + 2 * n_ : nullptr;
+  if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
+    unconstrained_aba(t, z);
+    write_derivative(xdot);
+    return;
+  }
+  bias_and_constraints(t);  // M and c + g in one sweep; Φ, Φ̇, A, γ reusing its body motions
+  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);  // Q, ż
+  stabilized_rhs();         // F = Q − c − g; the stabilized right-hand side of A q̈ = rhs
+  if (opt_.solver == ReferenceSolver::Projection)  // q̈ and λ
+    solve_projection(t);
+  else if (aba_lagrange_)
+    solve_lagrange_aba(t);
+  else
+    solve_lagrange(t);
+  constraint_forces();      // Q_c (and, for projection, λ from the dependent rows)
+  if (has_acceleration_rows_) acceleration_residuals();
+  write_derivative(xdot);
+}
+
+// q = x[0, n), q̇ = x[n, 2n) into the workspaces; sizes and finiteness checked.
+void ReferenceDynamics::read_state(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& xdot) {
   if (x.size() != state_size() || xdot.size() != state_size()) {
     check_size("x", state_size(), x.size(), "x = [q; qd; z] with z the force-element states");
     check_size("xdot", state_size(), xdot.size());
@@ -301,57 +305,57 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
     if (!std::isfinite(sum) && !x.allFinite())
       throw NumericalFailure(t, "at t = " + fmt(t) + " s the state is not finite (NaN or infinity)");
   }
-  q_ = x.head(n);
-  qd_ = x.segment(n, n);
-  const double* z = nz ? x.data() + 2 * n : nullptr;
+  q_ = x.head(n_);
+  qd_ = x.segment(n_, n_);
+}
 
-  if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
-    forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
-    tmp_n_ = Q_;
-    if (opt_.paper_literal_forces) tmp_n_.noalias() += dQ_.transpose() * qd_;
-    if (unchecked::aba(model_, data_, q_, qd_, tmp_n_, qdd_) >= 0)
-      throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
-    Qc_.setZero();
-    write_derivative(xdot);
-    return;
-  }
+// No constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by ABA, Q_c = 0.
+void ReferenceDynamics::unconstrained_aba(double t, const double* z) {
+  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
+  tmp_n_ = Q_;
+  if (opt_.paper_literal_forces) tmp_n_.noalias() += dQ_.transpose() * qd_;
+  if (unchecked::aba(model_, data_, q_, qd_, tmp_n_, qdd_) >= 0)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+  Qc_.setZero();
+}
 
-  // One set of joint placements per evaluation, computed with M and c + g in one sweep; the
-  // constraint kinematics reuse them and RNEA's body velocities and accelerations.
+// One set of joint placements per evaluation, computed with M and c + g in one sweep; the
+// constraint kinematics reuse them and RNEA's body velocities and accelerations.
+void ReferenceDynamics::bias_and_constraints(double t) {
   if (aba_lagrange_)  // c + g and the body motions the constraints read; M is not needed
     unchecked::rnea(model_, data_, q_, &qd_, nullptr, true, data_.nle);
   else
     unchecked::mass_matrix_and_bias(model_, data_, q_, qd_);
   evaluate_constraints_after_bias_forces(model_, data_, constraints_, ev_, t, q_, qd_);
-  forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);
-  {
-    const double* __restrict Q = Q_.data();
-    const double* __restrict nle = data_.nle.data();
-    double* __restrict F = F_.data();
-    for (int i = 0; i < n; ++i) F[i] = Q[i] - nle[i];
-    // Baumgarte: Φ̈ + 2αΦ̇ + β²Φ = 0 (holonomic rows), ċ + β₁c = 0 (first-order rows).
-    const double* __restrict gamma = ev_.gamma.data();
-    const double* __restrict phi = ev_.phi.data();
-    const double* __restrict phid = ev_.phid.data();
-    const char* __restrict first = first_order_row_.data();
-    const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
-    double* __restrict rhs = rhs_.data();
-    if (!has_acceleration_rows_) {
-      for (int r = 0; r < m; ++r) rhs[r] = first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
-    } else {  // acceleration rows B q̈ + s = 0 (order p = 2): imposed as they are, A = B, γ = s
-      const char* __restrict acc = acceleration_row_.data();
-      for (int r = 0; r < m; ++r)
-        rhs[r] = acc[r] ? -gamma[r] : first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
-    }
+}
+
+// F = Q − c − g, and the right-hand side of A q̈ = rhs: Baumgarte Φ̈ + 2αΦ̇ + β²Φ = 0
+// (holonomic rows), ċ + β₁c = 0 (first-order rows), B q̈ + s = 0 as it is (acceleration rows).
+void ReferenceDynamics::stabilized_rhs() {
+  const int n = n_, m = m_;
+  const double* __restrict Q = Q_.data();
+  const double* __restrict nle = data_.nle.data();
+  double* __restrict F = F_.data();
+  for (int i = 0; i < n; ++i) F[i] = Q[i] - nle[i];
+  const double* __restrict gamma = ev_.gamma.data();
+  const double* __restrict phi = ev_.phi.data();
+  const double* __restrict phid = ev_.phid.data();
+  const char* __restrict first = first_order_row_.data();
+  const double kd = 2.0 * opt_.alpha, kp = opt_.beta * opt_.beta, k1 = opt_.beta_first_order;
+  double* __restrict rhs = rhs_.data();
+  if (!has_acceleration_rows_) {
+    for (int r = 0; r < m; ++r) rhs[r] = first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
+  } else {  // acceleration rows B q̈ + s = 0 (order p = 2): imposed as they are, A = B, γ = s
+    const char* __restrict acc = acceleration_row_.data();
+    for (int r = 0; r < m; ++r)
+      rhs[r] = acc[r] ? -gamma[r] : first[r] ? -gamma[r] - k1 * phi[r] : -gamma[r] - kd * phid[r] - kp * phi[r];
   }
+}
 
-  if (opt_.solver == ReferenceSolver::Projection)
-    solve_projection(t);
-  else if (aba_lagrange_)
-    solve_lagrange_aba(t);
-  else
-    solve_lagrange(t);
-
+// Q_c = M q̈ − F (or −Aᵀλ where M is not formed); projection: λ from the dependent rows,
+// K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
+void ReferenceDynamics::constraint_forces() {
+  const int n = n_, m = m_;
   const double* __restrict qdd = qdd_.data();
   const double* __restrict F = F_.data();
   double* __restrict Qc = Qc_.data();
@@ -372,7 +376,6 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
       for (int i = 0; i < n; ++i) Qc[i] += a * col[i];
     }
   }
-  // Projection: λ from the dependent rows, K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
   if (opt_.solver == ReferenceSolver::Projection && m > 0) {
     const double* __restrict Ki = Kinv_.data();
     const int* __restrict dep = dep_.data();
@@ -383,8 +386,6 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
       lambda[c] = sum;
     }
   }
-  if (has_acceleration_rows_) acceleration_residuals();
-  write_derivative(xdot);
 }
 
 void ReferenceDynamics::write_derivative(Eigen::VectorXd& xdot) const {
@@ -396,304 +397,6 @@ void ReferenceDynamics::write_derivative(Eigen::VectorXd& xdot) const {
   for (int i = 0; i < n; ++i) out[n + i] = qdd[i];
   const double* __restrict zd = zdot_.data();
   for (int i = 0; i < nz; ++i) out[2 * n + i] = zd[i];
-}
-
-// (Nᵀ M N) u = r in place (NMN_, rk_; k independent coordinates): a scalar division for k = 1
-// (the paper's case), else a Cholesky factorization. Both projection routes end with it.
-void ReferenceDynamics::solve_reduced_mass(double t, int k) {
-  double* NMN = NMN_.data();
-  double* rk = rk_.data();
-  if (k == 1) {
-    if (!(NMN[0] > 0))
-      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-    rk[0] /= NMN[0];
-  } else {
-    llt_k_.compute(NMN_);
-    if (llt_k_.info() != Eigen::Success)
-      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
-    llt_k_.solveInPlace(rk_);
-  }
-}
-
-void ReferenceDynamics::solve_projection(double t) {
-  if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
-  if (!factor_partition()) {
-    if (!opt_.automatic_partition) throw NumericalFailure(t, partition_message(t));
-    choose_partition(t, q_, qd_);
-    if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
-  }
-  // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
-  // other size takes the orthonormal basis (see the header comment).
-  REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))
-  solve_projection_orthonormal(t);
-}
-
-void ReferenceDynamics::solve_projection_orthonormal(double t) {
-  const int n = n_, m = m_, k = n - m;
-  // Projected force f = F (paper-literal: F + (∂Q/∂q̇)ᵀ q̇), as in solve_projection_sized.
-  if (opt_.paper_literal_forces) {
-    tmp_n_.noalias() = dQ_.transpose() * qd_;
-    tmp_n_ += F_;
-  } else {
-    tmp_n_ = F_;
-  }
-  // Aᵀ = Q [R; 0] by Householder reflectors, Q = H_0 ⋯ H_{m−1}, H_j = I − τ_j v_j v_jᵀ (v_j zero
-  // above j, 1 at j). Z = the last k columns of Q is an orthonormal basis of the null space of
-  // A, the space N spans. With y = Qᵀ q̈ = [y1; y2] and W = Qᵀ M Q:
-  //   A q̈ = rhs           ⇔  Rᵀ y1 = rhs
-  //   Zᵀ(M q̈ − f) = 0     ⇔  W22 y2 = (Qᵀ f)_2 − W21 y1,   W22 = ZᵀMZ (SPD, cond ≤ cond(M)),
-  // so no K_dc⁻¹ enters: the rounding error is that of a Cholesky solve with M, as in the KKT
-  // route. Plain loops over column-major storage, like the kernels above (no temporaries).
-  double* __restrict V = qrA_.data();  // n × m: Aᵀ, then R (upper) and the reflectors (below)
-  double* __restrict tau = tau_.data();
-  double* __restrict W = W_.data();  // n × n
-  double* __restrict p = ws_.data();
-  double* __restrict f = tmp_n_.data();
-  const double* __restrict A = ev_.A.data();  // m × n
-  for (int c = 0; c < m; ++c)
-    for (int i = 0; i < n; ++i) V[static_cast<size_t>(c) * n + i] = A[static_cast<size_t>(i) * m + c];
-  for (int j = 0; j < m; ++j) {  // reflector j from column j, rows j..n−1, applied to columns j+1..m−1
-    double* __restrict x = V + static_cast<size_t>(j) * n;
-    double tail = 0;
-    for (int i = j + 1; i < n; ++i) tail += x[i] * x[i];
-    const double alpha = x[j];
-    if (!(tail > 0)) {  // already of the form β e_j: H_j = I
-      tau[j] = 0;
-      continue;
-    }
-    const double beta = alpha >= 0 ? -std::sqrt(alpha * alpha + tail) : std::sqrt(alpha * alpha + tail);
-    tau[j] = (beta - alpha) / beta;
-    const double s = 1.0 / (alpha - beta);
-    for (int i = j + 1; i < n; ++i) x[i] *= s;
-    x[j] = beta;
-    for (int c = j + 1; c < m; ++c) {  // column c −= τ v (vᵀ column c)
-      double* __restrict y = V + static_cast<size_t>(c) * n;
-      double d = y[j];
-      for (int i = j + 1; i < n; ++i) d += x[i] * y[i];
-      d *= tau[j];
-      y[j] -= d;
-      for (int i = j + 1; i < n; ++i) y[i] -= d * x[i];
-    }
-  }
-  // W = Qᵀ M Q: W ← H_j W H_j for j = 0 … m−1, as the symmetric rank-2 update
-  //   p = τ W v,  w = p − (τ vᵀp / 2) v,  W ← W − v wᵀ − w vᵀ;
-  // and Qᵀ f = H_{m−1} ⋯ H_0 f.
-  const double* __restrict Mp = data_.M.data();
-  for (size_t i = 0; i < static_cast<size_t>(n) * n; ++i) W[i] = Mp[i];
-  for (int j = 0; j < m; ++j) {
-    if (tau[j] == 0) continue;
-    const double* __restrict v = V + static_cast<size_t>(j) * n;  // v[j] = 1 (stored: R(j, j))
-    const double tj = tau[j];
-    for (int i = 0; i < n; ++i) p[i] = W[static_cast<size_t>(j) * n + i];
-    for (int c = j + 1; c < n; ++c) {
-      const double vc = v[c];
-      const double* __restrict col = W + static_cast<size_t>(c) * n;
-      for (int i = 0; i < n; ++i) p[i] += vc * col[i];
-    }
-    double vp = p[j];
-    for (int i = j + 1; i < n; ++i) vp += v[i] * p[i];
-    const double half = 0.5 * tj * tj * vp;
-    for (int i = 0; i < n; ++i) p[i] *= tj;  // p = τ W v
-    p[j] -= half;                            // w = p − (τ vᵀp / 2) v   (vᵀp with p = τWv: τ²/2 vᵀWv)
-    for (int i = j + 1; i < n; ++i) p[i] -= half * v[i];
-    // W −= v wᵀ + w vᵀ: column c gets −v·w[c] (rows j..) and −w·v[c] (c ≥ j).
-    for (int c = 0; c < n; ++c) {
-      double* __restrict col = W + static_cast<size_t>(c) * n;
-      const double wc = p[c];
-      col[j] -= wc;
-      for (int i = j + 1; i < n; ++i) col[i] -= v[i] * wc;
-      if (c >= j) {
-        const double vc = c == j ? 1.0 : v[c];
-        for (int i = 0; i < n; ++i) col[i] -= p[i] * vc;
-      }
-    }
-    double d = f[j];  // f ← H_j f
-    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
-    d *= tj;
-    f[j] -= d;
-    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
-  }
-  double* __restrict y1 = tmp_m_.data();  // Rᵀ y1 = rhs (forward substitution)
-  const double* __restrict rhs = rhs_.data();
-  for (int r = 0; r < m; ++r) {
-    double sum = rhs[r];
-    for (int c = 0; c < r; ++c) sum -= V[static_cast<size_t>(r) * n + c] * y1[c];  // R(c, r)
-    y1[r] = sum / V[static_cast<size_t>(r) * n + r];
-  }
-  if (k > 0) {
-    double* rk = rk_.data();  // y2; rk_ and NMN_ also reach the LLT through the members: no restrict
-    double* NMN = NMN_.data();
-    for (int c = 0; c < k; ++c) {
-      double v = f[m + c];
-      for (int r = 0; r < m; ++r) v -= W[static_cast<size_t>(r) * n + m + c] * y1[r];  // W21(c, r)
-      rk[c] = v;
-      for (int c2 = 0; c2 < k; ++c2) NMN[c2 * k + c] = W[static_cast<size_t>(m + c2) * n + m + c];
-    }
-    solve_reduced_mass(t, k);
-    for (int c = 0; c < k; ++c) f[m + c] = rk[c];
-  }
-  for (int r = 0; r < m; ++r) f[r] = y1[r];
-  for (int j = m - 1; j >= 0; --j) {  // q̈ = Q y = H_0 ⋯ H_{m−1} y
-    if (tau[j] == 0) continue;
-    const double* __restrict v = V + static_cast<size_t>(j) * n;
-    double d = f[j];
-    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
-    d *= tau[j];
-    f[j] -= d;
-    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
-  }
-  double* __restrict qdd = qdd_.data();
-  for (int i = 0; i < n; ++i) qdd[i] = f[i];
-}
-
-template <int N, int Mr>
-void ReferenceDynamics::solve_projection_sized(double t) {
-  static_assert(N > 0, "sizes known at run time take solve_projection_orthonormal");
-  const int n = N, m = Mr, k = n - m;
-  // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
-  if (opt_.paper_literal_forces) {
-    tmp_n_.noalias() = dQ_.transpose() * qd_;
-    tmp_n_ += F_;
-  } else {
-    tmp_n_ = F_;
-  }
-  // The stacked system [Nᵀ M; A] q̈ = [Nᵀ F; rhs] is solved by the null-space method, which
-  // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
-  //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
-  //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
-  const int* __restrict dep = dep_.data();
-  const int* __restrict ind = ind_.data();
-  const double* __restrict Mp = data_.M.data();  // n × n, column-major
-  const double* __restrict G = G_.data();        // m × k
-  const double* __restrict Ki = Kinv_.data();
-  const double* __restrict rhs = rhs_.data();
-  double* __restrict f = tmp_n_.data();
-  double* __restrict qdd = qdd_.data();
-  for (int i = 0; i < n; ++i) qdd[i] = 0.0;
-  for (int r = 0; r < m; ++r) {
-    double sum = 0;
-    for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs[j];
-    qdd[dep[r]] = sum;
-  }
-  for (int r = 0; r < m; ++r) {  // F − M q̈_p
-    const double a = qdd[dep[r]];
-    const double* __restrict col = Mp + static_cast<size_t>(dep[r]) * n;
-    for (int i = 0; i < n; ++i) f[i] -= a * col[i];
-  }
-  // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
-  double* __restrict MN = MN_.data();  // n × k
-  for (int c = 0; c < k; ++c) {
-    double* __restrict out = MN + static_cast<size_t>(c) * n;
-    const double* __restrict col = Mp + static_cast<size_t>(ind[c]) * n;
-    for (int i = 0; i < n; ++i) out[i] = col[i];
-    for (int r = 0; r < m; ++r) {
-      const double g = G[c * m + r];
-      const double* __restrict d = Mp + static_cast<size_t>(dep[r]) * n;
-      for (int i = 0; i < n; ++i) out[i] += g * d[i];
-    }
-  }
-  // Nᵀ (M N) and Nᵀ (F − M q̈_p): row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
-  double* NMN = NMN_.data();  // k × k; NMN, rk also reach the LLT through the members: no restrict
-  double* rk = rk_.data();
-  for (int c = 0; c < k; ++c) {
-    for (int c2 = 0; c2 < k; ++c2) {
-      const double* __restrict col = MN + static_cast<size_t>(c2) * n;
-      double v = col[ind[c]];
-      for (int r = 0; r < m; ++r) v += G[c * m + r] * col[dep[r]];
-      NMN[c2 * k + c] = v;
-    }
-    double v = f[ind[c]];
-    for (int r = 0; r < m; ++r) v += G[c * m + r] * f[dep[r]];
-    rk[c] = v;
-  }
-  if (k > 0) {
-    solve_reduced_mass(t, k);
-    for (int c = 0; c < k; ++c) {
-      qdd[ind[c]] += rk[c];
-      for (int r = 0; r < m; ++r) qdd[dep[r]] += G[c * m + r] * rk[c];
-    }
-  }
-}
-
-namespace {
-enum class KktStatus { Ok, MassNotPositiveDefinite, RowsDependent };
-
-/// u = M⁻¹F, Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ, on Eigen objects of fixed or
-/// dynamic size (one source for both; the caller supplies the factorizations and workspaces).
-KktStatus kkt_solve(const auto& M, const auto& A, const auto& F, const auto& rhs, auto& llt_n, auto& llt_m,
-                    auto& Y, auto& S, auto& tmp, auto& qdd, auto& lambda) {
-  llt_n.compute(M);
-  if (llt_n.info() != Eigen::Success) return KktStatus::MassNotPositiveDefinite;
-  qdd = F;
-  llt_n.solveInPlace(qdd);
-  if (A.rows() == 0) return KktStatus::Ok;
-  Y = A.transpose();
-  llt_n.solveInPlace(Y);
-  S.noalias() = A.lazyProduct(Y);
-  llt_m.compute(S);
-  if (llt_m.info() != Eigen::Success) return KktStatus::RowsDependent;
-  tmp.noalias() = A.lazyProduct(qdd);
-  tmp -= rhs;
-  lambda = tmp;
-  llt_m.solveInPlace(lambda);
-  qdd.noalias() -= Y.lazyProduct(lambda);
-  return KktStatus::Ok;
-}
-}  // namespace
-
-void ReferenceDynamics::solve_lagrange(double t) { REFDYN_SIZED_DISPATCH(solve_lagrange_sized, (t)) }
-#undef REFDYN_SIZED_DISPATCH
-#undef REFDYN_FIXED_DISPATCH
-
-template <int N, int Mr>
-void ReferenceDynamics::solve_lagrange_sized(double t) {
-  KktStatus status;
-  if constexpr (N > 0) {  // fixed sizes: factorizations and workspaces on the stack
-    using MatN = Eigen::Matrix<double, N, N>;
-    using MatM = Eigen::Matrix<double, Mr, Mr>;
-    const Eigen::Map<const MatN> M(data_.M.data());
-    const Eigen::Map<const Eigen::Matrix<double, Mr, N>> A(ev_.A.data());
-    const Eigen::Map<const Eigen::Matrix<double, N, 1>> F(F_.data());
-    const Eigen::Map<const Eigen::Matrix<double, Mr, 1>> rhs(rhs_.data());
-    Eigen::Map<Eigen::Matrix<double, N, 1>> qdd(qdd_.data());
-    Eigen::Map<Eigen::Matrix<double, Mr, 1>> lambda(lambda_.data());
-    Eigen::LLT<MatN> llt_n;
-    Eigen::LLT<MatM> llt_m;
-    Eigen::Matrix<double, N, Mr> Y;
-    MatM S;
-    Eigen::Matrix<double, Mr, 1> tmp;
-    status = kkt_solve(M, A, F, rhs, llt_n, llt_m, Y, S, tmp, qdd, lambda);
-  } else {
-    status = kkt_solve(data_.M, ev_.A, F_, rhs_, data_.llt, llt_m_, Y_, Smm_, tmp_m_, qdd_, lambda_);
-  }
-  if (status == KktStatus::MassNotPositiveDefinite)
-    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
-  if (status == KktStatus::RowsDependent)
-    throw NumericalFailure(t, "at t = " + fmt(t) +
-                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
-                                  "hint: remove redundant constraints");
-}
-
-void ReferenceDynamics::solve_lagrange_aba(double t) {
-  // u = M⁻¹F with F = Q − (c + g): ABA with τ = Q. Y = M⁻¹Aᵀ column by column with its
-  // factorization; S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ (as kkt_solve).
-  if (unchecked::aba(model_, data_, q_, qd_, Q_, qdd_) >= 0)
-    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
-  for (int r = 0; r < m_; ++r) {
-    for (int i = 0; i < n_; ++i) tmp_n_[i] = ev_.A(r, i);
-    unchecked::aba_solve(model_, data_, tmp_n_.data(), Y_.col(r).data());
-  }
-  Smm_.noalias() = ev_.A.lazyProduct(Y_);
-  llt_m_.compute(Smm_);
-  if (llt_m_.info() != Eigen::Success)
-    throw NumericalFailure(t, "at t = " + fmt(t) +
-                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
-                                  "hint: remove redundant constraints");
-  tmp_m_.noalias() = ev_.A.lazyProduct(qdd_);
-  tmp_m_ -= rhs_;
-  lambda_ = tmp_m_;
-  llt_m_.solveInPlace(lambda_);
-  qdd_.noalias() -= Y_.lazyProduct(lambda_);
 }
 
 void ReferenceDynamics::acceleration_residuals() {

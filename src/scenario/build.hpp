@@ -1,7 +1,8 @@
 #pragma once
 // Private to src/scenario/ (not installed): the section builders of build_problem that live in
 // their own files, and the helpers the files share. problem.cpp holds build_problem and the
-// other sections; model_section.cpp the model; experiments.cpp the experiments.
+// other sections; model_section.cpp the model; initial_section.cpp the initial state and the
+// checks at t0; experiments.cpp the experiments.
 
 #include "refdyn/scenario/problem.hpp"
 #include "refdyn/common/error.hpp"
@@ -18,6 +19,12 @@ namespace refdyn::build {
 std::unique_ptr<Problem> build_model_section(const SpecReader& c, const ScenarioSpec& spec);
 /// experiments: each expanded (sweep, grid, Monte Carlo) into named Experiments.
 void build_experiments(const SpecReader& c, const ScenarioSpec& spec, Problem& s);
+/// initial: q0, q̇0 (and q̈0, κ for jerk problems) as written (initial_section.cpp).
+void build_initial(const SpecReader& c, const ScenarioSpec& spec, Problem& s);
+/// The initial state at t0 (after the integrator and limits): consistent with the constraints
+/// (projected when asked), the partition chosen, everything a run evaluates at t0 finite and the
+/// rows independent (initial_section.cpp).
+void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem& s);
 
 // Shared helpers (defined in problem.cpp).
 /// `s` with every "{var}" replaced by v (%g).

@@ -332,7 +332,7 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nx);
   x0.head(x0_plant.size()) = x0_plant;
 
-  if (io.method == IntegratorMethod::RK4) {
+  if (replays_stages(io.method)) {
     const ReferenceStages& st = plan.stages;
     if (st.steps == 0 || st.n != n)
       throw Error("simulate_closed_loop: the plan has no recorded RK4 stages for this plant (hint: plan with RK4)");

@@ -22,59 +22,149 @@ namespace refdyn {
 
 namespace {
 
-/// Records the reference dynamics' quantities at output samples into a Plan.
-class PlanRecorder {
- public:
-  PlanRecorder(ReferenceDynamics& rd, Plan& plan, const RecordOptions& o)
-      : rd_(rd), plan_(plan), model_(rd.model()), n_(rd.nq()), m_(rd.num_constraints()), dx_(rd.state_size()),
-        q_(n_), qd_(n_) {
-    const ConstraintSet& cs = rd.constraint_set();
-    const ForceSet& fs = rd.forces();
-    plan.joints = model_.joint_name;
-    plan.state_names = fs.state_names();
-    for (int p : o.points) {
-      if (p < 0 || p >= static_cast<int>(model_.point_name.size()))
-        throw Error(expected_got("recorded point index", "0.." + std::to_string(model_.point_name.size()) + " (exclusive)",
-                                 std::to_string(p)));
-      plan.points.push_back(model_.point_name[p]);
-    }
-    points_ = o.points;
-    for (int r = 0; r < m_; ++r) {
+/// The reference dynamics of order ≤ 2 as PlanRecorder reads it (state [q; q̇; z]).
+struct SecondOrderSource {
+  ReferenceDynamics& rd;
+
+  const Model& model() const { return rd.model(); }
+  const ForceSet* forces() const { return &rd.forces(); }
+  const ConstraintSet& constraint_set() const { return rd.constraint_set(); }
+  int num_constraints() const { return rd.num_constraints(); }
+  int state_size() const { return rd.state_size(); }
+  int z_offset() const { return 2 * rd.nq(); }
+  std::vector<std::string> state_names() const { return rd.forces().state_names(); }
+  /// Every row is a row of the constraint set.
+  void row_names(Plan& plan, bool& any_material) const { set_rows(constraint_set(), plan, any_material); }
+  void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { rd.derivative(t, x, dx); }
+  /// q̈ is the dynamics' output: not a number where it failed.
+  Eigen::VectorXd qdd(const Eigen::VectorXd&, const Eigen::VectorXd& dx, bool ok) const {
+    const int n = rd.nq();
+    return ok ? Eigen::VectorXd(dx.segment(n, n)) : Eigen::VectorXd::Constant(n, std::nan(""));
+  }
+  /// The kinematics of the evaluation (a failed one may not have reached them: done here).
+  const Data& kinematics(const Eigen::VectorXd& q, bool ok) {
+    if (!ok) forward_kinematics(rd.model(), rd.data(), q);
+    return rd.data();
+  }
+  const Eigen::VectorXd& phi() const { return rd.constraints().phi; }
+  const Eigen::VectorXd& phid() const { return rd.constraints().phid; }
+  const Eigen::VectorXd& lambda() const { return rd.lambda(); }
+  const Eigen::VectorXd& constraint_force() const { return rd.constraint_force(); }
+  const Eigen::MatrixXd& row_jacobian() const { return rd.constraints().A; }
+
+  static void set_rows(const ConstraintSet& cs, Plan& plan, bool& any_material) {
+    for (int r = 0; r < cs.rows(); ++r) {
       plan.constraint_rows.push_back(cs.row_name(r));
       const bool mat = cs.constraints()[cs.row_owner(r)]->origin == ConstraintOrigin::Material;
       plan.material_row.push_back(mat ? 1 : 0);
-      any_material_ = any_material_ || mat;
+      any_material = any_material || mat;
     }
-    for (const auto& c : cs.constraints())
+  }
+};
+
+/// The jerk dynamics as PlanRecorder reads it (state [q; q̇; q̈; z]; rows: the constraint set's,
+/// or the jerk rows alone).
+struct JerkSource {
+  JerkDynamics& jd;
+  Data data{jd.model()};  ///< its own kinematics for the recorded points
+
+  const Model& model() const { return jd.model(); }
+  const ForceSet* forces() const { return jd.forces(); }
+  const ConstraintSet& constraint_set() const { return jd.constraint_set(); }
+  int num_constraints() const { return jd.num_constraints(); }
+  int state_size() const { return jd.state_size(); }
+  int z_offset() const { return 3 * jd.nq(); }
+  std::vector<std::string> state_names() const {
+    std::vector<std::string> names;
+    for (const std::string& j : jd.model().joint_name) names.push_back("acc_" + j);
+    if (jd.forces())
+      for (const std::string& z : jd.forces()->state_names()) names.push_back(z);
+    return names;
+  }
+  void row_names(Plan& plan, bool& any_material) const {
+    if (constraint_set().rows() == num_constraints()) return SecondOrderSource::set_rows(constraint_set(), plan, any_material);
+    for (const auto& c : jd.constraints()) {  // made from jerk rows alone
+      plan.constraint_rows.push_back(c->name());
+      plan.material_row.push_back(0);
+    }
+  }
+  void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { jd.derivative(t, x, dx); }
+  /// q̈ is part of the state.
+  Eigen::VectorXd qdd(const Eigen::VectorXd& x, const Eigen::VectorXd&, bool) const {
+    return x.segment(2 * jd.nq(), jd.nq());
+  }
+  const Data& kinematics(const Eigen::VectorXd& q, bool) {
+    forward_kinematics(jd.model(), data, q);
+    return data;
+  }
+  const Eigen::VectorXd& phi() const { return jd.row_residual(); }
+  const Eigen::VectorXd& phid() const { return jd.row_rate_residual(); }
+  const Eigen::VectorXd& lambda() const { return jd.lambda(); }
+  const Eigen::VectorXd& constraint_force() const { return jd.constraint_force(); }
+  const Eigen::MatrixXd& row_jacobian() const { return jd.B(); }
+};
+
+/// Records a reference dynamics' quantities at output samples into a Plan: the one recorder of
+/// plan_motion and plan_jerk_motion (Source: SecondOrderSource or JerkSource). evaluate() runs
+/// the dynamics at the sample, record() appends what that evaluation gave.
+template <class Source>
+class PlanRecorder {
+ public:
+  PlanRecorder(Source source, Plan& plan, const RecordOptions& o)
+      : src_(std::move(source)), plan_(plan), n_(src_.model().nq), m_(src_.num_constraints()),
+        dx_(src_.state_size()) {
+    const Model& model = src_.model();
+    plan.joints = model.joint_name;
+    plan.state_names = src_.state_names();
+    for (int p : o.points) {
+      if (p < 0 || p >= static_cast<int>(model.point_name.size()))
+        throw Error(expected_got("recorded point index", "0.." + std::to_string(model.point_name.size()) + " (exclusive)",
+                                 std::to_string(p)));
+      plan.points.push_back(model.point_name[p]);
+    }
+    points_ = o.points;
+    src_.row_names(plan, any_material_);
+    for (const auto& c : src_.constraint_set().constraints())
       if (!c->record_as.empty() && c->target()) {
         plan.target_signals.push_back(c->record_as);
         targets_.push_back(c->target());
       }
-    for (size_t k = 0; k < fs.elements().size(); ++k) {
-      const auto& e = fs.elements()[k];
-      const auto names = e->signal_names();
-      if (!names.empty()) signal_elements_.push_back(static_cast<int>(k));
-      plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
-      if (e->actuator()) actuators_.push_back(static_cast<int>(k));
-    }
+    if (const ForceSet* fs = src_.forces())
+      for (size_t k = 0; k < fs->elements().size(); ++k) {
+        const auto& e = fs->elements()[k];
+        const auto names = e->signal_names();
+        if (!names.empty()) signal_elements_.push_back(static_cast<int>(k));
+        plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
+        if (e->actuator()) actuators_.push_back(static_cast<int>(k));
+      }
   }
 
-  void record(double t, const Eigen::VectorXd& x) {
-    const ForceSet& fs = rd_.forces();
-    bool ok = true;
+  Source& source() { return src_; }
+
+  /// Evaluates the dynamics at (t, x); false where it failed (NumericalFailure).
+  bool evaluate(double t, const Eigen::VectorXd& x) {
     try {
-      rd_.derivative(t, x, dx_);
+      src_.derivative(t, x, dx_);
+      ok_ = true;
     } catch (const NumericalFailure&) {
-      ok = false;
+      ok_ = false;
     }
+    return ok_;
+  }
+
+  /// Appends the sample (t, x) of the last evaluate(): q̈, points, targets, force signals, per
+  /// row Φ and Φ̇, λ, Q_c, the reactions of material rows and the actuator effort (not a number
+  /// where the evaluation failed).
+  void record(double t, const Eigen::VectorXd& x) {
+    const ForceSet* fs = src_.forces();
     const double nan = std::nan("");
-    q_ = x.head(n_);
-    qd_ = x.segment(n_, n_);
-    const double* z = fs.num_states() ? x.data() + 2 * n_ : nullptr;
-    plan_.qdd.push_back(ok ? Eigen::VectorXd(dx_.segment(n_, n_)) : Eigen::VectorXd::Constant(n_, nan));
+    const bool ok = ok_;
+    const Eigen::VectorXd q = x.head(n_), qd = x.segment(n_, n_);
+    const double* z = fs && fs->num_states() ? x.data() + src_.z_offset() : nullptr;
+    plan_.qdd.push_back(src_.qdd(x, dx_, ok));
+    const Data& data = src_.kinematics(q, ok);
     Eigen::VectorXd pts(3 * points_.size());
-    if (!ok) forward_kinematics(model_, rd_.data(), q_);  // the failed evaluation may not have reached the kinematics
-    for (size_t k = 0; k < points_.size(); ++k) pts.segment<3>(3 * k) = point_position(model_, rd_.data(), points_[k]);
+    for (size_t k = 0; k < points_.size(); ++k) pts.segment<3>(3 * k) = point_position(src_.model(), data, points_[k]);
     plan_.point_positions.push_back(std::move(pts));
     Eigen::VectorXd tg(targets_.size());
     for (size_t k = 0; k < targets_.size(); ++k) tg[k] = targets_[k]->eval(t).f;
@@ -82,47 +172,58 @@ class PlanRecorder {
     Eigen::VectorXd sig(plan_.force_signals.size());
     for (size_t k = 0, o = 0; k < signal_elements_.size(); ++k) {
       const int e = signal_elements_[k];
-      fs.elements()[e]->signals(t, q_, qd_, z ? z + fs.state_offset(e) : nullptr, sig.data() + o);
-      o += fs.elements()[e]->signal_names().size();
+      fs->elements()[e]->signals(t, q, qd, z ? z + fs->state_offset(e) : nullptr, sig.data() + o);
+      o += fs->elements()[e]->signal_names().size();
     }
     plan_.forces.push_back(std::move(sig));
-    const ConstraintEval& ev = rd_.constraints();
-    plan_.phi.push_back(ok ? ev.phi : Eigen::VectorXd::Constant(m_, nan));
-    plan_.phid.push_back(ok ? ev.phid : Eigen::VectorXd::Constant(m_, nan));
-    plan_.lambda.push_back(ok ? rd_.lambda() : Eigen::VectorXd::Constant(m_, nan));
-    plan_.Qc.push_back(ok ? rd_.constraint_force() : Eigen::VectorXd::Constant(n_, nan));
+    plan_.phi.push_back(ok ? src_.phi() : Eigen::VectorXd::Constant(m_, nan));
+    plan_.phid.push_back(ok ? src_.phid() : Eigen::VectorXd::Constant(m_, nan));
+    plan_.lambda.push_back(ok ? src_.lambda() : Eigen::VectorXd::Constant(m_, nan));
+    plan_.Qc.push_back(ok ? src_.constraint_force() : Eigen::VectorXd::Constant(n_, nan));
     // Actuator effort: actuator elements + programmed-constraint forces; reaction: material rows.
     Eigen::VectorXd act = plan_.Qc.back();
     if (any_material_) {
       Eigen::VectorXd reaction = Eigen::VectorXd::Zero(n_);
       if (ok)
         for (int r = 0; r < m_; ++r)
-          if (plan_.material_row[r]) reaction -= ev.A.row(r).transpose() * rd_.lambda()[r];
+          if (plan_.material_row[r]) reaction -= src_.row_jacobian().row(r).transpose() * src_.lambda()[r];
       if (!ok) reaction.setConstant(nan);
       act -= reaction;
       plan_.reaction_effort.push_back(std::move(reaction));
     }
-    for (int k : actuators_) act += fs.element_force(k, t, q_, qd_, z);
+    for (int k : actuators_) act += fs->element_force(k, t, q, qd, z);
     plan_.actuator_effort.push_back(std::move(act));
   }
 
  private:
-  ReferenceDynamics& rd_;
+  Source src_;
   Plan& plan_;
-  const Model& model_;
   int n_, m_;
-  Eigen::VectorXd dx_, q_, qd_;
+  Eigen::VectorXd dx_;
+  bool ok_ = false;
   std::vector<int> points_, signal_elements_, actuators_;
   std::vector<const TimeFunction*> targets_;
   bool any_material_ = false;
 };
+
+/// A plan cut at its first sample beyond the residual tolerance: status, end time, message and
+/// the steps kept (with the hint of the caller's order).
+void end_at_cut(IntegrationSummary& s, double t_end, double cut_t, double cut_residual, const std::string& rows,
+                double tol, const std::string& hint) {
+  s.status = IntegrationStatus::ResidualExceeded;
+  s.t_end = t_end;
+  s.message = "at t = " + fmt(cut_t) + " s the constraint residual max |Phi| = " + fmt(cut_residual) + rows +
+              " exceeds integrator.residual_tolerance = " + fmt(tol) +
+              ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
+              fmt(s.t_end) + " s (hint: " + hint + ")";
+}
 
 /// The RK4 stages [q̂, q̂̇, q̂̈] of a plan, recorded for tracking on the same grid (RK4 only):
 /// stage s of step k is stored at (4k + s) · 3n, whatever the call order.
 class StageRecorder {
  public:
   StageRecorder(ReferenceStages& st, const IntegratorOptions& o, int n, int extra = 0)
-      : st_(st), on_(o.method == IntegratorMethod::RK4), per_stage_(3 * static_cast<size_t>(n)),
+      : st_(st), on_(replays_stages(o.method)), per_stage_(3 * static_cast<size_t>(n)),
         extra_(static_cast<size_t>(extra)) {
     if (!on_) return;
     const Rk4Grid grid(o);
@@ -274,13 +375,13 @@ void explain_failure(ReferenceDynamics& rd, const IntegratorOptions& o, const Pl
 
 }  // namespace
 
-Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                 double residual_from, const std::function<void(double)>& progress, const RecordOptions& record) {
+Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const PlanSettings& settings) {
+  const IntegratorOptions& options = settings.integrator;
   options.validate();
   check_vector("x0", x0, rd.state_size(), "x0 = [q; qd; z], see ReferenceDynamics::make_state");
   const int n = rd.nq();
   Plan plan;
-  PlanRecorder recorder(rd, plan, record);
+  PlanRecorder<SecondOrderSource> recorder(SecondOrderSource{rd}, plan, settings.record);
   const int nz = rd.num_force_states(), m = rd.num_constraints();
   StageRecorder stages(plan.stages, options, n, nz + m);
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
@@ -300,12 +401,12 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   // The first sample (t >= residual_from) whose residual exceeds the tolerance (or is not a
   // number) is not recorded: the plan ends at the sample before, its last trustworthy one. The
   // initial state is always recorded (build_problem checked it against initial.tolerance).
-  const double tol = record.residual_tolerance;
+  const double tol = settings.record.residual_tolerance;
   bool cut = false;
   double cut_t = 0, cut_residual = 0;
   std::string cut_why;
   auto obs = [&](double t, const Eigen::VectorXd& x) {
-    if (t >= residual_from - 1e-12) {
+    if (t >= settings.residual_from - 1e-12) {
       double r = 0;
       try {
         r = rd.residual(t, x);
@@ -322,8 +423,9 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
     }
     plan.t.push_back(t);
     plan.x.push_back(x);
+    recorder.evaluate(t, x);
     recorder.record(t, x);
-    if (progress) progress(t);
+    if (settings.progress) settings.progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
@@ -343,15 +445,10 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   plan.summary.projections = projections;
   plan.summary.max_projection_correction = largest_correction;
   if (cut) {
-    IntegrationSummary& s = plan.summary;
-    s.status = IntegrationStatus::ResidualExceeded;
-    s.t_end = plan.t.empty() ? options.t0 : plan.t.back();
-    s.message = "at t = " + fmt(cut_t) + " s the constraint residual max |Phi| = " + fmt(cut_residual) +
-                (cut_why.empty() ? std::string() : " (" + cut_why + ")") + " exceeds integrator.residual_tolerance = " +
-                fmt(tol) + ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
-                fmt(s.t_end) + " s (hint: a smaller step, stronger Baumgarte gains, or a task that stays in the "
-                "workspace)";
-    if (stages.on()) s.steps = stages.steps_until(s.t_end);
+    end_at_cut(plan.summary, plan.t.empty() ? options.t0 : plan.t.back(), cut_t, cut_residual,
+               cut_why.empty() ? std::string() : " (" + cut_why + ")", tol,
+               "a smaller step, stronger Baumgarte gains, or a task that stays in the workspace");
+    if (stages.on()) plan.summary.steps = stages.steps_until(plan.summary.t_end);
   }
   stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;
@@ -359,58 +456,15 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const Integra
   return plan;
 }
 
-Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const IntegratorOptions& options,
-                      const RecordOptions& record, const std::function<void(double)>& progress,
-                      double residual_from) {
+Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const PlanSettings& settings) {
+  const IntegratorOptions& options = settings.integrator;
   options.validate();
   check_vector("x0", x0, jd.state_size(), "x0 = [q; qd; qdd; z], see JerkDynamics::initial_state");
-  const Model& model = jd.model();
-  const ForceSet* forces = jd.forces();
   const ConstraintSet& cs = jd.constraint_set();
   const int n = jd.nq(), m = jd.num_constraints();
   Plan plan;
-  plan.joints = model.joint_name;
-  for (int j = 0; j < n; ++j) plan.state_names.push_back("acc_" + model.joint_name[j]);
-  std::vector<int> signal_elements, actuators;
-  if (forces) {
-    for (const std::string& z : forces->state_names()) plan.state_names.push_back(z);
-    for (size_t k = 0; k < forces->elements().size(); ++k) {
-      const auto& e = forces->elements()[k];
-      const auto names = e->signal_names();
-      if (!names.empty()) signal_elements.push_back(static_cast<int>(k));
-      plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
-      if (e->actuator()) actuators.push_back(static_cast<int>(k));
-    }
-  }
-  for (int p : record.points) {
-    if (p < 0 || p >= static_cast<int>(model.point_name.size()))
-      throw Error(expected_got("recorded point index", "0.." + std::to_string(model.point_name.size()) + " (exclusive)",
-                               std::to_string(p)));
-    plan.points.push_back(model.point_name[p]);
-  }
-  bool any_material = false;
-  if (cs.rows() == m) {
-    for (int r = 0; r < m; ++r) {
-      plan.constraint_rows.push_back(cs.row_name(r));
-      const bool mat = cs.constraints()[cs.row_owner(r)]->origin == ConstraintOrigin::Material;
-      plan.material_row.push_back(mat ? 1 : 0);
-      any_material = any_material || mat;
-    }
-  } else {  // made from jerk rows alone
-    for (const auto& c : jd.constraints()) {
-      plan.constraint_rows.push_back(c->name());
-      plan.material_row.push_back(0);
-    }
-  }
-  std::vector<const TimeFunction*> targets;
-  for (const auto& c : cs.constraints())
-    if (!c->record_as.empty() && c->target()) {
-      plan.target_signals.push_back(c->record_as);
-      targets.push_back(c->target());
-    }
+  PlanRecorder<JerkSource> recorder(JerkSource{jd}, plan, settings.record);
   StageRecorder stages(plan.stages, options, n);  // x[0, 3n) is [q̂, q̂̇, q̂̈] at every stage
-  Data data(model);
-  Eigen::VectorXd dx(jd.state_size());
   double worst = 0;
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
     jd.derivative(t, x, xdot);
@@ -422,19 +476,13 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
   if (cs.rows() == m)
     for (int r = 0; r < m; ++r)
       if (cs.row_order(r) <= 2) lower_rows.push_back(r);
-  const double tol = record.residual_tolerance;
+  const double tol = settings.record.residual_tolerance;
   bool cut = false;
   double cut_t = 0, cut_residual = 0;
   auto obs = [&](double t, const Eigen::VectorXd& x) {
-    const double nan = std::nan("");
-    bool ok = true;
-    try {
-      jd.derivative(t, x, dx);
-    } catch (const NumericalFailure&) {
-      ok = false;
-    }
-    if (!lower_rows.empty() && t >= residual_from - 1e-12 && std::isfinite(tol) && !plan.t.empty()) {
-      double r = ok ? 0.0 : nan;
+    const bool ok = recorder.evaluate(t, x);
+    if (!lower_rows.empty() && t >= settings.residual_from - 1e-12 && std::isfinite(tol) && !plan.t.empty()) {
+      double r = ok ? 0.0 : std::nan("");
       if (ok)
         for (int row : lower_rows) r = std::max(r, std::abs(jd.row_residual()[row]));
       if (!(r <= tol)) {
@@ -444,60 +492,22 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const Integra
     }
     plan.t.push_back(t);
     plan.x.push_back(x);
-    plan.qdd.push_back(x.segment(2 * n, n));
-    const Eigen::VectorXd q = x.head(n), qd = x.segment(n, n);
-    const double* z = forces && forces->num_states() ? x.data() + 3 * n : nullptr;
-    forward_kinematics(model, data, q);
-    Eigen::VectorXd pts(3 * record.points.size());
-    for (size_t k = 0; k < record.points.size(); ++k) pts.segment<3>(3 * k) = point_position(model, data, record.points[k]);
-    plan.point_positions.push_back(std::move(pts));
-    Eigen::VectorXd tg(targets.size());
-    for (size_t k = 0; k < targets.size(); ++k) tg[k] = targets[k]->eval(t).f;
-    plan.targets.push_back(std::move(tg));
-    Eigen::VectorXd sig(plan.force_signals.size());
-    for (size_t k = 0, o = 0; k < signal_elements.size(); ++k) {
-      const int e = signal_elements[k];
-      forces->elements()[e]->signals(t, q, qd, z ? z + forces->state_offset(e) : nullptr, sig.data() + o);
-      o += forces->elements()[e]->signal_names().size();
-    }
-    plan.forces.push_back(std::move(sig));
-    plan.phi.push_back(ok ? jd.row_residual() : Eigen::VectorXd::Constant(m, nan));
-    plan.phid.push_back(ok ? jd.row_rate_residual() : Eigen::VectorXd::Constant(m, nan));
-    plan.lambda.push_back(ok ? jd.lambda() : Eigen::VectorXd::Constant(m, nan));
-    plan.Qc.push_back(ok ? jd.constraint_force() : Eigen::VectorXd::Constant(n, nan));
-    // Actuator effort: actuator elements + programmed-constraint forces; reaction: material rows.
-    Eigen::VectorXd act = plan.Qc.back();
-    if (any_material) {
-      Eigen::VectorXd reaction = Eigen::VectorXd::Zero(n);
-      if (ok)
-        for (int r = 0; r < m; ++r)
-          if (plan.material_row[r]) reaction -= jd.B().row(r).transpose() * jd.lambda()[r];
-      if (!ok) reaction.setConstant(nan);
-      act -= reaction;
-      plan.reaction_effort.push_back(std::move(reaction));
-    }
-    for (int k : actuators) act += forces->element_force(k, t, q, qd, z);
-    plan.actuator_effort.push_back(std::move(act));
+    recorder.record(t, x);
     if (ok) {
       worst = std::max(worst, jd.dynamics_residual());
       for (int r = 0; r < m; ++r) worst = std::max(worst, std::abs(jd.row_residual()[r]));
     }
-    if (progress) progress(t);
+    if (settings.progress) settings.progress(t);
     return true;
   };
   Eigen::VectorXd x = x0;
   plan.summary = integrate_staged(rhs, x, options, obs);
   if (cut) {
-    IntegrationSummary& s = plan.summary;
-    s.status = IntegrationStatus::ResidualExceeded;
-    s.t_end = plan.t.back();
-    s.message = "at t = " + fmt(cut_t) + " s the constraint residual max |Phi| = " + fmt(cut_residual) +
-                " of the rows of order <= 2 exceeds integrator.residual_tolerance = " + fmt(tol) +
-                ": the plan no longer meets its task; it ends at its last sample within the tolerance, t = " +
-                fmt(s.t_end) + " s (hint: a smaller step — at the jerk level these rows are stabilized by "
-                "d/dt psi + kappa psi = 0 and the Baumgarte gains, whose fastest mode RK4 must resolve — weaker "
-                "gains, or a task that stays in the workspace)";
-    if (stages.on()) s.steps = stages.steps_until(s.t_end);
+    end_at_cut(plan.summary, plan.t.back(), cut_t, cut_residual, " of the rows of order <= 2", tol,
+               "a smaller step — at the jerk level these rows are stabilized by d/dt psi + kappa psi = 0 and the "
+               "Baumgarte gains, whose fastest mode RK4 must resolve — weaker gains, or a task that stays in the "
+               "workspace");
+    if (stages.on()) plan.summary.steps = stages.steps_until(plan.summary.t_end);
   }
   stages.finish(plan.summary.steps);
   plan.summary.max_constraint_residual = worst;

@@ -25,7 +25,7 @@ Eigen::VectorXd ReferencePlanner::initial_state(double, const Eigen::VectorXd& q
 }
 
 Plan ReferencePlanner::plan(const Eigen::VectorXd& x0, const PlanSettings& s) {
-  return plan_motion(*rd_, x0, s.integrator, s.residual_from, s.progress, s.record);
+  return plan_motion(*rd_, x0, s);
 }
 
 std::vector<RowResidual> ReferencePlanner::row_residuals() const {
@@ -49,7 +49,7 @@ std::vector<std::string> JerkPlanner::state_names() const {
 }
 
 Plan JerkPlanner::plan(const Eigen::VectorXd& x0, const PlanSettings& s) {
-  return plan_jerk_motion(*jd_, x0, s.integrator, s.record, s.progress, s.residual_from);
+  return plan_jerk_motion(*jd_, x0, s);
 }
 
 std::vector<RowResidual> JerkPlanner::row_residuals() const {

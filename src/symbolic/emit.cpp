@@ -1,8 +1,8 @@
 // Writers of the generated reference dynamics as LaTeX and JSON (the C writer is emit_c.cpp;
-// both print from the canonical graph of trace.hpp).
+// both print from the canonical graph of tape.hpp).
 #include "internal.hpp"
 #include "printer.hpp"
-#include "trace.hpp"
+#include "tape.hpp"
 
 #include "refdyn/common/json.hpp"
 #include "refdyn/common/text.hpp"
@@ -44,7 +44,7 @@ std::string latex_text(const std::string& s) {
 }
 
 
-/// The LaTeX of the displayed expressions, through the canonical tape (trace.hpp): the same
+/// The LaTeX of the displayed expressions, through the canonical tape (tape.hpp): the same
 /// text in every run. Shared sub-expressions that are not short, and long ones, become
 /// auxiliary quantities u_k, numbered in the order they are first printed; sin q_i, cos q_i are
 /// written s_i, c_i.
@@ -361,7 +361,7 @@ std::string SymbolicReferenceDynamics::latex() const {
 std::string SymbolicReferenceDynamics::json() const {
   const Impl& S = *impl_;
   const int n = S.n, m = S.m;
-  // through the canonical tape (trace.hpp): the same text in every run
+  // through the canonical tape (tape.hpp): the same text in every run
   std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
   symbolic_detail::Tape tape;
   symbolic_detail::TapeScope scope(tape);

@@ -2,7 +2,7 @@
 // reference_dynamics.h and reference_dynamics.c. The LaTeX and JSON writers are in emit.cpp.
 #include "internal.hpp"
 #include "printer.hpp"
-#include "trace.hpp"
+#include "tape.hpp"
 
 #include "refdyn/common/text.hpp"
 

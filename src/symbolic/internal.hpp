@@ -3,7 +3,7 @@
 //   model.cpp     the bodies of a Model as GiNaC expressions (the kinematics and Newton–Euler
 //                 are the generic core's, refdyn/multibody/, instantiated for GiNaC::ex)
 //   generate.cpp  the reference dynamics of a Problem: M, c, g, Q, ż, Φ, Φ̇, A, γ, partition
-//   trace.cpp     the canonical graph of double operations the writers print from (trace.hpp)
+//   tape.cpp     the canonical graph of double operations the writers print from (tape.hpp)
 //   emit_c.cpp    C99 writer (with common-subexpression elimination)
 //   emit.cpp      LaTeX and JSON writers (printer.hpp: number formatting)
 #include "refdyn/multibody/model.hpp"

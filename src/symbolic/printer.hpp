@@ -1,5 +1,5 @@
 #pragma once
-// Private to the generator's writers (emit_c.cpp: C99; emit.cpp: LaTeX and JSON; trace.cpp: the
+// Private to the generator's writers (emit_c.cpp: C99; emit.cpp: LaTeX and JSON; tape.cpp: the
 // canonical graph all three print from): number formatting.
 #include "../expression/internal.hpp"
 #include "refdyn/common/error.hpp"

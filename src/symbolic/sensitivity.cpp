@@ -18,7 +18,7 @@
 // total derivative at a sample adds the rate along the motion (ẋ, and for q̈, τ, Φ their rates from
 // the same KKT system along the time direction) times (t_k − t0)/(t1 − t0)·∂t1/∂p.
 #include "internal.hpp"
-#include "trace.hpp"
+#include "tape.hpp"
 
 #include "../expression/internal.hpp"
 #include "refdyn/common/error.hpp"
@@ -394,7 +394,7 @@ void check_scope(const Problem& problem, const SensitivityOptions& options) {
   }
   if (problem.is_jerk_problem())
     throw Error("sensitivities are computed for problems of order ≤ 2; this one has a jerk row");
-  if (problem.integrator.method != IntegratorMethod::RK4)
+  if (!replays_stages(problem.integrator.method))
     throw Error(std::string("sensitivities are computed through the RK4 integrator; this plan uses method: ") +
                 to_string(problem.integrator.method) + " (hint: integrator.method: rk4)");
   if (problem.options.stabilization != Stabilization::Baumgarte)

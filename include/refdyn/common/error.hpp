@@ -18,6 +18,15 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A numerical outcome at time t, not bad input: the equations cannot be formed there (a
+/// singular partition or mass matrix, a state that is not finite). Thrown by the dynamics'
+/// derivative(); integrators catch it and report it in their Summary, with the time.
+class NumericalFailure : public Error {
+ public:
+  NumericalFailure(double t, const std::string& msg) : Error(msg), time(t) {}
+  double time;
+};
+
 /// Builds "what: expected E, got G (hint: H)".
 std::string expected_got(std::string_view what, std::string_view expected, std::string_view got,
                          std::string_view hint = {});

@@ -60,14 +60,6 @@
 
 namespace refdyn {
 
-/// Thrown by ReferenceDynamics::derivative when the equations cannot be formed (a singular
-/// partition); integrators catch it and report it in their Summary.
-class NumericalFailure : public Error {
- public:
-  NumericalFailure(double t, const std::string& msg) : Error(msg), time(t) {}
-  double time;
-};
-
 /// Projection (the paper's reduced form), Lagrange (KKT), or Automatic: resolved by the
 /// ReferenceDynamics constructor to automatic_reference_solver(nq, rows) (options() then holds
 /// the resolved solver).
@@ -220,6 +212,12 @@ class ReferenceDynamics {
   double residual(double t, const Eigen::VectorXd& x);
 
  private:
+  // derivative()'s stages, in order (reference_dynamics.cpp)
+  void read_state(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& xdot);  // q, q̇; checks
+  void unconstrained_aba(double t, const double* z);  // no rows, large model: q̈ by ABA
+  void bias_and_constraints(double t);  // M, c + g; Φ, Φ̇, A, γ
+  void stabilized_rhs();                // F = Q − c − g; rhs of A q̈ = rhs
+  void constraint_forces();             // Q_c; λ of the projection route
   void write_derivative(Eigen::VectorXd& xdot) const;  // ẋ = [q̇; q̈; ż] from the workspaces
   void solve_projection(double t);
   void solve_reduced_mass(double t, int k);  // (Nᵀ M N) u = r in NMN_, rk_

@@ -169,8 +169,7 @@ struct InitialSpec {
 
 struct IntegratorSpec {
   std::string method = "rk4";              ///< rk4 | dopri5 | bdf
-  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, residual_tolerance, max_steps,
-      max_order;
+  SpecValue step, t0, t1, rtol, atol, output_interval, min_step, residual_from, residual_tolerance, max_order;
   SpecValue value;
 };
 

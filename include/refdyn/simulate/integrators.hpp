@@ -18,6 +18,11 @@ namespace refdyn {
 enum class IntegratorMethod { RK4, DormandPrince45, BDF };
 /// "rk4", "dopri5", "bdf" (the scenario's integrator.method).
 const char* to_string(IntegratorMethod m);
+/// Whether an integrator's stages are recorded with a plan and replayed on the same grid by the
+/// closed loop (simulate_closed_loop) and the sensitivity pass (plan_sensitivity): the one place
+/// that says so. RK4 only: its fixed grid is known before the run; DOPRI5 and BDF choose their
+/// steps as they go, so the closed loop integrates the planner jointly with the plant instead.
+constexpr bool replays_stages(IntegratorMethod m) { return m == IntegratorMethod::RK4; }
 /// The method named by to_string(m); false when `text` names none.
 bool from_string(const std::string& text, IntegratorMethod& m);
 

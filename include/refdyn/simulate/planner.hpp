@@ -13,6 +13,7 @@
 #include "refdyn/reference/jerk.hpp"
 #include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/simulate/integrators.hpp"
+#include "refdyn/simulate/plan.hpp"
 #include "refdyn/simulate/trajectory.hpp"
 
 #include <functional>
@@ -22,14 +23,6 @@
 #include <vector>
 
 namespace refdyn {
-
-/// How a plan is made and recorded (what plan_problem takes from a Problem).
-struct PlanSettings {
-  IntegratorOptions integrator;
-  double residual_from = 0.0;             ///< the residual is reported (and checked) for t >= this
-  RecordOptions record;                   ///< recorded points, residual tolerance
-  std::function<void(double)> progress;   ///< optional: called with the time of every sample
-};
 
 /// The partition of the coordinates into independent and dependent ones (projection method).
 struct PlannerPartition {

@@ -1,5 +1,5 @@
-// The generated C as a graph of double operations (see trace.hpp).
-#include "trace.hpp"
+// The generated C as a graph of double operations (see tape.hpp).
+#include "tape.hpp"
 
 #include "printer.hpp"
 
