@@ -27,7 +27,7 @@ mkdir -p "$BUILD_DIR"
 # The configuration of scripts/test-sanitizers.sh (-O1 -g1, clang, ASan + UBSan): after the
 # sanitizer suite the library is up to date and only the four fuzz executables are compiled
 # (the stage's measured time is in docs/testing.md, "CI time").
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
+bash scripts/configure.sh "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
   -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1" -DCMAKE_CXX_COMPILER="$CXX_FUZZ" -DCMAKE_C_COMPILER="$CC_FUZZ" \
   -DREFDYN_SANITIZE=address,undefined -DREFDYN_FUZZ=ON > "$BUILD_DIR/configure.log" 2>&1 ||
   { cat "$BUILD_DIR/configure.log"; exit 1; }

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian package refdyn needs to build, test, benchmark, plot and fuzz
-# (clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer;
+# (ninja-build: the generator of new build folders, scripts/configure.sh;
+# clang-14 + libclang-rt-14-dev: libFuzzer and sanitizer runtimes; llvm-14: llvm-symbolizer;
 # texlive-latex-base: pdflatex, which tests/symbolic_test uses to compile the generated LaTeX;
 # libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
 # chromium + python3-pil: the report's browser test, tests/report_browser_test.py;
@@ -11,7 +12,7 @@
 # Idempotent: when everything is present it only runs dpkg-query and returns.
 set -euo pipefail
 PACKAGES=(
-  cmake g++ make pkg-config
+  cmake g++ make ninja-build pkg-config
   libeigen3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libginac-dev nlohmann-json3-dev libsundials-dev

@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 BUILD_DIR=${BUILD_DIR:-build}
 OUT=${OUTPUT_DIR:-results}
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
+bash scripts/configure.sh "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD_DIR" -j "$(nproc)"
 "$BUILD_DIR/apps/refdyn" paper --output "$OUT" --report
 /usr/bin/python3 scripts/plot_study.py "$OUT"

@@ -33,7 +33,7 @@ stage() {  # NAME COMMAND...: runs the command, records PASS/FAIL and its durati
 CTEST_LOG=$(mktemp /tmp/refdyn_ctest.XXXXXX)
 trap 'rm -f "$CTEST_LOG"' EXIT
 normal_suite() {
-  cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release &&
+  bash scripts/configure.sh "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release &&
     cmake --build "$BUILD_DIR" -j "$JOBS" &&
     (cd "$BUILD_DIR" && ctest --output-on-failure -j "$JOBS" | tee "$CTEST_LOG"; exit "${PIPESTATUS[0]}")
 }
