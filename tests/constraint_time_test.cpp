@@ -357,9 +357,11 @@ TEST(ConstraintTimeDerivative, RheonomicRowsOfEveryTimeFunctionAndExpressionOrde
     for (const auto& [label, desc] : model_zoo(rng, dof)) {
       const Model model = build_model(desc);
       const ConstraintSet set = rheonomic_kinds(model, rng);
-      for (int k = 0; k < set.size(); ++k)
-        if (set.constraints()[k]->name != "expr_acceleration_scleronomic")
+      for (int k = 0; k < set.size(); ++k) {
+        if (set.constraints()[k]->name != "expr_acceleration_scleronomic") {
           EXPECT_TRUE(set.constraints()[k]->rheonomic()) << set.constraints()[k]->name;
+        }
+      }
       for (int trial = 0; trial < 4; ++trial) {
         const Eigen::VectorXd q = test::random_vector(rng, model.nq, 2.0), qd = test::random_vector(rng, model.nq, 1.5),
                               qdd = test::random_vector(rng, model.nq, 2.0);

@@ -243,15 +243,10 @@ struct JointSystem {
   }
 };
 
-}  // namespace
-
-ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
-                                      const Plan& plan, Planner* rd, const Eigen::VectorXd& x0_plant,
-                                      const ClosedLoopOptions& options) {
-  const IntegratorOptions& io = options.integrator;
-  io.validate();
-  const int n = plant.nv, nz = plant_forces.num_states(), nc = controller.num_states();
-  const int nx = 2 * n + nz + nc;
+// The arguments of simulate_closed_loop checked: sizes, finite values, limits, points, orders.
+void check_closed_loop_inputs(const Model& plant, int nx, int nz, const Plan& plan, const Eigen::VectorXd& x0_plant,
+                              const ClosedLoopOptions& options) {
+  const int n = plant.nv;
   if (x0_plant.size() != nx) check_vector("plant initial state", x0_plant, 2 * n + nz, "x0 = [q; qd; z_plant]");
   check_finite("plant initial state", x0_plant);
   if (options.effort_limit.size() != 0) {
@@ -266,74 +261,43 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     if (p < 0 || p >= static_cast<int>(plant.point_name.size()))
       throw Error(expected_got("recorded point index", "0.." + std::to_string(plant.point_name.size()) + " (exclusive)",
                                std::to_string(p)));
-  ClosedLoopResult out;
-  out.joints = plant.joint_name;
-  out.state_names = plant_forces.state_names();
-  for (const auto& s : controller.state_names()) out.state_names.push_back(s);
-  for (int p : options.points) out.points.push_back(plant.point_name[p]);
   if (options.material)
     for (const ConstraintPtr& c : options.material->constraints())
       if (c->order() > 1)
         throw Error("simulate_closed_loop: the plant's constraint '" + c->name + "' is of acceleration level; a "
                     "material constraint is holonomic or first order");
-  PlantWorkspace w(plant, plant_forces, options, controller);
-  if (w.constrained) {
-    const ConstraintSet& mat = *options.material;
-    for (int r = 0; r < mat.rows(); ++r) out.constraint_rows.push_back(mat.row_name(r)), out.material_row.push_back(1);
+}
+
+// One closed-loop run: the plant's workspace, what is recorded at each sample, and the two ways
+// of integrating it (replay_rk4: the plan's recorded RK4 stages; integrate_jointly: the planner
+// integrated with the plant, for Dormand–Prince and BDF).
+class ClosedLoopRun {
+ public:
+  ClosedLoopRun(const Model& plant, const ForceSet& forces, Controller& controller, const Plan& plan,
+                const ClosedLoopOptions& options)
+      : plant_(plant), forces_(forces), controller_(controller), plan_(plan), options_(options),
+        n_(plant.nv), nz_(forces.num_states()), nc_(controller.num_states()), nx_(2 * n_ + nz_ + nc_),
+        w_(plant, forces, options, controller), kin_(plant) {}
+
+  int state_size() const { return nx_; }
+
+  /// The result's names: joints, states, points, material rows.
+  void start(ClosedLoopResult& out) const {
+    out.joints = plant_.joint_name;
+    out.state_names = forces_.state_names();
+    for (const auto& s : controller_.state_names()) out.state_names.push_back(s);
+    for (int p : options_.points) out.points.push_back(plant_.point_name[p]);
+    if (w_.constrained) {
+      const ConstraintSet& mat = *options_.material;
+      for (int r = 0; r < mat.rows(); ++r) out.constraint_rows.push_back(mat.row_name(r)), out.material_row.push_back(1);
+    }
   }
-  Data kin(plant);
-  const auto start = std::chrono::steady_clock::now();
 
-  auto set_ref = [&](const double* q, const double* qd, const double* qdd) {
-    w.qr = Eigen::Map<const Eigen::VectorXd>(q, n);
-    w.qdr = Eigen::Map<const Eigen::VectorXd>(qd, n);
-    w.qddr = Eigen::Map<const Eigen::VectorXd>(qdd, n);
-  };
-  auto record = [&](double t, const double* xp) {
-    out.t.push_back(t);
-    out.x.push_back(Eigen::Map<const Eigen::VectorXd>(xp, nx));
-    w.q = Eigen::Map<const Eigen::VectorXd>(xp, n);
-    w.qd = Eigen::Map<const Eigen::VectorXd>(xp + n, n);
-    if (control(controller, w, t, options.effort_limit, plant, nullptr, nc ? xp + 2 * n + nz : nullptr, nullptr))
-      ++out.saturated_samples;
-    out.tau.push_back(w.tau);
-    out.q_ref.push_back(w.qr);
-    out.qd_ref.push_back(w.qdr);
-    Eigen::VectorXd pts(3 * options.points.size());
-    if (!options.points.empty()) {
-      forward_kinematics(plant, kin, w.q);
-      for (size_t k = 0; k < options.points.size(); ++k)
-        pts.segment<3>(3 * k) = point_position(plant, kin, options.points[k]);
-    }
-    out.point_positions.push_back(std::move(pts));
-    if (w.constrained) {  // the material rows and their reactions at this sample
-      ConstrainedPlant& p = *w.constrained;
-      p.tau = w.tau;
-      p.x = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
-      p.rd->derivative(t, p.x, p.dx);
-      const ConstraintEval& ev = p.rd->constraints();
-      out.phi.push_back(ev.phi);
-      out.phid.push_back(ev.phid);
-      out.lambda.push_back(p.rd->lambda());
-      out.reaction_effort.push_back(p.rd->constraint_force());
-      if (ev.phi.size()) out.max_material_residual = std::max(out.max_material_residual, ev.phi.cwiseAbs().maxCoeff());
-    }
-    if (options.progress) options.progress(t);
-  };
-  // Stabilisation by projection of the plant's material rows (plant.stabilization): after each step.
-  Eigen::VectorXd xp_projected;
-  auto project_plant = [&](double t, double* xp) {
-    ConstrainedPlant& p = *w.constrained;
-    xp_projected = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
-    p.rd->project_state(t, xp_projected);
-    Eigen::Map<Eigen::VectorXd>(xp, 2 * n + nz) = xp_projected;
-  };
-  const bool plant_projects = w.constrained && w.constrained->projects();
-  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nx);
-  x0.head(x0_plant.size()) = x0_plant;
-
-  if (replays_stages(io.method)) {
-    const ReferenceStages& st = plan.stages;
+  /// The plan's RK4 stages replayed on the same grid (the reference at every stage is the plan's).
+  IntegrationSummary replay_rk4(const Eigen::VectorXd& x0, ClosedLoopResult& out) {
+    const IntegratorOptions& io = options_.integrator;
+    const int n = n_;
+    const ReferenceStages& st = plan_.stages;
     if (st.steps == 0 || st.n != n)
       throw Error("simulate_closed_loop: the plan has no recorded RK4 stages for this plant (hint: plan with RK4)");
     const Rk4Grid grid(io);
@@ -352,8 +316,8 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
     // The stage hook says which recorded reference stage belongs to this evaluation.
     auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
       const double* s = st.stage(stage.step, stage.stage);
-      set_ref(s, s + n, s + 2 * n);
-      plant_derivative(plant, plant_forces, controller, w, options.effort_limit, t, x.data(), dx.data());
+      set_reference(s, s + n, s + 2 * n);
+      plant_derivative(plant_, forces_, controller_, w_, options_.effort_limit, t, x.data(), dx.data());
     };
     const long every = io.output_interval > 0 ? std::max(1L, std::lround(io.output_interval / h)) : 1L;
     // The steps whose ends are output samples (the plan's grid, Rk4Grid), after t0's (step 0).
@@ -368,53 +332,144 @@ ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_
       ++sample;
       if (step < st.steps) {
         const double* s = st.stage(step, 0);
-        set_ref(s, s + n, s + 2 * n);
+        set_reference(s, s + n, s + 2 * n);
       } else {  // the plan's last sample
-        const Eigen::VectorXd& xr = plan.x.back();
-        set_ref(xr.data(), xr.data() + n, plan.qdd.back().data());
+        const Eigen::VectorXd& xr = plan_.x.back();
+        set_reference(xr.data(), xr.data() + n, plan_.qdd.back().data());
       }
-      record(t, x.data());
+      record(t, x.data(), out);
       return true;
     };
     Eigen::VectorXd x = x0;
     OdeProjection projection;
-    if (plant_projects) projection = [&](double t, Eigen::VectorXd& X) { project_plant(t, X.data()); };
-    out.summary = integrate_staged(rhs, x, o, obs, {}, projection);
-    if (out.summary.ok() && usable < nsteps) {
-      out.summary.status = IntegrationStatus::Stopped;
-      out.summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
+    if (plant_projects()) projection = [&](double t, Eigen::VectorXd& X) { project_plant(t, X.data()); };
+    IntegrationSummary summary = integrate_staged(rhs, x, o, obs, {}, projection);
+    if (summary.ok() && usable < nsteps) {
+      summary.status = IntegrationStatus::Stopped;
+      summary.message = "the plan ends at t = " + fmt(o.t1) + " s, before the requested t1 = " + fmt(io.t1) + " s";
     }
-  } else {
-    if (!rd)
-      throw Error(std::string("simulate_closed_loop: ") + to_string(io.method) +
-                  " needs the planner (reference dynamics) to integrate jointly");
-    JointSystem sys(plant, plant_forces, controller, *rd, options);
+    return summary;
+  }
+
+  /// The planner and the plant integrated together (X = [x_ref; x_plant]), the reference taken
+  /// from the planner at every evaluation.
+  IntegrationSummary integrate_jointly(Planner& rd, const Eigen::VectorXd& x0, ClosedLoopResult& out) {
+    const IntegratorOptions& io = options_.integrator;
+    JointSystem sys(plant_, forces_, controller_, rd, options_);
     const int nr = sys.nr;
     auto rhs = [&](double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { sys.derivative(t, x, dx); };
     auto obs = [&](double t, const Eigen::VectorXd& x) {
       sys.reference(t, x);
-      w.qr = sys.w.qr, w.qdr = sys.w.qdr, w.qddr = sys.w.qddr;
-      record(t, x.data() + nr);
+      w_.qr = sys.w.qr, w_.qdr = sys.w.qdr, w_.qddr = sys.w.qddr;
+      record(t, x.data() + nr, out);
       return true;
     };
-    Eigen::VectorXd x(nr + nx);
-    x.head(nr) = plan.x.front();
-    x.tail(nx) = x0;
+    Eigen::VectorXd x(nr + nx_);
+    x.head(nr) = plan_.x.front();
+    x.tail(nx_) = x0;
     OdeJacobian jacobian;
     if (io.method == IntegratorMethod::BDF)
       jacobian = [&](double t, const Eigen::VectorXd& X, Eigen::MatrixXd& J) { sys.jacobian(t, X, J); };
     OdeProjection projection;  // the planner's part of the state, when its stabilization projects, and the plant's
     Eigen::VectorXd xr_projected(nr);
-    if (rd->projects() || plant_projects)
+    const bool plant_proj = plant_projects();
+    if (rd.projects() || plant_proj)
       projection = [&](double t, Eigen::VectorXd& X) {
-        if (rd->projects()) {
+        if (rd.projects()) {
           xr_projected = X.head(nr);
-          rd->project(t, xr_projected);
+          rd.project(t, xr_projected);
           X.head(nr) = xr_projected;
         }
-        if (plant_projects) project_plant(t, X.data() + nr);
+        if (plant_proj) project_plant(t, X.data() + nr);
       };
-    out.summary = integrate(rhs, x, io, obs, jacobian, projection);
+    return integrate(rhs, x, io, obs, jacobian, projection);
+  }
+
+ private:
+  void set_reference(const double* q, const double* qd, const double* qdd) {
+    w_.qr = Eigen::Map<const Eigen::VectorXd>(q, n_);
+    w_.qdr = Eigen::Map<const Eigen::VectorXd>(qd, n_);
+    w_.qddr = Eigen::Map<const Eigen::VectorXd>(qdd, n_);
+  }
+
+  /// One sample: the state, τ (saturations counted), the reference, points, and with material
+  /// rows their residuals and reactions.
+  void record(double t, const double* xp, ClosedLoopResult& out) {
+    const int n = n_, nz = nz_;
+    out.t.push_back(t);
+    out.x.push_back(Eigen::Map<const Eigen::VectorXd>(xp, nx_));
+    w_.q = Eigen::Map<const Eigen::VectorXd>(xp, n);
+    w_.qd = Eigen::Map<const Eigen::VectorXd>(xp + n, n);
+    if (control(controller_, w_, t, options_.effort_limit, plant_, nullptr, nc_ ? xp + 2 * n + nz : nullptr, nullptr))
+      ++out.saturated_samples;
+    out.tau.push_back(w_.tau);
+    out.q_ref.push_back(w_.qr);
+    out.qd_ref.push_back(w_.qdr);
+    Eigen::VectorXd pts(3 * options_.points.size());
+    if (!options_.points.empty()) {
+      forward_kinematics(plant_, kin_, w_.q);
+      for (size_t k = 0; k < options_.points.size(); ++k)
+        pts.segment<3>(3 * k) = point_position(plant_, kin_, options_.points[k]);
+    }
+    out.point_positions.push_back(std::move(pts));
+    if (w_.constrained) {  // the material rows and their reactions at this sample
+      ConstrainedPlant& p = *w_.constrained;
+      p.tau = w_.tau;
+      p.x = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
+      p.rd->derivative(t, p.x, p.dx);
+      const ConstraintEval& ev = p.rd->constraints();
+      out.phi.push_back(ev.phi);
+      out.phid.push_back(ev.phid);
+      out.lambda.push_back(p.rd->lambda());
+      out.reaction_effort.push_back(p.rd->constraint_force());
+      if (ev.phi.size()) out.max_material_residual = std::max(out.max_material_residual, ev.phi.cwiseAbs().maxCoeff());
+    }
+    if (options_.progress) options_.progress(t);
+  }
+
+  /// Stabilisation by projection of the plant's material rows (plant.stabilization): after each step.
+  bool plant_projects() const { return w_.constrained && w_.constrained->projects(); }
+  void project_plant(double t, double* xp) {
+    ConstrainedPlant& p = *w_.constrained;
+    const int m = 2 * n_ + nz_;
+    xp_projected_ = Eigen::Map<const Eigen::VectorXd>(xp, m);
+    p.rd->project_state(t, xp_projected_);
+    Eigen::Map<Eigen::VectorXd>(xp, m) = xp_projected_;
+  }
+
+  const Model& plant_;
+  const ForceSet& forces_;
+  Controller& controller_;
+  const Plan& plan_;
+  const ClosedLoopOptions& options_;
+  int n_, nz_, nc_, nx_;
+  PlantWorkspace w_;
+  Data kin_;
+  Eigen::VectorXd xp_projected_;
+};
+
+}  // namespace
+
+ClosedLoopResult simulate_closed_loop(const Model& plant, const ForceSet& plant_forces, Controller& controller,
+                                      const Plan& plan, Planner* rd, const Eigen::VectorXd& x0_plant,
+                                      const ClosedLoopOptions& options) {
+  const IntegratorOptions& io = options.integrator;
+  io.validate();
+  const int n = plant.nv, nz = plant_forces.num_states(), nx = 2 * n + nz + controller.num_states();
+  check_closed_loop_inputs(plant, nx, nz, plan, x0_plant, options);
+  ClosedLoopResult out;
+  ClosedLoopRun run(plant, plant_forces, controller, plan, options);
+  run.start(out);
+  const auto start = std::chrono::steady_clock::now();
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nx);
+  x0.head(x0_plant.size()) = x0_plant;
+  if (replays_stages(io.method)) {
+    out.summary = run.replay_rk4(x0, out);
+  } else {
+    if (!rd)
+      throw Error(std::string("simulate_closed_loop: ") + to_string(io.method) +
+                  " needs the planner (reference dynamics) to integrate jointly");
+    out.summary = run.integrate_jointly(*rd, x0, out);
   }
   out.summary.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

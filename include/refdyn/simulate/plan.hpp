@@ -9,12 +9,18 @@
 #include "refdyn/simulate/trajectory.hpp"
 
 #include <functional>
+#include <utility>
 
 namespace refdyn {
 
 /// How a plan is made and recorded: the one settings argument of plan_motion, plan_jerk_motion
-/// and Planner::plan. Aggregate: `plan_motion(rd, x0, {integrator})`, `{integrator, 0.5}`.
+/// and Planner::plan. `plan_motion(rd, x0, {integrator})`, `{integrator, 0.5}`,
+/// `{integrator, 0.5, record}`; the fields may also be set one by one.
 struct PlanSettings {
+  PlanSettings(IntegratorOptions integrator_ = {}, double residual_from_ = 0.0, RecordOptions record_ = {},
+               std::function<void(double)> progress_ = {})
+      : integrator(std::move(integrator_)), residual_from(residual_from_), record(std::move(record_)),
+        progress(std::move(progress_)) {}
   IntegratorOptions integrator;
   double residual_from = 0.0;             ///< the residual is reported (and checked) for t >= this
   RecordOptions record;                   ///< recorded points, residual tolerance
