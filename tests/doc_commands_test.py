@@ -13,8 +13,8 @@ its timeout. `export PYTHONPATH=...` lines set the variable for the following li
 
 SKIPPED (with the reason printed): installs (apt-get, pip, venv, install-deps.sh), configure
 and build steps (cmake), the long scripts (run.sh, test.sh, test-sanitizers.sh, fuzz.sh,
-sweep_scaling.sh), test runners (ctest, valgrind), benchmark and fuzzer executables, and
-mpirun (tests/mpi_test.sh runs `track --mpi` when refdyn is built with MPI).
+sweep_scaling.sh, .ci/run on a fresh clone), test runners (ctest, valgrind), benchmark and
+fuzzer executables, and mpirun (tests/mpi_test.sh runs `track --mpi` when refdyn is built with MPI).
 
 Usage: doc_commands_test.py SOURCE_DIR REFDYN [WORK_DIR]
 """
@@ -33,6 +33,7 @@ SKIP = [
     (r"(^|\s)bash scripts/(run|test|test-sanitizers|fuzz|install-deps)\.sh\b", "long script (installs, full builds, the whole suite)"),
     (r"^(REFDYN_\w+=\S+\s+|FUZZ_\w+=\S+\s+)+bash scripts/", "long script (installs, full builds, the whole suite)"),
     (r"^bash bench/sweep_scaling\.sh\b", "benchmark script (minutes of runs)"),
+    (r"^git clone .*bash \.ci/run$", "the whole CI on a fresh clone (45 minutes)"),
     (r"^(sudo\s+)?apt-get\b", "install"),
     (r"^\S*pip install\b|^\S+/bin/pip\b", "install"),
     (r"-m venv\b|^~/venvs/", "install (virtual environment)"),
