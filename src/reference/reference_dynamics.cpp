@@ -1,9 +1,15 @@
+// ReferenceDynamics' evaluation (reference_dynamics.hpp): derivative() and its stages, the
+// partition's factorization and the solves for q̈ and λ (projection with the partitioned or the
+// orthonormal basis, Lagrange with Cholesky or ABA), in one translation unit so that the hot
+// path inlines across its stages. Construction, the partition's choice and the consistent
+// initial state are in reference_setup.cpp.
 #include "refdyn/reference/reference_dynamics.hpp"
 
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/common/text.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
@@ -26,106 +32,6 @@ bool small_inverse(const Eigen::MatrixXd& K, Eigen::MatrixXd& Kinv) {
   return true;
 }
 }  // namespace
-
-void ReferenceDynamicsOptions::validate() const {
-  auto need = [](bool ok, const char* what, const char* expected, double got) {
-    if (!ok) throw Error(expected_got(std::string("reference dynamics option ") + what, expected, fmt(got)));
-  };
-  need(std::isfinite(alpha) && alpha >= 0, "alpha", "a finite value >= 0 [1/s]", alpha);
-  need(std::isfinite(beta) && beta >= 0, "beta", "a finite value >= 0 [1/s]", beta);
-  need(std::isfinite(beta_first_order) && beta_first_order >= 0, "beta_first_order", "a finite value >= 0 [1/s]",
-       beta_first_order);
-  need(max_condition > 1, "max_condition", "a value > 1", max_condition);
-  need(std::isfinite(projection_tolerance) && projection_tolerance > 0, "projection_tolerance", "a finite value > 0",
-       projection_tolerance);
-  need(projection_max_iterations >= 1, "projection_max_iterations", "a count >= 1", projection_max_iterations);
-}
-
-ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces, const ConstraintSet& constraints,
-                                     ReferenceDynamicsOptions options)
-    : model_(model), forces_(forces), constraints_(constraints), opt_(std::move(options)), n_(model.nq),
-      m_(constraints.rows()), data_(model), ev_(model, constraints) {
-  opt_.validate();
-  if (opt_.stabilization == Stabilization::Projection) opt_.alpha = opt_.beta = opt_.beta_first_order = 0.0;
-  if (opt_.solver == ReferenceSolver::Automatic) opt_.solver = automatic_reference_solver(n_, m_);
-  aba_ = m_ == 0 && constraints.points().empty() && forward_dynamics_uses_aba(n_);
-  aba_lagrange_ = m_ > 0 && opt_.solver == ReferenceSolver::Lagrange && n_ >= kAbaLagrangeFrom;
-  for (int r = 0; r < constraints.rows(); ++r) {
-    first_order_row_.push_back(constraints.row_first_order(r));
-    acceleration_row_.push_back(constraints.row_order(r) == 2);
-    has_acceleration_rows_ = has_acceleration_rows_ || acceleration_row_.back();
-  }
-  if (m_ > n_)
-    throw Error(expected_got("number of constraint rows", "at most the number of coordinates (" + std::to_string(n_) + ")",
-                             std::to_string(m_), "remove redundant constraints"));
-  const int nz = forces.num_states();
-  q_.setZero(n_);
-  qd_.setZero(n_);
-  Q_.setZero(n_);
-  F_.setZero(n_);
-  rhs_.setZero(m_);
-  qdd_.setZero(n_);
-  lambda_.setZero(m_);
-  Qc_.setZero(n_);
-  zdot_.setZero(std::max(nz, 1));
-  tmp_n_.setZero(n_);
-  tmp_m_.setZero(m_);
-  dQ_.setZero(n_, n_);
-  Kdc_.setZero(m_, m_);
-  Kic_.setZero(m_, n_ - m_);
-  Kinv_.setZero(m_, m_);
-  G_.setZero(m_, n_ - m_);
-  Y_.setZero(n_, m_);
-  MN_.setZero(n_, n_ - m_);
-  NMN_.setZero(n_ - m_, n_ - m_);
-  rk_.setZero(n_ - m_);
-  Smm_.setZero(m_, m_);
-  W_.setZero(n_, n_);
-  ws_.setZero(std::max(n_, 1));
-  qrA_.setZero(n_, m_);
-  tau_.setZero(std::max(m_, 1));
-  lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
-  // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
-  // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.
-  llt_k_.compute(Eigen::MatrixXd::Identity(n_ - m_, n_ - m_));
-  llt_m_.compute(Eigen::MatrixXd::Identity(m_, m_));
-  if (!opt_.independent.empty()) {
-    std::vector<int> ind;
-    for (const auto& name : opt_.independent) ind.push_back(model.joint_index(name));
-    set_independent(ind);
-  }
-}
-
-Eigen::VectorXd ReferenceDynamics::make_state(const Eigen::VectorXd& q, const Eigen::VectorXd& qd) const {
-  model_.check_q(q);
-  check_vector("qd", qd, n_);
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(state_size());
-  x.head(n_) = q;
-  x.segment(n_, n_) = qd;
-  return x;
-}
-
-void ReferenceDynamics::set_independent(const std::vector<int>& ind) {
-  const int k = n_ - m_;
-  if (static_cast<int>(ind.size()) != k) {
-    std::string names;
-    for (int i = 0; i < n_; ++i) names += (i ? ", " : "") + model_.joint_name[i];
-    throw Error(expected_got("number of independent coordinates", std::to_string(k) + " (coordinates " +
-                             std::to_string(n_) + " minus constraint rows " + std::to_string(m_) + ")",
-                             std::to_string(ind.size()), "pick them among: " + names));
-  }
-  std::vector<bool> is_ind(n_, false);
-  for (int i : ind) {
-    if (i < 0 || i >= n_) throw Error(expected_got("independent coordinate index", "0 .. nq-1", std::to_string(i)));
-    if (is_ind[i]) throw Error("independent coordinate '" + model_.joint_name[i] + "' is listed twice");
-    is_ind[i] = true;
-  }
-  ind_ = ind;
-  dep_.clear();
-  for (int i = 0; i < n_; ++i)
-    if (!is_ind[i]) dep_.push_back(i);
-  partition_set_ = true;
-}
 
 #include "sized_dispatch.hpp"  // REFDYN_FIXED_DISPATCH, REFDYN_SIZED_DISPATCH (why: there)
 
@@ -195,78 +101,6 @@ bool ReferenceDynamics::factor_partition_sized() {
       G[c * m + r] = -sum;
     }
   return true;
-}
-
-std::string ReferenceDynamics::partition_message(double t) const {
-  std::ostringstream os;
-  os << "at t = " << t << " s the velocity partition is singular or ill-conditioned: K_dc of constraints [";
-  for (int r = 0; r < m_; ++r) os << (r ? ", " : "") << constraints_.row_name(r);
-  os << "] over dependent coordinates [";
-  for (size_t i = 0; i < dep_.size(); ++i) os << (i ? ", " : "") << model_.joint_name[dep_[i]];
-  os << "] has condition number " << (std::isfinite(cond_) ? fmt(cond_) : std::string("inf")) << " > "
-     << fmt(opt_.max_condition)
-     << " (hint: choose other independent coordinates, enable automatic_partition, or use the Lagrange solver)";
-  return os.str();
-}
-
-double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
-  model_.check_q(q);
-  check_vector("qd", qd, n_);
-  evaluate_constraints(model_, data_, constraints_, ev_, t, q, qd);
-  if (m_ == 0) {
-    std::vector<int> all(n_);
-    std::iota(all.begin(), all.end(), 0);
-    set_independent(all);
-    cond_ = 1.0;
-    return cond_;
-  }
-  // Count candidate sets C(n, m).
-  double count = 1;
-  for (int i = 0; i < m_; ++i) count = count * (n_ - i) / (i + 1);
-  std::vector<int> best_dep;
-  double best = std::numeric_limits<double>::infinity();
-  const double sigma_max_A = Eigen::JacobiSVD<Eigen::MatrixXd>(ev_.A).singularValues()(0);
-  if (count <= 500) {
-    std::vector<bool> sel(n_, false);
-    std::fill(sel.end() - m_, sel.end(), true);
-    Eigen::MatrixXd K(m_, m_);
-    do {
-      std::vector<int> dep;
-      for (int i = 0; i < n_; ++i)
-        if (sel[i]) dep.push_back(i);
-      for (int c = 0; c < m_; ++c) K.col(c) = ev_.A.col(dep[c]);
-      Eigen::JacobiSVD<Eigen::MatrixXd> svd(K);
-      const auto& s = svd.singularValues();
-      const double c = s(m_ - 1) > 0 ? sigma_max_A / s(m_ - 1) : std::numeric_limits<double>::infinity();
-      if (c < best) {
-        best = c;
-        best_dep = dep;
-      }
-    } while (std::next_permutation(sel.begin(), sel.end()));
-  } else {
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(ev_.A);
-    for (int i = 0; i < m_; ++i) best_dep.push_back(qr.colsPermutation().indices()[i]);
-    std::sort(best_dep.begin(), best_dep.end());
-    if (qr.rank() == m_) {
-      Eigen::MatrixXd K(m_, m_);
-      for (int c = 0; c < m_; ++c) K.col(c) = ev_.A.col(best_dep[c]);
-      const auto sv = Eigen::JacobiSVD<Eigen::MatrixXd>(K).singularValues();
-      best = sv(m_ - 1) > 0 ? sigma_max_A / sv(m_ - 1) : best;
-    }
-  }
-  if (best_dep.size() != static_cast<size_t>(m_) || !std::isfinite(best)) {
-    std::string rows;
-    for (int r = 0; r < m_; ++r) rows += (r ? ", " : "") + constraints_.row_name(r);
-    throw NumericalFailure(t, "at t = " + fmt(t) + " s the constraint Jacobian of [" + rows +
-                                  "] is rank-deficient: no choice of dependent coordinates gives a regular K_dc "
-                                  "(hint: remove redundant constraints or start away from this configuration)");
-  }
-  std::vector<int> ind;
-  for (int i = 0; i < n_; ++i)
-    if (std::find(best_dep.begin(), best_dep.end(), i) == best_dep.end()) ind.push_back(i);
-  set_independent(ind);
-  factor_partition();
-  return cond_;
 }
 
 // ẋ = [q̇; q̈; ż], stage by stage (each stage is a member below, in this order).
@@ -423,52 +257,300 @@ double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
   return m_ ? ev_.phi.cwiseAbs().maxCoeff() : 0.0;
 }
 
-ReferenceDynamics::Consistency ReferenceDynamics::make_consistent(double t, const Eigen::VectorXd& q0,
-                                                                  const Eigen::VectorXd& qd0, double tol,
-                                                                  int max_iterations) {
-  model_.check_q(q0);
-  check_vector("qd", qd0, n_);
-  if (!partition_set_) choose_partition(t, q0, qd0);
-  Consistency out;
-  out.q = q0;
-  out.qd = qd0;
-  auto residuals = [&](const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
-    evaluate_constraints(model_, data_, constraints_, ev_, t, q, qd);
-    double r = 0;
-    for (int i = 0; i < m_; ++i) r = std::max({r, std::abs(ev_.phi[i]), std::abs(ev_.phid[i])});
-    return r;
-  };
-  out.residual_before = residuals(out.q, out.qd);
-  std::vector<int> hol, state_rows;  // acceleration rows do not restrict (q, q̇)
-  for (int r = 0; r < m_; ++r) {
-    if (constraints_.row_order(r) == 0) hol.push_back(r);
-    if (constraints_.row_order(r) <= 1) state_rows.push_back(r);
+// (Nᵀ M N) u = r in place (NMN_, rk_; k independent coordinates): a scalar division for k = 1
+// (the paper's case), else a Cholesky factorization. Both projection routes end with it.
+void ReferenceDynamics::solve_reduced_mass(double t, int k) {
+  double* NMN = NMN_.data();
+  double* rk = rk_.data();
+  if (k == 1) {
+    if (!(NMN[0] > 0))
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+    rk[0] /= NMN[0];
+  } else {
+    llt_k_.compute(NMN_);
+    if (llt_k_.info() != Eigen::Success)
+      throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Nᵀ M N is not positive definite");
+    llt_k_.solveInPlace(rk_);
   }
-  // Minimum-norm Newton steps on the dependent coordinates of x (q or q̇) until the residuals
-  // `value` (Φ, or Φ̇ and c, which are A q̇ + b = 0 in q̇) of the given rows are below tol.
-  auto newton = [&](const std::vector<int>& rows, const Eigen::VectorXd& value, Eigen::VectorXd& x, bool count) {
-    for (int it = 0; it < max_iterations && !rows.empty(); ++it) {
-      evaluate_constraints(model_, data_, constraints_, ev_, t, out.q, out.qd);
-      Eigen::VectorXd r(rows.size());
-      Eigen::MatrixXd K(rows.size(), dep_.size());
-      for (size_t i = 0; i < rows.size(); ++i) {
-        r[i] = value[rows[i]];
-        for (size_t c = 0; c < dep_.size(); ++c) K(i, c) = ev_.A(rows[i], dep_[c]);
-      }
-      if (count) out.iterations = it + 1;
-      if (r.cwiseAbs().maxCoeff() <= tol) break;
-      const Eigen::VectorXd step = K.completeOrthogonalDecomposition().solve(r);
-      for (size_t c = 0; c < dep_.size(); ++c) x[dep_[c]] -= step[c];
+}
+
+void ReferenceDynamics::solve_projection(double t) {
+  if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
+  if (!factor_partition()) {
+    if (!opt_.automatic_partition) throw NumericalFailure(t, partition_message(t));
+    choose_partition(t, q_, qd_);
+    if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
+  }
+  // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
+  // other size takes the orthonormal basis (see the header comment).
+  REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))
+  solve_projection_orthonormal(t);
+}
+
+void ReferenceDynamics::solve_projection_orthonormal(double t) {
+  const int n = n_, m = m_, k = n - m;
+  // Projected force f = F (paper-literal: F + (∂Q/∂q̇)ᵀ q̇), as in solve_projection_sized.
+  if (opt_.paper_literal_forces) {
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    tmp_n_ += F_;
+  } else {
+    tmp_n_ = F_;
+  }
+  // Aᵀ = Q [R; 0] by Householder reflectors, Q = H_0 ⋯ H_{m−1}, H_j = I − τ_j v_j v_jᵀ (v_j zero
+  // above j, 1 at j). Z = the last k columns of Q is an orthonormal basis of the null space of
+  // A, the space N spans. With y = Qᵀ q̈ = [y1; y2] and W = Qᵀ M Q:
+  //   A q̈ = rhs           ⇔  Rᵀ y1 = rhs
+  //   Zᵀ(M q̈ − f) = 0     ⇔  W22 y2 = (Qᵀ f)_2 − W21 y1,   W22 = ZᵀMZ (SPD, cond ≤ cond(M)),
+  // so no K_dc⁻¹ enters: the rounding error is that of a Cholesky solve with M, as in the KKT
+  // route. Plain loops over column-major storage, like the kernels above (no temporaries).
+  double* __restrict V = qrA_.data();  // n × m: Aᵀ, then R (upper) and the reflectors (below)
+  double* __restrict tau = tau_.data();
+  double* __restrict W = W_.data();  // n × n
+  double* __restrict p = ws_.data();
+  double* __restrict f = tmp_n_.data();
+  const double* __restrict A = ev_.A.data();  // m × n
+  for (int c = 0; c < m; ++c)
+    for (int i = 0; i < n; ++i) V[static_cast<size_t>(c) * n + i] = A[static_cast<size_t>(i) * m + c];
+  for (int j = 0; j < m; ++j) {  // reflector j from column j, rows j..n−1, applied to columns j+1..m−1
+    double* __restrict x = V + static_cast<size_t>(j) * n;
+    double tail = 0;
+    for (int i = j + 1; i < n; ++i) tail += x[i] * x[i];
+    const double alpha = x[j];
+    if (!(tail > 0)) {  // already of the form β e_j: H_j = I
+      tau[j] = 0;
+      continue;
     }
-  };
-  newton(hol, ev_.phi, out.q, true);          // position level: holonomic rows
-  newton(state_rows, ev_.phid, out.qd, false);  // velocity level: position and velocity rows
-  out.residual_after = residuals(out.q, out.qd);
-  out.converged = out.residual_after <= std::max(tol, 1e3 * tol * (1 + out.residual_before)) ||
-                  out.residual_after <= 1e-10;
-  out.dq = out.q - q0;
-  out.dqd = out.qd - qd0;
-  return out;
+    const double beta = alpha >= 0 ? -std::sqrt(alpha * alpha + tail) : std::sqrt(alpha * alpha + tail);
+    tau[j] = (beta - alpha) / beta;
+    const double s = 1.0 / (alpha - beta);
+    for (int i = j + 1; i < n; ++i) x[i] *= s;
+    x[j] = beta;
+    for (int c = j + 1; c < m; ++c) {  // column c −= τ v (vᵀ column c)
+      double* __restrict y = V + static_cast<size_t>(c) * n;
+      double d = y[j];
+      for (int i = j + 1; i < n; ++i) d += x[i] * y[i];
+      d *= tau[j];
+      y[j] -= d;
+      for (int i = j + 1; i < n; ++i) y[i] -= d * x[i];
+    }
+  }
+  // W = Qᵀ M Q: W ← H_j W H_j for j = 0 … m−1, as the symmetric rank-2 update
+  //   p = τ W v,  w = p − (τ vᵀp / 2) v,  W ← W − v wᵀ − w vᵀ;
+  // and Qᵀ f = H_{m−1} ⋯ H_0 f.
+  const double* __restrict Mp = data_.M.data();
+  for (size_t i = 0; i < static_cast<size_t>(n) * n; ++i) W[i] = Mp[i];
+  for (int j = 0; j < m; ++j) {
+    if (tau[j] == 0) continue;
+    const double* __restrict v = V + static_cast<size_t>(j) * n;  // v[j] = 1 (stored: R(j, j))
+    const double tj = tau[j];
+    for (int i = 0; i < n; ++i) p[i] = W[static_cast<size_t>(j) * n + i];
+    for (int c = j + 1; c < n; ++c) {
+      const double vc = v[c];
+      const double* __restrict col = W + static_cast<size_t>(c) * n;
+      for (int i = 0; i < n; ++i) p[i] += vc * col[i];
+    }
+    double vp = p[j];
+    for (int i = j + 1; i < n; ++i) vp += v[i] * p[i];
+    const double half = 0.5 * tj * tj * vp;
+    for (int i = 0; i < n; ++i) p[i] *= tj;  // p = τ W v
+    p[j] -= half;                            // w = p − (τ vᵀp / 2) v   (vᵀp with p = τWv: τ²/2 vᵀWv)
+    for (int i = j + 1; i < n; ++i) p[i] -= half * v[i];
+    // W −= v wᵀ + w vᵀ: column c gets −v·w[c] (rows j..) and −w·v[c] (c ≥ j).
+    for (int c = 0; c < n; ++c) {
+      double* __restrict col = W + static_cast<size_t>(c) * n;
+      const double wc = p[c];
+      col[j] -= wc;
+      for (int i = j + 1; i < n; ++i) col[i] -= v[i] * wc;
+      if (c >= j) {
+        const double vc = c == j ? 1.0 : v[c];
+        for (int i = 0; i < n; ++i) col[i] -= p[i] * vc;
+      }
+    }
+    double d = f[j];  // f ← H_j f
+    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
+    d *= tj;
+    f[j] -= d;
+    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
+  }
+  double* __restrict y1 = tmp_m_.data();  // Rᵀ y1 = rhs (forward substitution)
+  const double* __restrict rhs = rhs_.data();
+  for (int r = 0; r < m; ++r) {
+    double sum = rhs[r];
+    for (int c = 0; c < r; ++c) sum -= V[static_cast<size_t>(r) * n + c] * y1[c];  // R(c, r)
+    y1[r] = sum / V[static_cast<size_t>(r) * n + r];
+  }
+  if (k > 0) {
+    double* rk = rk_.data();  // y2; rk_ and NMN_ also reach the LLT through the members: no restrict
+    double* NMN = NMN_.data();
+    for (int c = 0; c < k; ++c) {
+      double v = f[m + c];
+      for (int r = 0; r < m; ++r) v -= W[static_cast<size_t>(r) * n + m + c] * y1[r];  // W21(c, r)
+      rk[c] = v;
+      for (int c2 = 0; c2 < k; ++c2) NMN[c2 * k + c] = W[static_cast<size_t>(m + c2) * n + m + c];
+    }
+    solve_reduced_mass(t, k);
+    for (int c = 0; c < k; ++c) f[m + c] = rk[c];
+  }
+  for (int r = 0; r < m; ++r) f[r] = y1[r];
+  for (int j = m - 1; j >= 0; --j) {  // q̈ = Q y = H_0 ⋯ H_{m−1} y
+    if (tau[j] == 0) continue;
+    const double* __restrict v = V + static_cast<size_t>(j) * n;
+    double d = f[j];
+    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
+    d *= tau[j];
+    f[j] -= d;
+    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
+  }
+  double* __restrict qdd = qdd_.data();
+  for (int i = 0; i < n; ++i) qdd[i] = f[i];
+}
+
+template <int N, int Mr>
+void ReferenceDynamics::solve_projection_sized(double t) {
+  static_assert(N > 0, "sizes known at run time take solve_projection_orthonormal");
+  const int n = N, m = Mr, k = n - m;
+  // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
+  if (opt_.paper_literal_forces) {
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    tmp_n_ += F_;
+  } else {
+    tmp_n_ = F_;
+  }
+  // The stacked system [Nᵀ M; A] q̈ = [Nᵀ F; rhs] is solved by the null-space method, which
+  // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
+  //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
+  //   q̈ = q̈_p + N u,   (Nᵀ M N) u = Nᵀ (F − M q̈_p).
+  const int* __restrict dep = dep_.data();
+  const int* __restrict ind = ind_.data();
+  const double* __restrict Mp = data_.M.data();  // n × n, column-major
+  const double* __restrict G = G_.data();        // m × k
+  const double* __restrict Ki = Kinv_.data();
+  const double* __restrict rhs = rhs_.data();
+  double* __restrict f = tmp_n_.data();
+  double* __restrict qdd = qdd_.data();
+  for (int i = 0; i < n; ++i) qdd[i] = 0.0;
+  for (int r = 0; r < m; ++r) {
+    double sum = 0;
+    for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs[j];
+    qdd[dep[r]] = sum;
+  }
+  for (int r = 0; r < m; ++r) {  // F − M q̈_p
+    const double a = qdd[dep[r]];
+    const double* __restrict col = Mp + static_cast<size_t>(dep[r]) * n;
+    for (int i = 0; i < n; ++i) f[i] -= a * col[i];
+  }
+  // MN = M N: column c = M e_ind[c] + Σ_r G(r, c) M e_dep[r].
+  double* __restrict MN = MN_.data();  // n × k
+  for (int c = 0; c < k; ++c) {
+    double* __restrict out = MN + static_cast<size_t>(c) * n;
+    const double* __restrict col = Mp + static_cast<size_t>(ind[c]) * n;
+    for (int i = 0; i < n; ++i) out[i] = col[i];
+    for (int r = 0; r < m; ++r) {
+      const double g = G[c * m + r];
+      const double* __restrict d = Mp + static_cast<size_t>(dep[r]) * n;
+      for (int i = 0; i < n; ++i) out[i] += g * d[i];
+    }
+  }
+  // Nᵀ (M N) and Nᵀ (F − M q̈_p): row c of Nᵀ = e_ind[c]ᵀ + Σ_r G(r, c) e_dep[r]ᵀ.
+  double* NMN = NMN_.data();  // k × k; NMN, rk also reach the LLT through the members: no restrict
+  double* rk = rk_.data();
+  for (int c = 0; c < k; ++c) {
+    for (int c2 = 0; c2 < k; ++c2) {
+      const double* __restrict col = MN + static_cast<size_t>(c2) * n;
+      double v = col[ind[c]];
+      for (int r = 0; r < m; ++r) v += G[c * m + r] * col[dep[r]];
+      NMN[c2 * k + c] = v;
+    }
+    double v = f[ind[c]];
+    for (int r = 0; r < m; ++r) v += G[c * m + r] * f[dep[r]];
+    rk[c] = v;
+  }
+  if (k > 0) {
+    solve_reduced_mass(t, k);
+    for (int c = 0; c < k; ++c) {
+      qdd[ind[c]] += rk[c];
+      for (int r = 0; r < m; ++r) qdd[dep[r]] += G[c * m + r] * rk[c];
+    }
+  }
+}
+
+namespace {
+enum class KktStatus { Ok, MassNotPositiveDefinite, RowsDependent };
+
+/// u = M⁻¹F, Y = M⁻¹Aᵀ, S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ, on Eigen objects of fixed or
+/// dynamic size (one source for both; the caller supplies the factorizations and workspaces).
+KktStatus kkt_solve(const auto& M, const auto& A, const auto& F, const auto& rhs, auto& llt_n, auto& llt_m,
+                    auto& Y, auto& S, auto& tmp, auto& qdd, auto& lambda) {
+  llt_n.compute(M);
+  if (llt_n.info() != Eigen::Success) return KktStatus::MassNotPositiveDefinite;
+  qdd = F;
+  llt_n.solveInPlace(qdd);
+  if (A.rows() == 0) return KktStatus::Ok;
+  Y = A.transpose();
+  llt_n.solveInPlace(Y);
+  S.noalias() = A.lazyProduct(Y);
+  llt_m.compute(S);
+  if (llt_m.info() != Eigen::Success) return KktStatus::RowsDependent;
+  tmp.noalias() = A.lazyProduct(qdd);
+  tmp -= rhs;
+  lambda = tmp;
+  llt_m.solveInPlace(lambda);
+  qdd.noalias() -= Y.lazyProduct(lambda);
+  return KktStatus::Ok;
+}
+}  // namespace
+
+void ReferenceDynamics::solve_lagrange(double t) { REFDYN_SIZED_DISPATCH(solve_lagrange_sized, (t)) }
+
+template <int N, int Mr>
+void ReferenceDynamics::solve_lagrange_sized(double t) {
+  KktStatus status;
+  if constexpr (N > 0) {  // fixed sizes: factorizations and workspaces on the stack
+    using MatN = Eigen::Matrix<double, N, N>;
+    using MatM = Eigen::Matrix<double, Mr, Mr>;
+    const Eigen::Map<const MatN> M(data_.M.data());
+    const Eigen::Map<const Eigen::Matrix<double, Mr, N>> A(ev_.A.data());
+    const Eigen::Map<const Eigen::Matrix<double, N, 1>> F(F_.data());
+    const Eigen::Map<const Eigen::Matrix<double, Mr, 1>> rhs(rhs_.data());
+    Eigen::Map<Eigen::Matrix<double, N, 1>> qdd(qdd_.data());
+    Eigen::Map<Eigen::Matrix<double, Mr, 1>> lambda(lambda_.data());
+    Eigen::LLT<MatN> llt_n;
+    Eigen::LLT<MatM> llt_m;
+    Eigen::Matrix<double, N, Mr> Y;
+    MatM S;
+    Eigen::Matrix<double, Mr, 1> tmp;
+    status = kkt_solve(M, A, F, rhs, llt_n, llt_m, Y, S, tmp, qdd, lambda);
+  } else {
+    status = kkt_solve(data_.M, ev_.A, F_, rhs_, data_.llt, llt_m_, Y_, Smm_, tmp_m_, qdd_, lambda_);
+  }
+  if (status == KktStatus::MassNotPositiveDefinite)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+  if (status == KktStatus::RowsDependent)
+    throw NumericalFailure(t, "at t = " + fmt(t) +
+                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
+                                  "hint: remove redundant constraints");
+}
+
+void ReferenceDynamics::solve_lagrange_aba(double t) {
+  // u = M⁻¹F with F = Q − (c + g): ABA with τ = Q. Y = M⁻¹Aᵀ column by column with its
+  // factorization; S = A Y, λ = S⁻¹(A u − rhs), q̈ = u − Y λ (as kkt_solve).
+  if (unchecked::aba(model_, data_, q_, qd_, Q_, qdd_) >= 0)
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the mass matrix is not positive definite");
+  for (int r = 0; r < m_; ++r) {
+    for (int i = 0; i < n_; ++i) tmp_n_[i] = ev_.A(r, i);
+    unchecked::aba_solve(model_, data_, tmp_n_.data(), Y_.col(r).data());
+  }
+  Smm_.noalias() = ev_.A.lazyProduct(Y_);
+  llt_m_.compute(Smm_);
+  if (llt_m_.info() != Eigen::Success)
+    throw NumericalFailure(t, "at t = " + fmt(t) +
+                                  " s the constraint rows are linearly dependent (A M⁻¹ Aᵀ is singular); "
+                                  "hint: remove redundant constraints");
+  tmp_m_.noalias() = ev_.A.lazyProduct(qdd_);
+  tmp_m_ -= rhs_;
+  lambda_ = tmp_m_;
+  llt_m_.solveInPlace(lambda_);
+  qdd_.noalias() -= Y_.lazyProduct(lambda_);
 }
 
 }  // namespace refdyn

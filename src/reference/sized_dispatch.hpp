@@ -1,7 +1,7 @@
 #pragma once
-// Private to src/reference/: the size dispatch of ReferenceDynamics' small dense kernels
-// (reference_dynamics.cpp: factor_partition; reference_solve.cpp: the projection and Lagrange
-// solves). Used inside ReferenceDynamics members (n_, m_).
+// Private to src/reference/reference_dynamics.cpp: the size dispatch of ReferenceDynamics' small
+// dense kernels (factor_partition, the projection and Lagrange solves). Used inside
+// ReferenceDynamics members (n_, m_).
 //
 // The small dense glue of the projection route (factor_partition, solve_projection) is written
 // as plain loops over column-major storage, with every size, index list and buffer in a local
