@@ -20,6 +20,17 @@ namespace refdyn::build {
 
 namespace {
 
+/// The rows of `set` evaluated at the initial state into `ev`; an evaluation error is located at
+/// the constraints section.
+void evaluate_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Model& m, Data& data, const ConstraintSet& set,
+                    ConstraintEval& ev, double t0, const Eigen::VectorXd& q0, const Eigen::VectorXd& qd0) {
+  try {
+    evaluate_constraints(m, data, set, ev, t0, q0, qd0);
+  } catch (const Error& e) {
+    c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
+  }
+}
+
 /// Everything a run evaluates at t0 is finite and the constraint rows are independent; else an
 /// error naming the constraint (or section) responsible.
 void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p) {
@@ -35,11 +46,7 @@ void check_at_t0(const SpecReader& c, const ScenarioSpec& spec, const Problem& p
   };
   Data data(m);
   ConstraintEval ev(m, cs);
-  try {
-    evaluate_constraints(m, data, cs, ev, t0, p.q0, p.qd0);
-  } catch (const Error& e) {
-    c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
-  }
+  evaluate_at_t0(c, spec, m, data, cs, ev, t0, p.q0, p.qd0);
   for (int row = 0; row < cs.rows(); ++row)
     if (!std::isfinite(ev.phi[row]) || !std::isfinite(ev.phid[row]) || !std::isfinite(ev.gamma[row]) ||
         !ev.A.row(row).allFinite()) {
@@ -249,11 +256,7 @@ void check_initial_state(const SpecReader& c, const ScenarioSpec& spec, Problem&
       if (s.project_initial) project_initial_state(c, ini, rd, t0, s);
       Data data(m);
       ConstraintEval ev(m, lower);
-      try {
-        evaluate_constraints(m, data, lower, ev, t0, s.q0, s.qd0);
-      } catch (const Error& e) {
-        c.fail(spec.constraints_value, "constraints", std::string("at t0 = ") + fmt(t0) + " s: " + e.what());
-      }
+      evaluate_at_t0(c, spec, m, data, lower, ev, t0, s.q0, s.qd0);
       check_initial_residuals(c, ini, lower, ev, s.initial_tolerance);  // acceleration rows: Φ = Φ̇ = 0
     }
     try {
