@@ -112,7 +112,7 @@ class PlanRecorder {
  public:
   PlanRecorder(Source source, Plan& plan, const RecordOptions& o)
       : src_(std::move(source)), plan_(plan), n_(src_.model().nq), m_(src_.num_constraints()),
-        dx_(src_.state_size()) {
+        dx_(src_.state_size()), q_(n_), qd_(n_) {
     const Model& model = src_.model();
     plan.joints = model.joint_name;
     plan.state_names = src_.state_names();
@@ -159,7 +159,10 @@ class PlanRecorder {
     const ForceSet* fs = src_.forces();
     const double nan = std::nan("");
     const bool ok = ok_;
-    const Eigen::VectorXd q = x.head(n_), qd = x.segment(n_, n_);
+    q_ = x.head(n_);  // workspaces: no allocation per sample for them
+    qd_ = x.segment(n_, n_);
+    const Eigen::VectorXd& q = q_;
+    const Eigen::VectorXd& qd = qd_;
     const double* z = fs && fs->num_states() ? x.data() + src_.z_offset() : nullptr;
     plan_.qdd.push_back(src_.qdd(x, dx_, ok));
     const Data& data = src_.kinematics(q, ok);
@@ -199,7 +202,7 @@ class PlanRecorder {
   Source src_;
   Plan& plan_;
   int n_, m_;
-  Eigen::VectorXd dx_;
+  Eigen::VectorXd dx_, q_, qd_;
   bool ok_ = false;
   std::vector<int> points_, signal_elements_, actuators_;
   std::vector<const TimeFunction*> targets_;
