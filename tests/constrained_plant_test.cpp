@@ -5,6 +5,7 @@
 #include "refdyn/io/results.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/reference/reference_dynamics.hpp"
 #include "refdyn/scenario/problem.hpp"
 #include "refdyn/simulate/closed_loop.hpp"
 
@@ -146,6 +147,38 @@ TEST(ConstrainedPlant, ClosedLoopJacobianOnTheFourBarMatchesFiniteDifferences) {
     Jfd.col(i) = (da - db) / (2 * h);
   }
   EXPECT_TRUE(test::near(J, Jfd, 1e-6, 1e-5));
+}
+
+// The controller on the constrained plant, two routes: reading the plant's own evaluation at the
+// state (M, c + g and the material rows of ReferenceDynamics::prepare_derivative, what the closed
+// loop passes) and evaluating everything itself (RNEA for M q̈* + c + g, the rows again). Both
+// computed-torque efforts agree to rounding, at states on and off the constraints.
+TEST(ConstrainedPlant, ControllerReadingThePlantsEvaluationEqualsItsOwn) {
+  const auto p = example("four_bar/four_bar.yaml");
+  auto planner = p->make_planner();
+  std::unique_ptr<Controller> c = p->experiments[0]->make_controller(p->model);
+  ForceSet none;
+  ReferenceDynamics rd(p->model, none, *p->material, p->options);
+  const int n = p->model.nv;
+  const Eigen::VectorXd x0 = p->initial_state(*planner).head(2 * n);
+  const Eigen::VectorXd qr = x0.head(n), qdr = x0.tail(n), qddr = Eigen::Vector3d(0.3, -0.2, 0.1);
+  const ReferenceSample ref{qr, qdr, qddr};
+  int compared = 0;
+  for (const double off : {0.0, 0.01, -0.03}) {
+    Eigen::VectorXd x = x0, xdot(x0.size());
+    x.head(n) += off * Eigen::Vector3d(1.0, -0.5, 0.7);
+    x.tail(n) += off * Eigen::Vector3d(2.0, 1.0, -1.0);
+    rd.prepare_derivative(0.2, x, xdot);
+    ASSERT_TRUE(rd.mass_filled());
+    Eigen::VectorXd shared, own;
+    c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, shared, &p->model, &rd.data(), &rd.constraints());
+    c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, own);
+    EXPECT_TRUE(test::near(shared, own, 1e-12, 1e-12)) << "offset " << off << "\n" << shared.transpose() << "\n"
+                                                       << own.transpose();
+    EXPECT_GT(own.norm(), 0.0);
+    ++compared;
+  }
+  EXPECT_EQ(compared, 3);
 }
 
 // BDF on the constrained plant reaches the same closed loop as RK4.

@@ -113,6 +113,26 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
     return;
   }
   bias_and_constraints(t);  // M and c + g in one sweep; Φ, Φ̇, A, γ reusing its body motions
+  forces_and_solve(t, x, xdot);
+}
+
+void ReferenceDynamics::prepare_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
+  read_state(t, x, xdot);
+  if (!aba_) bias_and_constraints(t);
+}
+
+void ReferenceDynamics::complete_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
+  if (aba_) {
+    unconstrained_aba(t, forces_.num_states() ? x.data() + 2 * n_ : nullptr);
+    write_derivative(xdot);
+    return;
+  }
+  forces_and_solve(t, x, xdot);
+}
+
+// After bias_and_constraints: Q, ż, the right-hand side, q̈ and λ, Q_c, ẋ.
+void ReferenceDynamics::forces_and_solve(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
+  const double* z = forces_.num_states() ? x.data() + 2 * n_ : nullptr;
   forces_.evaluate(t, q_, qd_, z, Q_, zdot_.data(), opt_.paper_literal_forces ? &dQ_ : nullptr);  // Q, ż
   stabilized_rhs();         // F = Q − c − g; the stabilized right-hand side of A q̈ = rhs
   if (opt_.solver == ReferenceSolver::Projection)  // q̈ and λ

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 namespace refdyn {
@@ -67,27 +68,64 @@ struct ActuatedModel<S>::Workspace {
   Matrix A, Kdc, rhs_ic, X, P, PPt, Y, ta;
   Vector rhs, r, dep;
   std::vector<int> row_of;
-  Eigen::PartialPivLU<Eigen::MatrixXd> lu;  // double: reused (no allocation after the first call)
+  Eigen::MatrixXd lu;  // double: the elimination's workspace (no allocation after the first call)
 };
 
 namespace {
-// X = A⁻¹ B for a square A; false when A is singular to working precision. Doubles: one LU held
-// in the workspace, singular when a pivot of U is below 1e-13 × the largest (no allocation, no
-// condition estimate); dual numbers: ad::solve_square.
-bool solve(Eigen::PartialPivLU<Eigen::MatrixXd>& lu, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
-           Eigen::MatrixXd& X) {
-  if (A.rows() == 0) {
-    X.resize(0, B.cols());
-    return true;
+// X = A⁻¹ B for a square A; false when A is singular to working precision. Doubles: Gaussian
+// elimination with partial pivoting in the workspace LU, singular when a pivot is below 1e-13 ×
+// the largest (no allocation after the first call with these sizes, no calls into a blocked
+// kernel: these systems are the plant's m × m and k × k, small); dual numbers: ad::solve_square.
+// The elimination on column-major arrays: a (m × m, overwritten by U and the multipliers), x (m ×
+// c, overwritten by the solution). M > 0: m = M at compile time (the loops unroll).
+template <int M>
+bool eliminate(int m, int c, double* __restrict a, double* __restrict x) {
+  if constexpr (M > 0) m = M;
+  double largest = 0, smallest = std::numeric_limits<double>::infinity();
+  for (int j = 0; j < m; ++j) {
+    int p = j;
+    double best = std::abs(a[j * m + j]);
+    for (int i = j + 1; i < m; ++i)
+      if (std::abs(a[j * m + i]) > best) best = std::abs(a[j * m + i]), p = i;
+    if (!(best > 0)) return false;
+    if (p != j) {
+      for (int k = 0; k < m; ++k) std::swap(a[k * m + j], a[k * m + p]);
+      for (int k = 0; k < c; ++k) std::swap(x[k * m + j], x[k * m + p]);
+    }
+    largest = std::max(largest, best), smallest = std::min(smallest, best);
+    for (int i = j + 1; i < m; ++i) {
+      const double f = a[j * m + i] / a[j * m + j];
+      for (int k = j + 1; k < m; ++k) a[k * m + i] -= f * a[k * m + j];
+      for (int k = 0; k < c; ++k) x[k * m + i] -= f * x[k * m + j];
+    }
   }
-  lu.compute(A);
-  const auto d = lu.matrixLU().diagonal().cwiseAbs();
-  if (!(d.minCoeff() > 1e-13 * d.maxCoeff())) return false;
-  X.noalias() = lu.solve(B);
+  if (m > 0 && !(smallest > 1e-13 * largest)) return false;
+  for (int j = m - 1; j >= 0; --j)
+    for (int k = 0; k < c; ++k) {
+      double v = x[k * m + j];
+      for (int l = j + 1; l < m; ++l) v -= a[l * m + j] * x[k * m + l];
+      x[k * m + j] = v / a[j * m + j];
+    }
   return true;
 }
+
+bool eliminate_small(int m, int c, double* a, double* x) {
+  switch (m) {
+    case 1: return eliminate<1>(m, c, a, x);
+    case 2: return eliminate<2>(m, c, a, x);
+    case 3: return eliminate<3>(m, c, a, x);
+    case 4: return eliminate<4>(m, c, a, x);
+    default: return eliminate<0>(m, c, a, x);
+  }
+}
+
+bool solve(Eigen::MatrixXd& LU, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, Eigen::MatrixXd& X) {
+  LU = A;
+  X = B;
+  return eliminate_small(static_cast<int>(A.rows()), static_cast<int>(B.cols()), LU.data(), X.data());
+}
 template <int N>
-bool solve(Eigen::PartialPivLU<Eigen::MatrixXd>&, const ad::MatrixX<ad::Dual<N>>& A, const ad::MatrixX<ad::Dual<N>>& B,
+bool solve(Eigen::MatrixXd&, const ad::MatrixX<ad::Dual<N>>& A, const ad::MatrixX<ad::Dual<N>>& B,
            ad::MatrixX<ad::Dual<N>>& X) {
   return ad::solve_square(A, B, X);
 }
@@ -138,21 +176,29 @@ void ActuatedModel<S>::choose_partition() {
 }
 
 template <class S>
-bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd) {
+bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd, const ConstraintEval* rows) {
   if (!act_.constrained()) return true;
   const ConstraintSet& set = *act_.material;
   Workspace& w = *ws_;
-  const int n = model_.nv, m = set.rows(), k = static_cast<int>(ind_.size());
-  w.A.resize(m, n);
+  const int n = model_.nv, m = set.rows();
   w.rhs.resize(m);
   if constexpr (std::is_same_v<S, double>) {
-    w.q = Eigen::Map<const Eigen::VectorXd>(q, n);
-    w.qd = Eigen::Map<const Eigen::VectorXd>(qd, n);
-    evaluate_constraints(model_, w.data, set, *w.ev, t, w.q, w.qd);
-    w.A = w.ev->A;
+    if (!rows) {
+      w.q = Eigen::Map<const Eigen::VectorXd>(q, n);
+      w.qd = Eigen::Map<const Eigen::VectorXd>(qd, n);
+      evaluate_constraints(model_, w.data, set, *w.ev, t, w.q, w.qd);
+      rows = &*w.ev;
+    }
     for (int r = 0; r < m; ++r)
-      w.rhs[r] = stabilised_rhs<double>(set.row_first_order(r), w.ev->phi[r], w.ev->phid[r], w.ev->gamma[r], act_);
+      w.rhs[r] = stabilised_rhs<double>(set.row_first_order(r), rows->phi[r], rows->phid[r], rows->gamma[r], act_);
+    if (act_.switching) {
+      w.A = rows->A;
+      choose_partition();
+    }
+    return factor(rows->A);
   } else {
+    (void)rows;
+    w.A.resize(m, n);
     evaluate_constraints_dual(model_, set, *w.evd, S(t), q, qd);
     for (int r = 0; r < m; ++r) {
       for (int c = 0; c < n; ++c) w.A(r, c) = w.evd->A[r * n + c];
@@ -160,14 +206,28 @@ bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd) {
     }
   }
   if (act_.switching) choose_partition();
+  return factor(w.A);
+}
+
+// K_dc [X_ic, x_p] = [K_ic, rhs] for A's columns: N_d = −X_ic, q̈_p = x_p.
+template <class S>
+bool ActuatedModel<S>::factor(const Matrix& A) {
+  Workspace& w = *ws_;
+  const int m = static_cast<int>(A.rows()), k = static_cast<int>(ind_.size());
   w.Kdc.resize(m, m);
   w.rhs_ic.resize(m, k + 1);
-  for (int j = 0; j < m; ++j) w.Kdc.col(j) = w.A.col(dep_[j]);
-  for (int i = 0; i < k; ++i) w.rhs_ic.col(i) = w.A.col(ind_[i]);
+  for (int j = 0; j < m; ++j) w.Kdc.col(j) = A.col(dep_[j]);
+  for (int i = 0; i < k; ++i) w.rhs_ic.col(i) = A.col(ind_[i]);
   w.rhs_ic.col(k) = w.rhs;
-  if (!solve(w.lu, w.Kdc, w.rhs_ic, w.X)) return false;
-  Nd_ = -w.X.leftCols(k);
-  qdd_p_ = w.X.col(k);
+  if constexpr (std::is_same_v<S, double>) {  // in place: K_dc becomes its LU, [K_ic, rhs] the solution
+    if (!eliminate_small(m, k + 1, w.Kdc.data(), w.rhs_ic.data())) return false;
+    Nd_ = -w.rhs_ic.leftCols(k);
+    qdd_p_ = w.rhs_ic.col(k);
+  } else {
+    if (!solve(w.lu, w.Kdc, w.rhs_ic, w.X)) return false;
+    Nd_ = -w.X.leftCols(k);
+    qdd_p_ = w.X.col(k);
+  }
   return true;
 }
 
@@ -191,14 +251,19 @@ bool ActuatedModel<S>::efforts(const Vector& b, Vector& tau) const {
   Vector& r = w.r;
   r.resize(k);
   for (int i = 0; i < k; ++i) r[i] = b[ind_[i]];
+  if (act_.constrained())
+    for (size_t j = 0; j < dep_.size(); ++j) r += Nd_.row(j).transpose() * b[dep_[j]];
+  if (act_.actuated == ind_) {  // the motors are the assigned coordinates: P = I, τ_a = Nᵀ b
+    tau.setZero(model_.nv);
+    for (int a = 0; a < na; ++a) tau[act_.actuated[a]] = r[a];
+    return true;
+  }
   Matrix& P = w.P;
   P.setZero(k, na);
   std::vector<int>& row_of = w.row_of;  // joint -> its place among independent (≥ 0) or dependent (−2 − j)
   row_of.assign(model_.nv, -1);
   for (int i = 0; i < k; ++i) row_of[ind_[i]] = i;
   for (size_t j = 0; j < dep_.size(); ++j) row_of[dep_[j]] = -2 - static_cast<int>(j);
-  if (act_.constrained())
-    for (size_t j = 0; j < dep_.size(); ++j) r += Nd_.row(j).transpose() * b[dep_[j]];
   for (int a = 0; a < na; ++a) {
     const int p = row_of[act_.actuated[a]];
     if (p >= 0)
@@ -221,9 +286,15 @@ bool ActuatedModel<S>::efforts(const Vector& b, Vector& tau) const {
 }
 
 template <class S>
-void ActuatedModel<S>::inverse_dynamics(const S* q, const S* qd, const S* qdd, S* out) {
+void ActuatedModel<S>::inverse_dynamics(const S* q, const S* qd, const S* qdd, S* out, const Data* dynamics) {
   const int n = model_.nv;
   if constexpr (std::is_same_v<S, double>) {
+    if (dynamics && qd && qdd) {
+      Eigen::Map<Eigen::VectorXd> b(out, n);
+      b.noalias() = dynamics->M.lazyProduct(Eigen::Map<const Eigen::VectorXd>(qdd, n));
+      b += dynamics->nle;
+      return;
+    }
     Workspace& w = *ws_;
     w.q = Eigen::Map<const Eigen::VectorXd>(q, n);
     if (qd) w.qd = Eigen::Map<const Eigen::VectorXd>(qd, n);
@@ -231,6 +302,7 @@ void ActuatedModel<S>::inverse_dynamics(const S* q, const S* qd, const S* qdd, S
     unchecked::rnea(model_, w.data, w.q, qd ? &w.qd : nullptr, qdd ? &w.qdd : nullptr, true, w.out);
     Eigen::Map<Eigen::VectorXd>(out, n) = w.out;
   } else {
+    (void)dynamics;
     inverse_dynamics_dual(model_, q, qd, qdd, true, out);
   }
 }

@@ -55,6 +55,15 @@ struct ConstrainedPlant {
   ForceSet forces;
   std::unique_ptr<ReferenceDynamics> rd;
   Eigen::VectorXd x, dx;  // [q; q̇; z_plant]
+  /// The last evaluation's inputs (t, [q; q̇; z_plant; xc], q̂, q̂̇, q̂̈) and outputs besides dx and
+  /// rd's results (τ, ẋc, saturation): a sample recorded at the end of an RK4 step is the next
+  /// step's first stage, evaluated once. Cleared when rd is used for anything else.
+  struct Last {
+    bool valid = false;
+    double t = 0;
+    Eigen::VectorXd x, qr, qdr, qddr, tau, xc_dot;
+    bool saturated = false;
+  } last;
   bool projects() const { return rd->options().stabilization != Stabilization::Baumgarte; }
   /// ∂q̈/∂τ at the last evaluation: G = M⁻¹ − M⁻¹Aᵀ(A M⁻¹ Aᵀ)⁻¹ A M⁻¹ (the KKT solution's
   /// dependence on the applied force; the same for the projection, which solves the same system).
@@ -82,17 +91,50 @@ struct PlantWorkspace {
 };
 
 // τ from the controller, saturated; returns true when a joint was saturated. With `dynamics`,
-// the plant's M and c + g at this state are in it and the controller may reuse them. xc: the
+// the plant's M and c + g at this state are in it and the controller may reuse them; with
+// `rows`, the plant's material rows (the controller's set) at this state. xc: the
 // controller's states, xc_dot: their derivatives (null: not needed).
 bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit, const Model& plant,
-             const Data* dynamics, const double* xc, double* xc_dot) {
+             const Data* dynamics, const ConstraintEval* rows, const double* xc, double* xc_dot) {
   const ReferenceSample ref{w.qr, w.qdr, w.qddr};
-  c.compute(t, w.q, w.qd, ref, xc, xc_dot, w.tau, &plant, dynamics);
+  c.compute(t, w.q, w.qd, ref, xc, xc_dot, w.tau, &plant, dynamics, rows);
   bool sat = false;
   for (int i = 0; i < limit.size(); ++i) {
     if (w.tau[i] > limit[i]) w.tau[i] = limit[i], sat = true;
     if (w.tau[i] < -limit[i]) w.tau[i] = -limit[i], sat = true;
   }
+  return sat;
+}
+
+// The constrained plant at (t, x), x = [q; q̇; z_plant; xc] (q, q̇ already in w): M, c + g and the
+// material rows evaluated once, the controller's τ from them (same model, same rows), then the
+// plant's q̈, λ and Q_c with that τ; the plant's ẋ in w.constrained->dx. Returns true when a
+// joint was saturated.
+bool constrained_derivative(const Model& m, Controller& c, PlantWorkspace& w, const Eigen::VectorXd& limit, double t,
+                            const double* x, double* xc_dot) {
+  ConstrainedPlant& p = *w.constrained;
+  const int n = m.nv, nz = static_cast<int>(p.x.size()) - 2 * n, nc = c.num_states();
+  const Eigen::Map<const Eigen::VectorXd> xs(x, 2 * n + nz + nc);
+  ConstrainedPlant::Last& last = p.last;
+  auto same = [](const Eigen::VectorXd& a, const double* b) { return std::equal(a.data(), a.data() + a.size(), b); };
+  if (last.valid && last.t == t && same(last.x, x) && same(last.qr, w.qr.data()) && same(last.qdr, w.qdr.data()) &&
+      same(last.qddr, w.qddr.data())) {
+    w.tau = last.tau;  // p.dx and rd's results are this evaluation's
+    if (xc_dot) Eigen::Map<Eigen::VectorXd>(xc_dot, nc) = last.xc_dot;
+    return last.saturated;
+  }
+  p.x = xs.head(2 * n + nz);
+  ReferenceDynamics& rd = *p.rd;
+  rd.prepare_derivative(t, p.x, p.dx);
+  const ConstraintEval* rows = c.actuation().material.get() == &rd.constraint_set() ? &rd.constraints() : nullptr;
+  last.xc_dot.resize(nc);
+  const bool sat = control(c, w, t, limit, m, rd.mass_filled() ? &rd.data() : nullptr, rows,
+                           nc ? x + 2 * n + nz : nullptr, nc ? last.xc_dot.data() : nullptr);
+  if (xc_dot) Eigen::Map<Eigen::VectorXd>(xc_dot, nc) = last.xc_dot;
+  p.tau = w.tau;
+  rd.complete_derivative(t, p.x, p.dx);
+  last.valid = true, last.t = t, last.x = xs, last.qr = w.qr, last.qdr = w.qdr, last.qddr = w.qddr;
+  last.tau = w.tau, last.saturated = sat;
   return sat;
 }
 
@@ -103,23 +145,19 @@ void plant_derivative(const Model& m, const ForceSet& forces, Controller& c, Pla
   w.q = Eigen::Map<const Eigen::VectorXd>(x, n);
   w.qd = Eigen::Map<const Eigen::VectorXd>(x + n, n);
   if (w.constrained) {  // the material rows' reactions join: the planner's machinery solves
-    ConstrainedPlant& p = *w.constrained;
-    control(c, w, t, limit, m, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
-    p.tau = w.tau;
-    p.x = Eigen::Map<const Eigen::VectorXd>(x, 2 * n + nz);
-    p.rd->derivative(t, p.x, p.dx);
-    Eigen::Map<Eigen::VectorXd>(dx, 2 * n + nz) = p.dx;
+    constrained_derivative(m, c, w, limit, t, x, nc ? dx + 2 * n + nz : nullptr);
+    Eigen::Map<Eigen::VectorXd>(dx, 2 * n + nz) = w.constrained->dx;
     return;
   }
   if (forward_dynamics_uses_aba(n) && !c.reuses_dynamics(m)) {  // articulated-body algorithm: no M needed
-    control(c, w, t, limit, m, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
+    control(c, w, t, limit, m, nullptr, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
     forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
     w.Q += w.tau;
     if (unchecked::aba(m, w.data, w.q, w.qd, w.Q, w.data.ddq) >= 0)
       throw NumericalFailure(t, "at t = " + fmt(t) + " s the plant's mass matrix is not positive definite");
   } else {  // the controller reuses M and c + g: CRBA + Cholesky
     unchecked::mass_matrix_and_bias(m, w.data, w.q, w.qd);
-    control(c, w, t, limit, m, &w.data, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
+    control(c, w, t, limit, m, &w.data, nullptr, nc ? x + 2 * n + nz : nullptr, nc ? dx + 2 * n + nz : nullptr);
     forces.evaluate(t, w.q, w.qd, nz ? x + 2 * n : nullptr, w.Q, w.zdot.data());
     w.data.ddq = w.tau + w.Q - w.data.nle;
     if (!unchecked::solve_mass_matrix(w.data, w.data.ddq))
@@ -230,6 +268,7 @@ struct JointSystem {
     if (w.constrained) {
       ConstrainedPlant& p = *w.constrained;  // p.x and p.tau hold X's plant state and τ
       p.rd->jacobian(t, p.x, Jp);
+      p.last.valid = false;  // rd's workspaces now hold the Jacobian's evaluations
       J.block(nr, nr, 2 * n + nz, 2 * n + nz) = Jp;
       p.effort_map(plant, data, G);
       J.block(nr + n, 0, n, N) += G * T;
@@ -324,6 +363,7 @@ class ClosedLoopRun {
     std::vector<long> sample_step{0};
     for (long k = 0; !grid.uniform() && k < nsteps; ++k)
       if (grid.sample(k)) sample_step.push_back(k + 1);
+    reserve(out, grid.uniform() ? static_cast<size_t>(usable / every + 2) : sample_step.size() + 1);
     long sample = 0;
     auto obs = [&](double t, const Eigen::VectorXd& x) {
       const long step = grid.uniform() ? sample * every
@@ -392,6 +432,14 @@ class ClosedLoopRun {
     w_.qddr = Eigen::Map<const Eigen::VectorXd>(qdd, n_);
   }
 
+  /// Room for `samples` samples in every per-sample field that record() fills.
+  void reserve(ClosedLoopResult& out, size_t samples) const {
+    out.t.reserve(samples);
+    for (auto* v : {&out.x, &out.tau, &out.q_ref, &out.qd_ref, &out.point_positions}) v->reserve(samples);
+    if (w_.constrained)
+      for (auto* v : {&out.phi, &out.phid, &out.lambda, &out.reaction_effort}) v->reserve(samples);
+  }
+
   /// One sample: the state, τ (saturations counted), the reference, points, and with material
   /// rows their residuals and reactions.
   void record(double t, const double* xp, ClosedLoopResult& out) {
@@ -400,8 +448,11 @@ class ClosedLoopRun {
     out.x.push_back(Eigen::Map<const Eigen::VectorXd>(xp, nx_));
     w_.q = Eigen::Map<const Eigen::VectorXd>(xp, n);
     w_.qd = Eigen::Map<const Eigen::VectorXd>(xp + n, n);
-    if (control(controller_, w_, t, options_.effort_limit, plant_, nullptr, nc_ ? xp + 2 * n + nz : nullptr, nullptr))
-      ++out.saturated_samples;
+    const bool saturated =
+        w_.constrained ? constrained_derivative(plant_, controller_, w_, options_.effort_limit, t, xp, nullptr)
+                       : control(controller_, w_, t, options_.effort_limit, plant_, nullptr, nullptr,
+                                 nc_ ? xp + 2 * n + nz : nullptr, nullptr);
+    if (saturated) ++out.saturated_samples;
     out.tau.push_back(w_.tau);
     out.q_ref.push_back(w_.qr);
     out.qd_ref.push_back(w_.qdr);
@@ -413,10 +464,7 @@ class ClosedLoopRun {
     }
     out.point_positions.push_back(std::move(pts));
     if (w_.constrained) {  // the material rows and their reactions at this sample
-      ConstrainedPlant& p = *w_.constrained;
-      p.tau = w_.tau;
-      p.x = Eigen::Map<const Eigen::VectorXd>(xp, 2 * n + nz);
-      p.rd->derivative(t, p.x, p.dx);
+      const ConstrainedPlant& p = *w_.constrained;
       const ConstraintEval& ev = p.rd->constraints();
       out.phi.push_back(ev.phi);
       out.phid.push_back(ev.phid);
@@ -431,6 +479,7 @@ class ClosedLoopRun {
   bool plant_projects() const { return w_.constrained && w_.constrained->projects(); }
   void project_plant(double t, double* xp) {
     ConstrainedPlant& p = *w_.constrained;
+    p.last.valid = false;  // rd evaluates other states
     const int m = 2 * n_ + nz_;
     xp_projected_ = Eigen::Map<const Eigen::VectorXd>(xp, m);
     p.rd->project_state(t, xp_projected_);

@@ -148,6 +148,15 @@ class ReferenceDynamics {
   /// from the articulated-body algorithm: mass() and bias() are then not filled and Q_c = 0.
   /// With the Lagrange solver from kAbaLagrangeFrom coordinates on, mass() is not filled.
   void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
+  /// derivative() in two halves, for a caller that needs the dynamics at (q, q̇) before it knows
+  /// the applied forces (a controller on a constrained plant, whose efforts a force element reads):
+  /// prepare_derivative fills bias(), constraints() and, when mass_filled(), mass(); then
+  /// complete_derivative(t, x, xdot) with the same arguments evaluates the force elements and
+  /// finishes. The two together give what derivative(t, x, xdot) gives, bit for bit.
+  void prepare_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
+  void complete_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
+  /// True when derivative() fills mass() (not on the ABA routes).
+  bool mass_filled() const { return !aba_ && !aba_lagrange_; }
 
   // ---- results of the last derivative() call ----
   const Eigen::VectorXd& qdd() const { return qdd_; }
@@ -216,6 +225,7 @@ class ReferenceDynamics {
   void read_state(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& xdot);  // q, q̇; checks
   void unconstrained_aba(double t, const double* z);  // no rows, large model: q̈ by ABA
   void bias_and_constraints(double t);  // M, c + g; Φ, Φ̇, A, γ
+  void forces_and_solve(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);  // the rest, after bias_and_constraints
   void stabilized_rhs();                // F = Q − c − g; rhs of A q̈ = rhs
   void constraint_forces();             // Q_c; λ of the projection route
   void write_derivative(Eigen::VectorXd& xdot) const;  // ẋ = [q̇; q̈; ż] from the workspaces

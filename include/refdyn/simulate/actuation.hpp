@@ -74,15 +74,18 @@ class ActuatedModel {
   using Matrix = ad::MatrixX<S>;
   ActuatedModel(const Model& model, const Actuation& actuation);
   /// Evaluates the material rows at (t, q, q̇) (A, rhs, K_dc, N): needed before accelerations and
-  /// efforts when the plant is constrained. Returns false when K_dc is singular.
-  bool set_state(double t, const S* q, const S* qd);
+  /// efforts when the plant is constrained. `rows` (S = double only; may be null): the rows
+  /// already evaluated at this (t, q, q̇) for this model (the constrained plant's), used instead.
+  /// Returns false when K_dc is singular.
+  bool set_state(double t, const S* q, const S* qd, const ConstraintEval* rows = nullptr);
   /// q̈* from the assigned accelerations u (one per independent coordinate, in Actuation::independent order).
   void accelerations(const Vector& u, Vector& qdd) const;
   /// Motor efforts realising the generalized force b (n): tau (n) gets S τ_a (0 at joints
   /// without a motor). Returns false when NᵀS is singular here (the motors cannot realise it).
   bool efforts(const Vector& b, Vector& tau) const;
-  /// M(q) q̈ + c(q, q̇) + g(q) (q̇ null: zero velocity; q̈ null: zero) into out (n).
-  void inverse_dynamics(const S* q, const S* qd, const S* qdd, S* out);
+  /// M(q) q̈ + c(q, q̇) + g(q) (q̇ null: zero velocity; q̈ null: zero) into out (n). S = double,
+  /// q̇ and q̈ given: from `dynamics` (M and c + g at this state) when given, else RNEA.
+  void inverse_dynamics(const S* q, const S* qd, const S* qdd, S* out, const Data* dynamics = nullptr);
   /// The unconstrained, fully actuated computed torque τ = M(q) u + c(q, q̇) + g(q) (n values
   /// of u). S = double: from `dynamics` (M and c + g at this state) when given, else CRBA + RNEA.
   void computed_torque(const S* q, const S* qd, const Vector& u, const Data* dynamics, S* tau);
@@ -101,6 +104,7 @@ class ActuatedModel {
 
  private:
   void choose_partition();  // ind_, dep_ from A's values (Actuation::switching)
+  bool factor(const Matrix& A);  // N_d and q̈_p from A and the workspace's rhs
   const Model& model_;
   const Actuation& act_;
   struct Workspace;
