@@ -151,8 +151,9 @@ TEST(ConstrainedPlant, ClosedLoopJacobianOnTheFourBarMatchesFiniteDifferences) {
 
 // The controller on the constrained plant, two routes: reading the plant's own evaluation at the
 // state (M, c + g and the material rows of ReferenceDynamics::prepare_derivative, what the closed
-// loop passes) and evaluating everything itself (RNEA for M q̈* + c + g, the rows again). Both
-// computed-torque efforts agree to rounding, at states on and off the constraints.
+// loop passes, with and without the plant's factored partition) and evaluating everything itself
+// (RNEA for M q̈* + c + g, the rows again, K_dc solved again). The computed-torque efforts agree
+// to rounding, at states on and off the constraints.
 TEST(ConstrainedPlant, ControllerReadingThePlantsEvaluationEqualsItsOwn) {
   const auto p = example("four_bar/four_bar.yaml");
   auto planner = p->make_planner();
@@ -170,11 +171,18 @@ TEST(ConstrainedPlant, ControllerReadingThePlantsEvaluationEqualsItsOwn) {
     x.tail(n) += off * Eigen::Vector3d(2.0, 1.0, -1.0);
     rd.prepare_derivative(0.2, x, xdot);
     ASSERT_TRUE(rd.mass_filled());
-    Eigen::VectorXd shared, own;
-    c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, shared, &p->model, &rd.data(), &rd.constraints());
+    ASSERT_TRUE(rd.partition_factored());
+    PlantRows rows_only, factored;
+    rows_only.rows = factored.rows = &rd.constraints();
+    factored.independent = &rd.independent(), factored.dependent = &rd.dependent();
+    factored.Kinv = &rd.partition_inverse(), factored.G = &rd.partition_g();
+    Eigen::VectorXd shared, with_rows, own;
+    c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, shared, &p->model, &rd.data(), &factored);
+    c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, with_rows, &p->model, &rd.data(), &rows_only);
     c->compute(0.2, x.head(n), x.tail(n), ref, nullptr, nullptr, own);
     EXPECT_TRUE(test::near(shared, own, 1e-12, 1e-12)) << "offset " << off << "\n" << shared.transpose() << "\n"
                                                        << own.transpose();
+    EXPECT_TRUE(test::near(with_rows, own, 1e-12, 1e-12)) << "offset " << off;
     EXPECT_GT(own.norm(), 0.0);
     ++compared;
   }

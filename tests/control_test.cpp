@@ -115,7 +115,7 @@ class PdGravityDeclaringReuse final : public Controller {
   std::string name() const override { return "pd_test"; }
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                const double* xc, double* xc_dot, Eigen::VectorXd& tau, const Model*, const Data*,
-               const ConstraintEval*) override {
+               const PlantRows*) override {
     pd_.compute(t, q, qd, ref, xc, xc_dot, tau);
   }
   void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,

@@ -106,6 +106,7 @@ bool ReferenceDynamics::factor_partition_sized() {
 // ẋ = [q̇; q̈; ż], stage by stage (each stage is a member below, in this order).
 void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
   read_state(t, x, xdot);
+  factored_ = false;
   const double* z = forces_.num_states() ? x.data() + 2 * n_ : nullptr;
   if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
     unconstrained_aba(t, z);
@@ -118,7 +119,13 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
 
 void ReferenceDynamics::prepare_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
   read_state(t, x, xdot);
-  if (!aba_) bias_and_constraints(t);
+  factored_ = false;
+  if (aba_) return;
+  bias_and_constraints(t);
+  if (opt_.solver == ReferenceSolver::Projection && m_ > 0) {  // a function of A alone: done here, shared
+    factor_for_projection(t);
+    factored_ = true;
+  }
 }
 
 void ReferenceDynamics::complete_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
@@ -294,13 +301,18 @@ void ReferenceDynamics::solve_reduced_mass(double t, int k) {
   }
 }
 
-void ReferenceDynamics::solve_projection(double t) {
+void ReferenceDynamics::factor_for_projection(double t) {
   if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
   if (!factor_partition()) {
     if (!opt_.automatic_partition) throw NumericalFailure(t, partition_message(t));
     choose_partition(t, q_, qd_);
     if (!factor_partition()) throw NumericalFailure(t, partition_message(t));
   }
+}
+
+void ReferenceDynamics::solve_projection(double t) {
+  if (!factored_) factor_for_projection(t);
+  factored_ = false;
   // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
   // other size takes the orthonormal basis (see the header comment).
   REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))

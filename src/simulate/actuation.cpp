@@ -66,7 +66,7 @@ struct ActuatedModel<S>::Workspace {
   std::optional<ConstraintEvalDual> evd;
   Eigen::VectorXd q, qd, qdd, out;
   Matrix A, Kdc, rhs_ic, X, P, PPt, Y, ta;
-  Vector rhs, r, dep;
+  Vector rhs, r;
   std::vector<int> row_of;
   Eigen::MatrixXd lu;  // double: the elimination's workspace (no allocation after the first call)
 };
@@ -176,13 +176,14 @@ void ActuatedModel<S>::choose_partition() {
 }
 
 template <class S>
-bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd, const ConstraintEval* rows) {
+bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd, const PlantRows* plant) {
   if (!act_.constrained()) return true;
   const ConstraintSet& set = *act_.material;
   Workspace& w = *ws_;
   const int n = model_.nv, m = set.rows();
   w.rhs.resize(m);
   if constexpr (std::is_same_v<S, double>) {
+    const ConstraintEval* rows = plant ? plant->rows : nullptr;
     if (!rows) {
       w.q = Eigen::Map<const Eigen::VectorXd>(q, n);
       w.qd = Eigen::Map<const Eigen::VectorXd>(qd, n);
@@ -195,9 +196,20 @@ bool ActuatedModel<S>::set_state(double t, const S* q, const S* qd, const Constr
       w.A = rows->A;
       choose_partition();
     }
+    if (plant && plant->G && *plant->independent == ind_ && *plant->dependent == dep_) {  // the plant's factorization
+      Nd_ = *plant->G;
+      qdd_p_.resize(m);
+      const Eigen::MatrixXd& Ki = *plant->Kinv;
+      for (int i = 0; i < m; ++i) {
+        double v = 0;
+        for (int j = 0; j < m; ++j) v += Ki(i, j) * w.rhs[j];
+        qdd_p_[i] = v;
+      }
+      return true;
+    }
     return factor(rows->A);
   } else {
-    (void)rows;
+    (void)plant;
     w.A.resize(m, n);
     evaluate_constraints_dual(model_, set, *w.evd, S(t), q, qd);
     for (int r = 0; r < m; ++r) {
@@ -236,10 +248,12 @@ void ActuatedModel<S>::accelerations(const Vector& u, Vector& qdd) const {
   qdd.resize(model_.nv);
   for (size_t i = 0; i < ind_.size(); ++i) qdd[ind_[i]] = u[i];
   if (!act_.constrained()) return;
-  Vector& dep = ws_->dep;
-  dep = qdd_p_;
-  dep.noalias() += Nd_ * u;
-  for (size_t j = 0; j < dep_.size(); ++j) qdd[dep_[j]] = dep[j];
+  const int k = static_cast<int>(ind_.size());
+  for (size_t j = 0; j < dep_.size(); ++j) {  // q̈_dep = q̈_p + N_d u (loops: these are a few rows)
+    S v = qdd_p_[static_cast<Eigen::Index>(j)];
+    for (int i = 0; i < k; ++i) v += Nd_(static_cast<Eigen::Index>(j), i) * u[i];
+    qdd[dep_[j]] = v;
+  }
 }
 
 template <class S>

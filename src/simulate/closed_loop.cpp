@@ -95,7 +95,7 @@ struct PlantWorkspace {
 // `rows`, the plant's material rows (the controller's set) at this state. xc: the
 // controller's states, xc_dot: their derivatives (null: not needed).
 bool control(Controller& c, PlantWorkspace& w, double t, const Eigen::VectorXd& limit, const Model& plant,
-             const Data* dynamics, const ConstraintEval* rows, const double* xc, double* xc_dot) {
+             const Data* dynamics, const PlantRows* rows, const double* xc, double* xc_dot) {
   const ReferenceSample ref{w.qr, w.qdr, w.qddr};
   c.compute(t, w.q, w.qd, ref, xc, xc_dot, w.tau, &plant, dynamics, rows);
   bool sat = false;
@@ -126,9 +126,15 @@ bool constrained_derivative(const Model& m, Controller& c, PlantWorkspace& w, co
   p.x = xs.head(2 * n + nz);
   ReferenceDynamics& rd = *p.rd;
   rd.prepare_derivative(t, p.x, p.dx);
-  const ConstraintEval* rows = c.actuation().material.get() == &rd.constraint_set() ? &rd.constraints() : nullptr;
+  PlantRows rows;  // the plant's rows and factored partition, when they are the controller's
+  if (c.actuation().material.get() == &rd.constraint_set()) {
+    rows.rows = &rd.constraints();
+    if (rd.partition_factored())
+      rows.independent = &rd.independent(), rows.dependent = &rd.dependent(), rows.Kinv = &rd.partition_inverse(),
+      rows.G = &rd.partition_g();
+  }
   last.xc_dot.resize(nc);
-  const bool sat = control(c, w, t, limit, m, rd.mass_filled() ? &rd.data() : nullptr, rows,
+  const bool sat = control(c, w, t, limit, m, rd.mass_filled() ? &rd.data() : nullptr, rows.rows ? &rows : nullptr,
                            nc ? x + 2 * n + nz : nullptr, nc ? last.xc_dot.data() : nullptr);
   if (xc_dot) Eigen::Map<Eigen::VectorXd>(xc_dot, nc) = last.xc_dot;
   p.tau = w.tau;

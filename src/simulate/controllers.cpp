@@ -41,7 +41,7 @@ template <class S>
 void ComputedTorquePD::law(const ControlInput<S>& in, ActuatedModel<S>& plant, S* tau, S* /*xc_dot*/) {
   // u = q̂̈ − 2δ ė − δ² e on the assigned coordinates (chosen by set_state when they switch)
   const bool trivial = actuation_.trivial(model_);
-  if (!trivial && !plant.set_state(in.t, in.q, in.qd, in.rows)) cannot_realise(in.t, actuation_, model_, "assigned accelerations");
+  if (!trivial && !plant.set_state(in.t, in.q, in.qd, in.material)) cannot_realise(in.t, actuation_, model_, "assigned accelerations");
   const std::vector<int>& ind = plant.independent();
   const int k = static_cast<int>(ind.size());
   ad::VectorX<S>& u = plant.scratch(0, k);
@@ -80,7 +80,7 @@ void pd_gravity(const Model& model, const Actuation& a, const ControlInput<S>& i
                                          kd.cwiseProduct(CMap<S>(in.qd, n) - CMap<S>(in.qd_ref, n));
     return;
   }
-  if (!plant.set_state(in.t, in.q, in.qd, in.rows)) cannot_realise(in.t, a, model, "gravity compensation");
+  if (!plant.set_state(in.t, in.q, in.qd, in.material)) cannot_realise(in.t, a, model, "gravity compensation");
   ad::VectorX<S>& g = plant.scratch(2, n);
   ad::VectorX<S>& t = plant.scratch(3, n);
   plant.inverse_dynamics(in.q, nullptr, nullptr, g.data());

@@ -157,6 +157,12 @@ class ReferenceDynamics {
   void complete_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot);
   /// True when derivative() fills mass() (not on the ABA routes).
   bool mass_filled() const { return !aba_ && !aba_lagrange_; }
+  /// After prepare_derivative with the projection solver and constraint rows: the partition
+  /// (independent(), dependent()) is factored at this state, K_dc⁻¹ in partition_inverse() (m × m)
+  /// and G = −K_dc⁻¹ K_ic in partition_g() (m × k); complete_derivative uses that factorization.
+  bool partition_factored() const { return factored_; }
+  const Eigen::MatrixXd& partition_inverse() const { return Kinv_; }
+  const Eigen::MatrixXd& partition_g() const { return G_; }
 
   // ---- results of the last derivative() call ----
   const Eigen::VectorXd& qdd() const { return qdd_; }
@@ -259,6 +265,8 @@ class ReferenceDynamics {
   void acceleration_residuals();  // Φ = Φ̇ = B q̈ + s on acceleration rows after a solve
   Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
   bool partition_set_ = false;
+  bool factored_ = false;  ///< the partition is factored at the state of prepare_derivative
+  void factor_for_projection(double t);  // the partition's factorization (re-chosen when allowed)
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
   Eigen::MatrixXd dQ_, Kdc_, Kic_, Kinv_, G_, Y_, Smm_, MN_, NMN_;

@@ -55,6 +55,18 @@ struct Actuation {
   static std::string names(const Model& model, const std::vector<int>& joints);
 };
 
+/// The constrained plant's evaluation at a state (t, q, q̇), for a controller on the same model:
+/// its material rows (Φ, Φ̇, A, γ of Actuation::material) and, when the plant factored its
+/// partition there (ReferenceDynamics::partition_factored), K_dc⁻¹ (m × m) and G = −K_dc⁻¹ K_ic
+/// (m × k) for its independent and dependent coordinates (null: not factored).
+struct PlantRows {
+  const ConstraintEval* rows = nullptr;
+  const std::vector<int>* independent = nullptr;
+  const std::vector<int>* dependent = nullptr;
+  const Eigen::MatrixXd* Kinv = nullptr;
+  const Eigen::MatrixXd* G = nullptr;
+};
+
 /// The plant's partition and the actuation check at a state (t, q, q̇) that satisfies the
 /// material rows: the independent coordinates are the actuated joints when there are exactly k =
 /// n − m of them and they form a partition with cond(K_dc) ≤ max_condition, else the
@@ -74,10 +86,11 @@ class ActuatedModel {
   using Matrix = ad::MatrixX<S>;
   ActuatedModel(const Model& model, const Actuation& actuation);
   /// Evaluates the material rows at (t, q, q̇) (A, rhs, K_dc, N): needed before accelerations and
-  /// efforts when the plant is constrained. `rows` (S = double only; may be null): the rows
-  /// already evaluated at this (t, q, q̇) for this model (the constrained plant's), used instead.
-  /// Returns false when K_dc is singular.
-  bool set_state(double t, const S* q, const S* qd, const ConstraintEval* rows = nullptr);
+  /// efforts when the plant is constrained. `plant` (S = double only; may be null): the rows
+  /// already evaluated at this (t, q, q̇) for this model (the constrained plant's), used instead,
+  /// and the plant's factored partition when it is the one assigned here. Returns false when
+  /// K_dc is singular.
+  bool set_state(double t, const S* q, const S* qd, const PlantRows* plant = nullptr);
   /// q̈* from the assigned accelerations u (one per independent coordinate, in Actuation::independent order).
   void accelerations(const Vector& u, Vector& qdd) const;
   /// Motor efforts realising the generalized force b (n): tau (n) gets S τ_a (0 at joints

@@ -28,9 +28,9 @@ struct ReferenceSample {
 
 /// What a law reads, over its scalar: q, q̇ (n each), the reference q̂, q̂̇, q̂̈ (n each) and the
 /// controller's states xc (null: zero). `dynamics` (S = double only; may be null): the plant's
-/// M and c + g at this (q, q̇), computed by the closed loop for the same Model object. `rows`
-/// (S = double only; may be null): the plant's material rows (Φ, Φ̇, A, γ of the set
-/// Actuation::material) at this (t, q, q̇), for the same Model object.
+/// M and c + g at this (q, q̇), computed by the closed loop for the same Model object. `material`
+/// (S = double only; may be null): the constrained plant's evaluation at this (t, q, q̇) for the
+/// same Model object (its material rows, and its partition's factorization: PlantRows).
 template <class S>
 struct ControlInput {
   double t;
@@ -41,7 +41,7 @@ struct ControlInput {
   const S* qdd_ref;
   const S* xc;
   const Data* dynamics = nullptr;
-  const ConstraintEval* rows = nullptr;
+  const PlantRows* material = nullptr;
 };
 
 class Controller {
@@ -55,11 +55,12 @@ class Controller {
   /// τ (size n) and, when xc_dot is not null, the states' derivatives. xc null: states at zero.
   /// `model`, `dynamics` (optional): M and c + g of `model` already evaluated at this (q, q̇)
   /// (dynamics->M, dynamics->nle); a controller whose own model is that same object may use them.
-  /// `rows` (optional): the material rows of actuation().material evaluated for `model` at this
-  /// (t, q, q̇) — the constrained plant's own evaluation, reused on the same conditions.
+  /// `material` (optional): the constrained plant's evaluation for `model` at this (t, q, q̇) —
+  /// the rows of actuation().material and the plant's factored partition (PlantRows) — reused
+  /// on the same conditions.
   virtual void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                        const double* xc, double* xc_dot, Eigen::VectorXd& tau, const Model* model = nullptr,
-                       const Data* dynamics = nullptr, const ConstraintEval* rows = nullptr) = 0;
+                       const Data* dynamics = nullptr, const PlantRows* material = nullptr) = 0;
   /// τ with the states at zero.
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                Eigen::VectorXd& tau) {
@@ -93,11 +94,11 @@ class ControllerLaw : public Controller {
   using Controller::compute;  // τ with the states at zero
   void compute(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const ReferenceSample& ref,
                const double* xc, double* xc_dot, Eigen::VectorXd& tau, const Model* model = nullptr,
-               const Data* dynamics = nullptr, const ConstraintEval* rows = nullptr) override {
+               const Data* dynamics = nullptr, const PlantRows* material = nullptr) override {
     tau.resize(model_.nv);
     const bool same = model == &model_;
     const ControlInput<double> in{t, q.data(), qd.data(), ref.q.data(), ref.qd.data(), ref.qdd.data(), xc,
-                                  same ? dynamics : nullptr, same ? rows : nullptr};
+                                  same ? dynamics : nullptr, same ? material : nullptr};
     static_cast<Derived*>(this)->law(in, plant_, tau.data(), xc_dot);
   }
   void compute_dual(double t, const JacobianScalar* q, const JacobianScalar* qd, const JacobianScalar* q_ref,
