@@ -98,17 +98,78 @@ void check_list_gradients(const OptimizeSetup& s, const SpecReader& c, const Opt
                  "' have none (they are numbers to the symbolic layer); use method: phase_plane (knot speeds), cobyla or bobyqa");
 }
 
-}  // namespace
+/// A list parameter as a variable: one vector variable, its elements named v[1] … v[n].
+void add_list_variable(const OptimizeVariableSpec& v, const std::vector<Quantity>& values, const SpecReader& c,
+                       OptimizeSetup& s) {
+  const SpecValue& at = v.value["name"];
+  const size_t n = values.size();
+  // lower, upper, start: one number for every element, or a list of n numbers
+  auto numbers = [&](const SpecValue& b, const std::string& k) {
+    std::vector<double> out;
+    if (b.is_list()) {
+      if (b.size() != n)
+        c.fail(b, k,
+               "expected one number for every element or a list of " + std::to_string(n) + " (the length of '" + v.name +
+                   "'), got a list of " + std::to_string(b.size()) + " (hint: write one number for all)");
+      for (size_t i = 0; i < n; ++i) out.push_back(c.number(b[i], k + "[" + std::to_string(i) + "]"));
+    } else {
+      out.assign(n, c.number(b, k));
+    }
+    return out;
+  };
+  const std::vector<double> lo = numbers(v.lower, v.key + ".lower"), hi = numbers(v.upper, v.key + ".upper");
+  std::vector<double> x0;
+  if (v.start) x0 = numbers(v.start, v.key + ".start");
+  else
+    for (const Quantity& q : values) x0.push_back(q.value);
+  for (size_t i = 0; i < n; ++i) {
+    const std::string el = "[" + std::to_string(i) + "]";
+    const SpecValue& lv = v.lower.is_list() ? v.lower[i] : v.lower;
+    if (lo[i] > hi[i])
+      c.fail(lv, v.key + ".lower" + (v.lower.is_list() || v.upper.is_list() ? el : ""),
+             "lower = " + fmt(lo[i]) + " is above upper = " + fmt(hi[i]) +
+                 (v.lower.is_list() || v.upper.is_list() ? " (element " + std::to_string(i) + " of '" + v.name + "')" : ""));
+    if (x0[i] < lo[i] || x0[i] > hi[i]) {
+      const std::string msg = "start = " + fmt(x0[i]) + " (element " + std::to_string(i) + " of '" + v.name +
+                              "') is outside [" + fmt(lo[i]) + ", " + fmt(hi[i]) + "]";
+      if (!v.start) c.fail(values[i].where, v.key + ".start", msg + " (the parameter's value; hint: give start:)");
+      c.fail(v.start.is_list() ? v.start[i] : v.start, v.key + ".start" + (v.start.is_list() ? el : ""), msg);
+    }
+    s.variables.push_back(v.name + "[" + std::to_string(i + 1) + "]");
+    s.variable_where.push_back(at.where);
+    s.lower.push_back(lo[i]);
+    s.upper.push_back(hi[i]);
+    s.start.push_back(x0[i]);
+  }
+  s.lists.push_back({v.name, s.variables.size() - n, n});
+}
 
-OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
-  if (!spec.optimize) throw Error(spec.file + ": optimize: missing (refdyn optimize needs an optimize: section; docs/optimize.md)");
-  const OptimizeSpec& o = *spec.optimize;
-  const SpecReader c = parameter_reader(spec);
-  OptimizeSetup s;
-  s.method = optimize_method(o.method);
+/// A parameter with one value as a variable: its lower, upper and start single numbers.
+void add_scalar_variable(const OptimizeVariableSpec& v, const SpecReader& c, OptimizeSetup& s) {
+  const SpecValue& at = v.value["name"];
+  for (const auto* b : {&v.lower, &v.upper, &v.start})
+    if (b->is_list())
+      c.fail(*b, v.key, "'" + v.name + "' is a parameter with one value: its lower, upper and start are single numbers, got a list");
+  const double lo = c.number(v.lower, v.key + ".lower"), hi = c.number(v.upper, v.key + ".upper");
+  if (lo > hi) c.fail(v.lower, v.key + ".lower", "lower = " + fmt(lo) + " is above upper = " + fmt(hi));
+  double x0 = c.params.at(v.name);
+  if (v.start) x0 = c.number(v.start, v.key + ".start");
+  if (x0 < lo || x0 > hi)
+    c.fail(v.start ? v.start : v.value, v.key + ".start",
+           "start = " + fmt(x0) + " is outside [" + fmt(lo) + ", " + fmt(hi) + "]" +
+               (v.start ? "" : " (the parameter's value; hint: give start:)"));
+  s.variables.push_back(v.name);
+  s.variable_where.push_back(at.where);
+  s.lower.push_back(lo);
+  s.upper.push_back(hi);
+  s.start.push_back(x0);
+}
+
+/// The variables: parameters of the scenario, each named once.
+void add_variables(const ScenarioSpec& spec, const SpecReader& c, OptimizeSetup& s) {
   std::vector<std::string> names;
   for (const auto& p : spec.parameters) names.push_back(p.first);
-  for (const auto& v : o.variables) {
+  for (const auto& v : spec.optimize->variables) {
     const SpecValue& at = v.value["name"];
     if (std::find(names.begin(), names.end(), v.name) == names.end())
       c.fail(at, v.key + ".name",
@@ -117,94 +178,35 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
         std::find(s.variables.begin(), s.variables.end(), v.name + "[1]") != s.variables.end())
       c.fail(at, v.key + ".name", "the parameter '" + v.name + "' is a variable twice");
     const auto list = c.lists.find(v.name);
-    if (list != c.lists.end()) {  // a list parameter: one vector variable, its elements named v[1] … v[n]
-      const size_t n = list->second.size();
-      // lower, upper, start: one number for every element, or a list of n numbers
-      auto numbers = [&](const SpecValue& b, const std::string& k) {
-        std::vector<double> out;
-        if (b.is_list()) {
-          if (b.size() != n)
-            c.fail(b, k,
-                   "expected one number for every element or a list of " + std::to_string(n) + " (the length of '" + v.name +
-                       "'), got a list of " + std::to_string(b.size()) + " (hint: write one number for all)");
-          for (size_t i = 0; i < n; ++i) out.push_back(c.number(b[i], k + "[" + std::to_string(i) + "]"));
-        } else {
-          out.assign(n, c.number(b, k));
-        }
-        return out;
-      };
-      const std::vector<double> lo = numbers(v.lower, v.key + ".lower"), hi = numbers(v.upper, v.key + ".upper");
-      std::vector<double> x0;
-      if (v.start) x0 = numbers(v.start, v.key + ".start");
-      else
-        for (const Quantity& q : list->second) x0.push_back(q.value);
-      for (size_t i = 0; i < n; ++i) {
-        const std::string el = "[" + std::to_string(i) + "]";
-        const SpecValue& lv = v.lower.is_list() ? v.lower[i] : v.lower;
-        if (lo[i] > hi[i])
-          c.fail(lv, v.key + ".lower" + (v.lower.is_list() || v.upper.is_list() ? el : ""),
-                 "lower = " + fmt(lo[i]) + " is above upper = " + fmt(hi[i]) +
-                     (v.lower.is_list() || v.upper.is_list() ? " (element " + std::to_string(i) + " of '" + v.name + "')" : ""));
-        if (x0[i] < lo[i] || x0[i] > hi[i]) {
-          const std::string msg = "start = " + fmt(x0[i]) + " (element " + std::to_string(i) + " of '" + v.name +
-                                  "') is outside [" + fmt(lo[i]) + ", " + fmt(hi[i]) + "]";
-          if (!v.start) c.fail(list->second[i].where, v.key + ".start", msg + " (the parameter's value; hint: give start:)");
-          c.fail(v.start.is_list() ? v.start[i] : v.start, v.key + ".start" + (v.start.is_list() ? el : ""), msg);
-        }
-        s.variables.push_back(v.name + "[" + std::to_string(i + 1) + "]");
-        s.variable_where.push_back(at.where);
-        s.lower.push_back(lo[i]);
-        s.upper.push_back(hi[i]);
-        s.start.push_back(x0[i]);
-      }
-      s.lists.push_back({v.name, s.variables.size() - n, n});
-      continue;
-    }
-    for (const auto* b : {&v.lower, &v.upper, &v.start})
-      if (b->is_list())
-        c.fail(*b, v.key, "'" + v.name + "' is a parameter with one value: its lower, upper and start are single numbers, got a list");
-    const double lo = c.number(v.lower, v.key + ".lower"), hi = c.number(v.upper, v.key + ".upper");
-    if (lo > hi) c.fail(v.lower, v.key + ".lower", "lower = " + fmt(lo) + " is above upper = " + fmt(hi));
-    double x0 = c.params.at(v.name);
-    if (v.start) x0 = c.number(v.start, v.key + ".start");
-    if (x0 < lo || x0 > hi)
-      c.fail(v.start ? v.start : v.value, v.key + ".start",
-             "start = " + fmt(x0) + " is outside [" + fmt(lo) + ", " + fmt(hi) + "]" +
-                 (v.start ? "" : " (the parameter's value; hint: give start:)"));
-    s.variables.push_back(v.name);
-    s.variable_where.push_back(at.where);
-    s.lower.push_back(lo);
-    s.upper.push_back(hi);
-    s.start.push_back(x0);
+    if (list != c.lists.end()) add_list_variable(v, list->second, c, s);
+    else add_scalar_variable(v, c, s);
   }
-  check_list_gradients(s, c, o);
-  const int parts = base.time_law_knots.empty() ? 0 : static_cast<int>(base.time_law_knots.size()) - 1;
-  s.metric_names = metric_names(base.model, parts);
-  s.maximize = o.maximize;
-  s.objective = compile(c, o.objective_value, std::string("optimize.objective.") + (o.maximize ? "maximize" : "minimize"),
-                        o.objective, s.metric_names, s.variables);
-  s.feasible = o.feasible;
-  if (o.feasible) {
-    const Model& m = base.model;
-    for (int j = 0; j < m.nq; ++j) {
-      const JointLimits& l = m.limits[static_cast<size_t>(j)];
-      const std::string& jn = m.joint_name[static_cast<size_t>(j)];
-      auto add = [&](const std::string& what, const std::string& metric, double limit, bool upper) {
-        if (!std::isfinite(limit)) return;
-        s.constraints.push_back({what + "(" + jn + ")", metric + "(" + jn + ")", -1, limit,
-                                 limit != 0 ? std::abs(limit) : 1.0, upper});
-      };
-      if (parts == 0) {
-        add("velocity", "peak_speed", l.velocity, true);
-        add("effort", "peak_effort", l.effort, true);
-      } else {  // under a time law: one constraint per part (the TOPP-RA constraints), not one maximum
-        for (int i = 1; i <= parts; ++i) add("velocity_part" + std::to_string(i), "peak_speed_part" + std::to_string(i), l.velocity, true);
-        for (int i = 1; i <= parts; ++i) add("effort_part" + std::to_string(i), "peak_effort_part" + std::to_string(i), l.effort, true);
-      }
-      add("upper", "q_max", l.upper, true);
-      add("lower", "q_min", l.lower, false);
+}
+
+/// constraints: {feasible: true}: the joints' speed, effort and range limits as constraints.
+void add_limit_constraints(const Model& m, int parts, OptimizeSetup& s) {
+  for (int j = 0; j < m.nq; ++j) {
+    const JointLimits& l = m.limits[static_cast<size_t>(j)];
+    const std::string& jn = m.joint_name[static_cast<size_t>(j)];
+    auto add = [&](const std::string& what, const std::string& metric, double limit, bool upper) {
+      if (!std::isfinite(limit)) return;
+      s.constraints.push_back({what + "(" + jn + ")", metric + "(" + jn + ")", -1, limit,
+                               limit != 0 ? std::abs(limit) : 1.0, upper});
+    };
+    if (parts == 0) {
+      add("velocity", "peak_speed", l.velocity, true);
+      add("effort", "peak_effort", l.effort, true);
+    } else {  // under a time law: one constraint per part (the TOPP-RA constraints), not one maximum
+      for (int i = 1; i <= parts; ++i) add("velocity_part" + std::to_string(i), "peak_speed_part" + std::to_string(i), l.velocity, true);
+      for (int i = 1; i <= parts; ++i) add("effort_part" + std::to_string(i), "peak_effort_part" + std::to_string(i), l.effort, true);
     }
+    add("upper", "q_max", l.upper, true);
+    add("lower", "q_min", l.lower, false);
   }
+}
+
+/// The section's bounds: each expression compiled, its lower and upper limits as constraints.
+void add_bounds(const SpecReader& c, const OptimizeSpec& o, OptimizeSetup& s) {
   for (size_t i = 0; i < o.bounds.size(); ++i) {
     const OptimizeBoundSpec& b = o.bounds[i];
     s.bounds.push_back(compile(c, b.value["expression"], b.key + ".expression", b.expression, s.metric_names, s.variables));
@@ -216,6 +218,10 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     if (b.lower) s.constraints.push_back({name + ".lower", "", static_cast<int>(i), lo, lo != 0 ? std::abs(lo) : 1.0, false});
     if (b.upper) s.constraints.push_back({name + ".upper", "", static_cast<int>(i), hi, hi != 0 ? std::abs(hi) : 1.0, true});
   }
+}
+
+/// The metrics the objective, the bounds and the limit constraints use (only those are computed).
+void mark_used_metrics(OptimizeSetup& s) {
   s.metric_used.assign(s.metric_names.size(), false);
   auto mark = [&](const Expression& e) {
     for (int i : e.referenced_variables())
@@ -227,6 +233,10 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
     if (c.expression < 0)
       s.metric_used[static_cast<size_t>(std::find(s.metric_names.begin(), s.metric_names.end(), c.metric) -
                                         s.metric_names.begin())] = true;
+}
+
+/// The stopping criteria: relative tolerances on x and f, the budget of plan evaluations.
+void read_stopping_criteria(const SpecReader& c, const OptimizeSpec& o, OptimizeSetup& s) {
   if (o.tolerance_x) {
     s.xtol = c.number(o.tolerance_x, "optimize.tolerance.x");
     if (!(s.xtol >= 0)) c.fail(o.tolerance_x, "optimize.tolerance.x", "expected a relative tolerance ≥ 0, got " + fmt(s.xtol));
@@ -241,6 +251,28 @@ OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
       c.fail(o.budget, "optimize.budget", "expected a whole number of plan evaluations > 0, got " + fmt(b));
     s.budget = static_cast<long>(b);
   }
+}
+
+}  // namespace
+
+OptimizeSetup check_optimize(const ScenarioSpec& spec, const Problem& base) {
+  if (!spec.optimize) throw Error(spec.file + ": optimize: missing (refdyn optimize needs an optimize: section; docs/optimize.md)");
+  const OptimizeSpec& o = *spec.optimize;
+  const SpecReader c = parameter_reader(spec);
+  OptimizeSetup s;
+  s.method = optimize_method(o.method);
+  add_variables(spec, c, s);
+  check_list_gradients(s, c, o);
+  const int parts = base.time_law_knots.empty() ? 0 : static_cast<int>(base.time_law_knots.size()) - 1;
+  s.metric_names = metric_names(base.model, parts);
+  s.maximize = o.maximize;
+  s.objective = compile(c, o.objective_value, std::string("optimize.objective.") + (o.maximize ? "maximize" : "minimize"),
+                        o.objective, s.metric_names, s.variables);
+  s.feasible = o.feasible;
+  if (o.feasible) add_limit_constraints(base.model, parts, s);
+  add_bounds(c, o, s);
+  mark_used_metrics(s);
+  read_stopping_criteria(c, o, s);
   return s;
 }
 

@@ -4,24 +4,28 @@
 
 namespace refdyn::optimize_detail {
 
-/// method: phase_plane (optimize/phase_plane.hpp). Checks that the section asks what it answers,
-/// plans the task in its own time (no law, t1 = task_duration, the initial velocity projected),
-/// runs TOPP-RA on the law's knots and plans the answer. When refdyn's plan of the answer exceeds
-/// a limit (between the path samples the limits were imposed at, or by the integration error
-/// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
-/// again (at most 8 times). Every plan is a row of the history.
-std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli,
-                            std::vector<std::pair<std::string, double>>& phases) {
-  auto since = [](std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  };
-  const OptimizeSpec& o = *spec.optimize;
-  const SpecReader c = parameter_reader(spec);
-  // What is wrong with the method: located at optimize.method, or said of --method.
-  auto fail_method = [&](const std::string& msg) {
+namespace {
+
+/// The seconds since t0.
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// What is wrong with the method: located at optimize.method, or said of --method.
+struct MethodFailure {
+  const OptimizeSpec& o;
+  const SpecReader& c;
+  bool from_cli;
+  [[noreturn]] void operator()(const std::string& msg) const {
     if (from_cli) throw Error("--method phase_plane: " + msg);
     c.fail(o.method_value, "optimize.method", msg);
-  };
+  }
+};
+
+/// Checks that the section asks what phase_plane answers: a law of the knot_speeds form, t_end
+/// minimized, the joints' limits, no bounds on metrics.
+void check_section(const ScenarioSpec& spec, const SpecReader& c, const MethodFailure& fail_method) {
+  const OptimizeSpec& o = *spec.optimize;
   const SpecValue& tl = spec.time_law;
   if (!tl.is_map() || !tl["knot_speeds"])
     fail_method("phase_plane retimes a time law of the knot_speeds form (time_law: {task_duration, knot_speeds: [v1, …]}), "
@@ -35,6 +39,13 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   if (!o.bounds.empty())
     c.fail(o.bounds[0].value, o.bounds[0].key,
            "phase_plane takes no bounds on metrics, only the joints' limits (feasible: true); use slsqp or cobyla");
+}
+
+/// The variable of each knot speed, in order; checks that every variable is a knot speed and that
+/// the task's duration uses none.
+std::vector<size_t> knot_speed_variables(const ScenarioSpec& spec, const OptimizeSetup& s, const SpecReader& c) {
+  const OptimizeSpec& o = *spec.optimize;
+  const SpecValue& tl = spec.time_law;
   const SpecValue& ks = tl["knot_speeds"];
   std::vector<size_t> var_of;
   std::vector<bool> used(s.variables.size(), false);
@@ -58,7 +69,6 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
       var_of.push_back(static_cast<size_t>(it - s.variables.begin()));
     }
   }
-  const size_t K = var_of.size() + 1;
   for (size_t i : var_of) used[i] = true;
   for (size_t k = 0; k < used.size(); ++k)
     if (!used[k]) {
@@ -73,12 +83,22 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   for (const auto& v : s.variables)
     if (uses_identifier(Tp.text, v))
       c.fail(Tp, "time_law.task_duration", "phase_plane keeps the task's own duration: it must not use the variable '" + v + "'");
+  return var_of;
+}
 
-  // The task in its own time, sampled on the law's knots and densely between them: m equal steps
-  // per part of task time Δτ = Tp/K, m = max(16, ⌈4Δτ/step⌉) (the limits are imposed at these
-  // samples; between them the effort differs from a sample's by O(δτ²), ~1e-7 relative here, so
-  // that a plan of the answer at any step ≤ `step` stays within the limits to 1e-6).
-  const auto path_start = std::chrono::steady_clock::now();
+/// The task planned in its own time (no law, t1 = task_duration, the initial velocity projected).
+struct OwnTimePlan {
+  std::unique_ptr<Problem> problem;
+  Plan plan;
+};
+
+/// The task in its own time, sampled on the law's knots and densely between them: m equal steps
+/// per part of task time Δτ = Tp/K, m = max(16, ⌈4Δτ/step⌉) (the limits are imposed at these
+/// samples; between them the effort differs from a sample's by O(δτ²), ~1e-7 relative here, so
+/// that a plan of the answer at any step ≤ `step` stays within the limits to 1e-6).
+OwnTimePlan plan_own_time(const ScenarioSpec& spec, const OptimizeSetup& s, const SpecReader& c, size_t K,
+                          const MethodFailure& fail_method) {
+  const SpecValue& Tp = spec.time_law["task_duration"];
   ScenarioSpec own = spec_at(spec, s.variables, s.start);
   own.time_law = SpecValue{};
   own.integrator.t1 = SpecValue::scalar(Tp.text, Tp.where);
@@ -89,19 +109,22 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
     const double m = std::max(16.0, std::ceil(4 * dtau / step - 1e-9));
     own.integrator.step = SpecValue::scalar(symbolic_number(dtau / m), spec.integrator.step.where);
   }
-  std::unique_ptr<Problem> problem;
-  Plan plan;
+  OwnTimePlan out;
   try {
-    problem = build_problem(own);
-    auto planner = problem->make_planner();
-    plan = plan_problem(*problem, *planner);
+    out.problem = build_problem(own);
+    auto planner = out.problem->make_planner();
+    out.plan = plan_problem(*out.problem, *planner);
   } catch (const Error& e) {
     fail_method(std::string("phase_plane plans the task in its own time (no time law) and that failed: ") + e.what());
   }
-  if (!plan.summary.ok())
+  if (!out.plan.summary.ok())
     fail_method(std::string("phase_plane plans the task in its own time (no time law) and that plan ") +
-                to_string(plan.summary.status) + ": " + plan.summary.message);
-  const Model& m = problem->model;
+                to_string(out.plan.summary.status) + ": " + out.plan.summary.message);
+  return out;
+}
+
+/// The path's dynamics along the plan in its own time; the constraints must fix the path.
+PathDynamics path_of(const Model& m, const Plan& plan, const MethodFailure& fail_method) {
   if (plan.phi.empty() || plan.phi.front().size() < m.nq)
     fail_method("phase_plane needs a path fixed by the constraints (as many rows as coordinates), and here " +
                std::to_string(plan.phi.empty() ? 0 : plan.phi.front().size()) + " rows leave " + std::to_string(m.nq) +
@@ -112,8 +135,11 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   } catch (const Error& e) {
     fail_method(e.what());
   }
-  phases.emplace_back("path", since(path_start));
-  phases.emplace_back("topp_ra", 0.0);
+  return path;
+}
+
+/// The joints' effort and speed limits; at least one must be finite.
+PhasePlaneLimits joint_limits(const Model& m, const MethodFailure& fail_method) {
   PhasePlaneLimits limits{Eigen::VectorXd(m.nq), Eigen::VectorXd(m.nq)};
   bool any = false;
   for (int j = 0; j < m.nq; ++j) {
@@ -123,6 +149,14 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   }
   if (!any)
     fail_method("phase_plane retimes against the joints' effort and speed limits, and no joint has one (model: limits: {effort, velocity})");
+  return limits;
+}
+
+/// TOPP-RA on the K parts within the variables' bounds, and refdyn's plan of its answer; while
+/// that plan exceeds a limit, the limits are lowered by the excess and TOPP-RA runs again (at
+/// most 8 times). Returns the run's message.
+std::string retime(const PathDynamics& path, size_t K, const std::vector<size_t>& var_of, const OptimizeSetup& s,
+                   const PhasePlaneLimits& limits, Evaluator& ev, std::vector<std::pair<std::string, double>>& phases) {
   std::vector<double> lo(K + 1, 0.0), hi(K + 1, 0.0);
   for (size_t i = 0; i < var_of.size(); ++i) {
     lo[i + 1] = s.lower[var_of[i]] > 0 ? s.lower[var_of[i]] * s.lower[var_of[i]] : 0.0;
@@ -164,6 +198,32 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
              std::to_string(round + 1) + " plans";
     mu *= 1 - excess - 1e-4;
   }
+}
+
+}  // namespace
+
+/// method: phase_plane (optimize/phase_plane.hpp). Checks that the section asks what it answers,
+/// plans the task in its own time (no law, t1 = task_duration, the initial velocity projected),
+/// runs TOPP-RA on the law's knots and plans the answer. When refdyn's plan of the answer exceeds
+/// a limit (between the path samples the limits were imposed at, or by the integration error
+/// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
+/// again (at most 8 times). Every plan is a row of the history.
+std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli,
+                            std::vector<std::pair<std::string, double>>& phases) {
+  const SpecReader c = parameter_reader(spec);
+  const MethodFailure fail_method{*spec.optimize, c, from_cli};
+  check_section(spec, c, fail_method);
+  const std::vector<size_t> var_of = knot_speed_variables(spec, s, c);
+  const size_t K = var_of.size() + 1;
+
+  const auto path_start = std::chrono::steady_clock::now();
+  const OwnTimePlan own = plan_own_time(spec, s, c, K, fail_method);
+  const Model& m = own.problem->model;
+  const PathDynamics path = path_of(m, own.plan, fail_method);
+  phases.emplace_back("path", since(path_start));
+  phases.emplace_back("topp_ra", 0.0);
+  const PhasePlaneLimits limits = joint_limits(m, fail_method);
+  return retime(path, K, var_of, s, limits, ev, phases);
 }
 
 }  // namespace refdyn::optimize_detail

@@ -369,25 +369,19 @@ void generate_jerk_level(SymbolicReferenceDynamics::Impl& S, const symbolic_deta
   }
 }
 
-}  // namespace
+/// The prefix of the generated C names: the option, else rd_<problem name>_; a C identifier.
+std::string symbol_prefix(const Problem& problem, const SymbolicOptions& options) {
+  const std::string prefix = options.prefix.empty() ? "rd_" + identifier(problem.name) + "_" : options.prefix;
+  bool ok = !prefix.empty() && (std::isalpha(static_cast<unsigned char>(prefix[0])) || prefix[0] == '_');
+  for (char ch : prefix) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
+  if (!ok) throw Error("generate: prefix '" + options.prefix + "' is not a C identifier (hint: letters, digits, _)");
+  return prefix;
+}
 
-SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const SymbolicOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  if (problem.options.paper_literal_forces)
-    throw Error("generate: the paper-literal force option (forces: paper_literal) has no generated form "
-                "(hint: remove it; the generated equations use Lagrange's forces)");
-  auto impl = std::make_shared<SymbolicReferenceDynamics::Impl>();
-  SymbolicReferenceDynamics::Impl& S = *impl;
+/// The problem's sizes, names and gains; whether it has jerk rows.
+void describe_problem(const Problem& problem, const SymbolicOptions& options, SymbolicReferenceDynamics::Impl& S) {
   const Model& model = problem.model;
-  const int n = model.nq;
-  S.name = problem.name;
-  S.prefix = options.prefix.empty() ? "rd_" + identifier(problem.name) + "_" : options.prefix;
-  {
-    bool ok = !S.prefix.empty() && (std::isalpha(static_cast<unsigned char>(S.prefix[0])) || S.prefix[0] == '_');
-    for (char ch : S.prefix) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
-    if (!ok) throw Error("generate: prefix '" + options.prefix + "' is not a C identifier (hint: letters, digits, _)");
-  }
-  S.n = n;
+  S.n = model.nq;
   S.cse = options.cse;
   S.nz = problem.forces.num_states();
   S.m = problem.constraints.rows();
@@ -398,8 +392,11 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   S.beta1 = problem.options.beta_first_order;
   S.kappa = problem.kappa;
   for (const auto& c : problem.constraints.constraints()) S.jerk = S.jerk || c->order() == 3;
+}
 
-  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+/// The symbols: t, q, q̇, q̈, q⃛, the states z and the gains α, β, β₁, κ (under the GiNaC lock).
+void make_symbols(const Model& model, SymbolicReferenceDynamics::Impl& S) {
+  const int n = model.nq;
   S.t = GiNaC::realsymbol("t", "t");
   for (int i = 0; i < n; ++i) {
     const std::string k = std::to_string(i + 1);
@@ -415,15 +412,11 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   S.beta_s = GiNaC::realsymbol("rd_beta", "\\beta");
   S.beta1_s = GiNaC::realsymbol("rd_beta1", "\\beta_1");
   S.kappa_s = GiNaC::realsymbol("rd_kappa", "\\kappa");
+}
 
-  std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
-
-  // --- variables of the expression language ---
-  Binder B(S);
-  B.bind("t", S.t);
-  B.bind("deg", GiNaC::Pi / 180);  // exact: cos(90*deg) is 0, not 6e-17
-
-  // --- the model: as the scenario wrote it (parameters stay symbols), else the compiled numbers ---
+/// The model: as the scenario wrote it (parameters stay symbols), else the compiled numbers.
+symbolic_detail::SymbolicModel symbolic_model_of(const Problem& problem, Binder& B, const std::vector<ex>& q) {
+  const Model& model = problem.model;
   symbolic_detail::SymbolicBodies bodies;
   if (problem.model_numbers) {
     bodies = symbolic_detail::bodies_from_numbers(model, *problem.model_numbers, [&](const Quantity& v) {
@@ -432,13 +425,15 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
   } else {
     bodies = symbolic_detail::bodies_from_model(model);
   }
-  const symbolic_detail::SymbolicModel sm = symbolic_detail::symbolic_model(bodies, model.gravity, q);
-  for (int i = 0; i < n; ++i) {
-    B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
-    B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
-    B.bind("qdd(" + model.joint_name[i] + ")", S.qdd[i]);
-    if (S.jerk) B.bind("qddd(" + model.joint_name[i] + ")", S.qddd[i]);
-  }
+  return symbolic_detail::symbolic_model(bodies, model.gravity, q);
+}
+
+/// Binds the points' positions, velocities, accelerations (where an acceleration row may use
+/// them), jerks (jerk problems) and orientations.
+void bind_points(const Problem& problem, const SymbolicReferenceDynamics::Impl& S,
+                 const symbolic_detail::SymbolicModel& sm, Binder& B) {
+  const Model& model = problem.model;
+  const int n = model.nq;
   bool acceleration_rows = false;
   for (const auto& c : problem.constraints.constraints()) acceleration_rows = acceleration_rows || c->order() >= 2;
   // the point jerk along the motion: d/dt of the acceleration with q̈ → q⃛
@@ -477,12 +472,13 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
     for (int a = 0; a < 3; ++a)
       for (int c = 0; c < 3; ++c) B.bind("R" + std::to_string(a + 1) + std::to_string(c + 1) + "(" + P + ")", R[3 * a + c]);
   }
+}
 
-  generate_constraints(problem, S, B);
-  generate_forces(problem, S, B);
-
+/// The dynamics by Newton–Euler: c, g, M; then the jerk level, or the constraints' right-hand
+/// sides (stabilized) of an acceleration-level problem.
+void generate_dynamics(SymbolicReferenceDynamics::Impl& S, const symbolic_detail::SymbolicModel& sm,
+                       const std::vector<ex>& qd) {
   S.model = sm;
-  // --- dynamics: Newton–Euler ---
   S.c = sm.inverse_dynamics(qd, {}, false);
   S.g = sm.inverse_dynamics({}, {}, true);
   S.M = multibody::mass_matrix(sm.bodies, sm.poses);
@@ -498,8 +494,13 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
                      ? -S.gamma[r] - S.beta1_s * S.phi[r]
                      : -S.gamma[r] - 2 * S.alpha_s * S.phid[r] - S.beta_s * S.beta_s * S.phi[r];
   }
+}
 
-  // --- partition (jerk problems: none, the jerk level is solved as a KKT system) ---
+/// The partition into independent and dependent coordinates (jerk problems: none, the jerk
+/// level is solved as a KKT system).
+void partition_coordinates(const Problem& problem, SymbolicReferenceDynamics::Impl& S) {
+  const Model& model = problem.model;
+  const int n = model.nq;
   std::vector<char> is_ind(n, 0);
   for (const std::string& name : problem.options.independent) is_ind[model.joint_index(name)] = 1;
   if (S.jerk) {
@@ -509,8 +510,45 @@ SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const Symbol
                 " independent coordinates, expected n − m = " + std::to_string(n - S.m));
   if (!S.jerk)
     for (int i = 0; i < n; ++i) (is_ind[i] || S.m == 0 ? S.independent : S.dependent).push_back(i);
+}
 
-  S.summary.nq = n;
+}  // namespace
+
+SymbolicReferenceDynamics generate_symbolic(const Problem& problem, const SymbolicOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (problem.options.paper_literal_forces)
+    throw Error("generate: the paper-literal force option (forces: paper_literal) has no generated form "
+                "(hint: remove it; the generated equations use Lagrange's forces)");
+  auto impl = std::make_shared<SymbolicReferenceDynamics::Impl>();
+  SymbolicReferenceDynamics::Impl& S = *impl;
+  const Model& model = problem.model;
+  S.name = problem.name;
+  S.prefix = symbol_prefix(problem, options);
+  describe_problem(problem, options, S);
+
+  std::lock_guard<std::mutex> lock(expr_detail::ginac_mutex());
+  make_symbols(model, S);
+  std::vector<ex> q(S.q.begin(), S.q.end()), qd(S.qd.begin(), S.qd.end());
+
+  // --- variables of the expression language ---
+  Binder B(S);
+  B.bind("t", S.t);
+  B.bind("deg", GiNaC::Pi / 180);  // exact: cos(90*deg) is 0, not 6e-17
+  const symbolic_detail::SymbolicModel sm = symbolic_model_of(problem, B, q);
+  for (int i = 0; i < S.n; ++i) {
+    B.bind("q(" + model.joint_name[i] + ")", S.q[i]);
+    B.bind("qd(" + model.joint_name[i] + ")", S.qd[i]);
+    B.bind("qdd(" + model.joint_name[i] + ")", S.qdd[i]);
+    if (S.jerk) B.bind("qddd(" + model.joint_name[i] + ")", S.qddd[i]);
+  }
+  bind_points(problem, S, sm, B);
+
+  generate_constraints(problem, S, B);
+  generate_forces(problem, S, B);
+  generate_dynamics(S, sm, qd);
+  partition_coordinates(problem, S);
+
+  S.summary.nq = S.n;
   S.summary.nz = S.nz;
   S.summary.constraints = S.m;
   S.summary.parameters = static_cast<int>(S.params.size());

@@ -156,9 +156,24 @@ SymbolicBodies bodies_from_model(const Model& model) {
   return out;
 }
 
-SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec, const QuantityValue& value) {
-  auto v3 = [&](const ModelNumbers::Vec& n) -> Vec3s { return {value(n[0]), value(n[1]), value(n[2])}; };
-  auto pose = [&](const ModelNumbers::Pose& n) {  // {xyz, rpy}, URDF convention R = Rz(yaw) Ry(pitch) Rx(roll)
+namespace {
+/// A link of the model section as expressions, before the fixed joints are folded.
+struct Link {
+  std::string name;
+  int parent = -1;
+  JointType type = JointType::Revolute;
+  Pose placement, link_offset;
+  ex offset = 0, m = 0;
+  Vec3s com = zero3();
+  Mat3s Ic = zero33();
+};
+
+/// The numbers of the model section as expressions (`value`: a parameter stays a symbol).
+struct Numbers {
+  const QuantityValue& value;
+  Vec3s v3(const ModelNumbers::Vec& n) const { return {value(n[0]), value(n[1]), value(n[2])}; }
+  /// {xyz, rpy}, URDF convention R = Rz(yaw) Ry(pitch) Rx(roll)
+  Pose pose(const ModelNumbers::Pose& n) const {
     Pose X;
     if (n.xyz) X.p = v3(*n.xyz);
     if (n.rpy) {
@@ -166,18 +181,10 @@ SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec,
       X.R = (rot_z(r[2]) * rot_y(r[1]) * rot_x(r[0])).R;
     }
     return X;
-  };
-  auto number_or_zero = [&](const std::optional<Quantity>& q) { return q ? value(*q) : ex(0); };
-  struct Link {
-    std::string name;
-    int parent = -1;
-    JointType type = JointType::Revolute;
-    Pose placement, link_offset;
-    ex offset = 0, m = 0;
-    Vec3s com = zero3();
-    Mat3s Ic = zero33();
-  };
-  auto inertia = [&](const ModelNumbers::Link& n, Link& l) {
+  }
+  ex number_or_zero(const std::optional<Quantity>& q) const { return q ? value(*q) : ex(0); }
+  /// Mass, centre of mass and the inertia about it (9 elements, the diagonal, or 6: xx yy zz xy xz yz).
+  void inertia(const ModelNumbers::Link& n, Link& l) const {
     if (n.mass) l.m = value(*n.mass);
     if (n.com) l.com = v3(*n.com);
     const auto& I = n.inertia;
@@ -190,46 +197,59 @@ SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec,
       for (int k = 0; k < 6; ++k) x[k] = value(I[k]);
       l.Ic = {x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]};
     }
-  };
-  std::vector<Link> links;
-  for (const ModelNumbers::Link& n : spec.links) {
-    Link l;
-    l.name = n.name;
-    l.parent = n.parent;
-    l.type = n.type;
-    if (spec.dh) {
-      const ex theta = number_or_zero(n.theta), d = number_or_zero(n.d);
-      const ex a = number_or_zero(n.a), alpha = number_or_zero(n.alpha);
-      // as from_dh: the joint variable enters through θ (revolute) or d (prismatic)
-      Pose along_z = l.type == JointType::Prismatic ? rot_z(theta) : trans({ex(0), ex(0), d});
-      if (l.type == JointType::Fixed) along_z = rot_z(theta) * trans({ex(0), ex(0), d});
-      l.offset = l.type == JointType::Prismatic ? d : (l.type == JointType::Revolute ? theta : ex(0));
-      const Pose x_part = trans({a, ex(0), ex(0)}) * rot_x(alpha);
-      if (spec.standard) {
-        l.placement = along_z;
-        l.link_offset = x_part;
-      } else {
-        l.placement = rot_x(alpha) * trans({a, ex(0), ex(0)}) * along_z;
-      }
-    } else {
-      l.placement = pose(n.origin);
-      l.link_offset = pose(n.link_offset);
-      if (n.offset) l.offset = value(*n.offset);
-    }
-    inertia(n, l);
-    links.push_back(l);
   }
-  const Pose base = pose(spec.base);
+};
 
-  // Fold as build_model: fixed joints into their parent body, link offsets into the body.
+/// One link of the section: its joint's placement from the DH numbers (as from_dh) or its origin,
+/// and its inertia.
+Link link_from_numbers(const ModelNumbers& spec, const ModelNumbers::Link& n, const Numbers& num) {
+  Link l;
+  l.name = n.name;
+  l.parent = n.parent;
+  l.type = n.type;
+  if (spec.dh) {
+    const ex theta = num.number_or_zero(n.theta), d = num.number_or_zero(n.d);
+    const ex a = num.number_or_zero(n.a), alpha = num.number_or_zero(n.alpha);
+    // as from_dh: the joint variable enters through θ (revolute) or d (prismatic)
+    Pose along_z = l.type == JointType::Prismatic ? rot_z(theta) : trans({ex(0), ex(0), d});
+    if (l.type == JointType::Fixed) along_z = rot_z(theta) * trans({ex(0), ex(0), d});
+    l.offset = l.type == JointType::Prismatic ? d : (l.type == JointType::Revolute ? theta : ex(0));
+    const Pose x_part = trans({a, ex(0), ex(0)}) * rot_x(alpha);
+    if (spec.standard) {
+      l.placement = along_z;
+      l.link_offset = x_part;
+    } else {
+      l.placement = rot_x(alpha) * trans({a, ex(0), ex(0)}) * along_z;
+    }
+  } else {
+    l.placement = num.pose(n.origin);
+    l.link_offset = num.pose(n.link_offset);
+    if (n.offset) l.offset = num.value(*n.offset);
+  }
+  num.inertia(n, l);
+  return l;
+}
+
+/// The bodies of the folded links, and where each link went.
+struct Folded {
   SymbolicBodies out;
-  const int nl = static_cast<int>(links.size());
-  std::vector<int> body_of(nl, -1);
-  std::vector<Pose> link_in_body(nl);
+  std::vector<int> body_of;             ///< the body of each link (−1: the world)
+  std::vector<Pose> link_in_body;       ///< each link's frame in its body's
   std::map<std::string, int> link_index;
+};
+
+/// Folds as build_model: fixed joints into their parent body, link offsets into the body.
+Folded fold_links(const Model& model, const std::vector<Link>& links, const Pose& base) {
+  Folded f;
+  SymbolicBodies& out = f.out;
+  const int nl = static_cast<int>(links.size());
+  std::vector<int>& body_of = f.body_of;
+  std::vector<Pose>& link_in_body = f.link_in_body;
+  body_of.assign(nl, -1);
+  link_in_body.resize(nl);
   for (int i = 0; i < nl; ++i) {
     const Link& l = links[i];
-    link_index[l.name] = i;
+    f.link_index[l.name] = i;
     const int pb = l.parent < 0 ? -1 : body_of[l.parent];
     const Pose joint_in_pb = (l.parent < 0 ? base : link_in_body[l.parent]) * l.placement;
     Vec3s h = scale(l.com, l.m);
@@ -265,28 +285,47 @@ SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec,
   if (static_cast<int>(out.bodies.size()) != model.nq)
     throw Error("generate: the model section gives " + std::to_string(out.bodies.size()) + " bodies, the model has " +
                 std::to_string(model.nq) + " (internal error)");
-  // Armature: as written (a parameter stays a symbol), else the compiled model's number.
-  for (int i = 0; i < nl; ++i)
+  return f;
+}
+
+/// Armature: as written (a parameter stays a symbol), else the compiled model's number.
+void set_armature(const Model& model, const ModelNumbers& spec, const std::vector<Link>& links, const Numbers& num,
+                  Folded& f) {
+  for (int i = 0; i < static_cast<int>(links.size()); ++i)
     if (links[i].type != JointType::Fixed) {
       const std::optional<Quantity>& a = spec.links[i].armature;
-      out.bodies[body_of[i]].armature = a ? value(*a) : number(model.armature[body_of[i]]);
+      f.out.bodies[f.body_of[i]].armature = a ? num.value(*a) : number(model.armature[f.body_of[i]]);
     }
-  // Points: in the link frame as written, expressed in the body frame.
-  out.points.resize(model.point_name.size());
+}
+
+/// Points: in the link frame as written, expressed in the body frame.
+void place_points(const Model& model, const ModelNumbers& spec, const Pose& base, const Numbers& num, Folded& f) {
+  f.out.points.resize(model.point_name.size());
   for (const ModelNumbers::Point& p : spec.points) {
     const int k = model.point_index(p.name);
-    const Vec3s pos = p.position ? v3(*p.position) : zero3();
+    const Vec3s pos = p.position ? num.v3(*p.position) : zero3();
     if (p.link == "world") {
-      out.points[k] = {-1, pos};
+      f.out.points[k] = {-1, pos};
     } else if (p.link == "base") {  // fixed in the world at the base pose (as build_model)
-      out.points[k] = {-1, add(mul(base.R, pos), base.p)};
+      f.out.points[k] = {-1, add(mul(base.R, pos), base.p)};
     } else {
-      const int li = link_index.at(p.link);
-      const Pose& X = link_in_body[li];
-      out.points[k] = {body_of[li], add(mul(X.R, pos), X.p)};
+      const int li = f.link_index.at(p.link);
+      const Pose& X = f.link_in_body[li];
+      f.out.points[k] = {f.body_of[li], add(mul(X.R, pos), X.p)};
     }
   }
-  return out;
+}
+}  // namespace
+
+SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec, const QuantityValue& value) {
+  const Numbers num{value};
+  std::vector<Link> links;
+  for (const ModelNumbers::Link& n : spec.links) links.push_back(link_from_numbers(spec, n, num));
+  const Pose base = num.pose(spec.base);
+  Folded f = fold_links(model, links, base);
+  set_armature(model, spec, links, num, f);
+  place_points(model, spec, base, num, f);
+  return std::move(f.out);
 }
 
 SymbolicModel symbolic_model(const SymbolicBodies& bodies, const Vec3& gravity, const std::vector<ex>& q) {
