@@ -33,6 +33,19 @@ bool small_inverse(const Eigen::MatrixXd& K, Eigen::MatrixXd& Kinv) {
 }
 }  // namespace
 
+namespace {
+/// The force the projection routes project: f = F, or F + (∂Q/∂q̇)ᵀ q̇ with paper-literal forces.
+void projected_force(bool paper_literal, const Eigen::MatrixXd& dQ, const Eigen::VectorXd& qd,
+                     const Eigen::VectorXd& F, Eigen::VectorXd& f) {
+  if (paper_literal) {
+    f.noalias() = dQ.transpose() * qd;
+    f += F;
+  } else {
+    f = F;
+  }
+}
+}  // namespace
+
 #include "sized_dispatch.hpp"  // REFDYN_FIXED_DISPATCH, REFDYN_SIZED_DISPATCH (why: there)
 
 bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
@@ -321,13 +334,7 @@ void ReferenceDynamics::solve_projection(double t) {
 
 void ReferenceDynamics::solve_projection_orthonormal(double t) {
   const int n = n_, m = m_, k = n - m;
-  // Projected force f = F (paper-literal: F + (∂Q/∂q̇)ᵀ q̇), as in solve_projection_sized.
-  if (opt_.paper_literal_forces) {
-    tmp_n_.noalias() = dQ_.transpose() * qd_;
-    tmp_n_ += F_;
-  } else {
-    tmp_n_ = F_;
-  }
+  projected_force(opt_.paper_literal_forces, dQ_, qd_, F_, tmp_n_);  // f, projected below by Zᵀ
   // Aᵀ = Q [R; 0] by Householder reflectors, Q = H_0 ⋯ H_{m−1}, H_j = I − τ_j v_j v_jᵀ (v_j zero
   // above j, 1 at j). Z = the last k columns of Q is an orthonormal basis of the null space of
   // A, the space N spans. With y = Qᵀ q̈ = [y1; y2] and W = Qᵀ M Q:
@@ -441,13 +448,7 @@ template <int N, int Mr>
 void ReferenceDynamics::solve_projection_sized(double t) {
   static_assert(N > 0, "sizes known at run time take solve_projection_orthonormal");
   const int n = N, m = Mr, k = n - m;
-  // Projected force: Nᵀ F (paper-literal: Nᵀ (F + (∂Q/∂q̇)ᵀ q̇)).
-  if (opt_.paper_literal_forces) {
-    tmp_n_.noalias() = dQ_.transpose() * qd_;
-    tmp_n_ += F_;
-  } else {
-    tmp_n_ = F_;
-  }
+  projected_force(opt_.paper_literal_forces, dQ_, qd_, F_, tmp_n_);  // f, projected below by Nᵀ
   // The stacked system [Nᵀ M; A] q̈ = [Nᵀ F; rhs] is solved by the null-space method, which
   // gives the same q̈ with a (n−m)×(n−m) SPD solve instead of an n×n LU:
   //   particular solution  q̈_p: q̈_p,ic = 0, q̈_p,dc = K_dc⁻¹ rhs        (A q̈_p = rhs)
