@@ -8,6 +8,7 @@
 //  - GiNaC::ex: symbolic q, q̇, q̈ evaluated at numbers against the double instantiation.
 #include "refdyn/multibody/kinematics.hpp"
 #include "refdyn/multibody/dual.hpp"
+#include "refdyn/multibody/detail/fold.hpp"
 #include "refdyn/multibody/generic_dynamics.hpp"
 #include "refdyn/multibody/recursive_dynamics.hpp"
 
@@ -214,6 +215,88 @@ TEST(GenericDynamics, DualDerivativesEqualCentralDifferences) {
     // the value part does not depend on the number of directions (up to FMA contraction)
     for (int i = 0; i < n; ++i) EXPECT_NEAR(tau8[i].v, tau1[i].v, 1e-13 * std::max(1.0, std::abs(tau1[i].v)));
   }
+}
+
+/// The model fold (multibody/detail/fold.hpp) over the generic pose and inertia algebra (PoseT,
+/// transform_inertia; here over Dual<1>, as the generator folds over GiNaC::ex) against
+/// build_model's fold over the spatial algebra (SE3, Inertia): placements, inertias, link frames
+/// and points (on the world, on the base at a base pose, on every link) on random models with
+/// folded fixed links, both DH conventions and trees. Also the DH rows' frames (dh_frames) over
+/// both algebras.
+TEST(GenericDynamics, FoldOverTheGenericAlgebraEqualsBuildModel) {
+  using D = mb::Dual<1>;
+  using A = mb::FoldAlgebra<D>;
+  std::mt19937 rng(35);
+  std::normal_distribution<double> nd(0, 1);
+  auto lift_pose = [](const SE3& X) { return A::Pose{mb::lift<D>(X.R), mb::lift<D>(X.p)}; };
+  auto value = [](const D& x) { return x.v; };
+  auto near = [&](const mb::Mat3T<D>& a, const Mat3& b) {
+    double e = 0;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) e = std::max(e, std::abs(value(a[3 * i + j]) - b(i, j)));
+    return e;
+  };
+  auto near3 = [&](const mb::Vec3T<D>& a, const Vec3& b) {
+    return std::max({std::abs(value(a[0]) - b[0]), std::abs(value(a[1]) - b[1]), std::abs(value(a[2]) - b[2])});
+  };
+  auto no_axes = [](std::mt19937&, ModelDescription&) {};
+  int cases = 0;
+  for (auto& c : test::random_model_family(rng, {1, 3, 8, 21}, no_axes, "tree +fixed")) {
+    SCOPED_TRACE(c.label);
+    ModelDescription d = c.desc;
+    d.base = SE3::rot_z(nd(rng)) * SE3::rot_x(nd(rng)) * SE3::trans(Vec3(nd(rng), nd(rng), nd(rng)));
+    d.points.clear();
+    d.add_point("on_world", "world", Vec3(nd(rng), nd(rng), nd(rng)));
+    d.add_point("on_base", "base", Vec3(nd(rng), nd(rng), nd(rng)));
+    for (const LinkSpec& l : c.desc.links) d.add_point("on_" + l.name, l.name, Vec3(nd(rng), nd(rng), nd(rng)));
+    const Model model = build_model(d);
+    std::vector<mb::FoldLink<D>> links;
+    for (const LinkSpec& l : d.links) {
+      const auto m = mb::from_double<D>(l.inertia.mass);
+      links.push_back({l.parent, l.type, lift_pose(l.placement), lift_pose(l.link_offset),
+                       A::from_com(m, mb::lift<D>(l.inertia.com), mb::lift<D>(l.inertia.I_com))});
+    }
+    const mb::Folded<D> f = mb::fold_links(links, lift_pose(d.base));
+    ASSERT_EQ(f.size(), model.nv);
+    constexpr double tol = 1e-12;
+    for (int b = 0; b < model.nv; ++b) {
+      EXPECT_EQ(f.parent[b], model.parent[b]);
+      EXPECT_LE(near(f.placement[b].R, model.placement[b].R), tol);
+      EXPECT_LE(near3(f.placement[b].p, model.placement[b].p), tol);
+      const Inertia& I = model.inertia[b];
+      EXPECT_LE(std::abs(value(f.inertia[b].m) - I.m), tol * (1 + I.m));
+      EXPECT_LE(near3(f.inertia[b].h, I.h), tol * (1 + I.h.norm()));
+      EXPECT_LE(near(f.inertia[b].I, I.I), tol * (1 + I.I.norm()));
+    }
+    for (std::size_t i = 0; i < d.links.size(); ++i) {
+      EXPECT_EQ(f.body_of[i], model.frame_body[i]);
+      EXPECT_LE(near(f.link_in_body[i].R, model.frame_pose[i].R), tol);
+      EXPECT_LE(near3(f.link_in_body[i].p, model.frame_pose[i].p), tol);
+    }
+    for (std::size_t k = 0; k < d.points.size(); ++k) {
+      const PointSpec& p = d.points[k];
+      const int link = k == 0 ? mb::kOnWorld : k == 1 ? mb::kOnBase : static_cast<int>(k) - 2;  // as added above
+      const mb::FoldedPoint<D> fp = mb::place_point(f, link, lift_pose(d.base), mb::lift<D>(p.position));
+      const int pk = model.point_index(p.name);
+      EXPECT_EQ(fp.body, model.point_body[pk]);
+      EXPECT_LE(near3(fp.position, model.point_position[pk]), tol * (1 + p.position.norm()));
+    }
+    ++cases;
+  }
+  EXPECT_EQ(cases, 16);
+  // the DH frames of a row, over both algebras
+  for (JointType type : {JointType::Revolute, JointType::Prismatic, JointType::Fixed})
+    for (bool standard : {true, false}) {
+      const double th = nd(rng), dd = nd(rng), a = nd(rng), al = nd(rng);
+      const mb::DHFrames<double> x = mb::dh_frames(type, th, dd, a, al, standard);
+      const mb::DHFrames<D> y = mb::dh_frames(type, mb::from_double<D>(th), mb::from_double<D>(dd),
+                                              mb::from_double<D>(a), mb::from_double<D>(al), standard);
+      EXPECT_LE(near(y.placement.R, x.placement.R), 1e-15);
+      EXPECT_LE(near3(y.placement.p, x.placement.p), 1e-15);
+      EXPECT_LE(near(y.link_offset.R, x.link_offset.R), 1e-15);
+      EXPECT_LE(near3(y.link_offset.p, x.link_offset.p), 1e-15);
+      EXPECT_EQ(value(y.offset), x.offset);
+    }
 }
 
 TEST(GenericDynamics, DualArithmeticIsTheChainRule) {

@@ -7,7 +7,7 @@
 namespace refdyn::multibody {
 
 #define REFDYN_MULTIBODY_INSTANTIATE(S)                                                                         \
-  template Bodies<S> bodies_from_model<S>(const Model&);                                                        \
+  template Bodies<S> bodies_from_model<S, ExactLift<S>>(const Model&, const ExactLift<S>&);                    \
   template void transform_inertia<S>(const PoseT<S>&, const S&, Vec3T<S>&, Mat3T<S>&);                          \
   template void joint_transform<S>(const Body<S>&, const S&, Mat3T<S>&, Vec3T<S>&);                              \
   template void forward_poses<S>(const Bodies<S>&, const std::vector<S>&, Poses<S>&);                           \

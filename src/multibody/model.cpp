@@ -1,5 +1,7 @@
 #include "refdyn/multibody/model.hpp"
 
+#include "refdyn/multibody/detail/fold.hpp"
+
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/text.hpp"
 
@@ -44,18 +46,11 @@ ModelDescription from_dh(const std::vector<DHRow>& rows, DHConvention conv, cons
     l.axis = Vec3::UnitZ();
     l.inertia = r.inertia;
     l.limits = r.limits;
-    // The joint variable enters through θ (revolute) or d (prismatic); the other one is fixed.
-    SE3 fixed_along_z = r.type == JointType::Prismatic ? SE3::rot_z(r.theta) : SE3::trans(Vec3(0, 0, r.d));
-    if (r.type == JointType::Fixed) fixed_along_z = SE3::rot_z(r.theta) * SE3::trans(Vec3(0, 0, r.d));
-    l.offset = r.type == JointType::Prismatic ? r.d : (r.type == JointType::Revolute ? r.theta : 0.0);
-    SE3 x_part = SE3::trans(Vec3(r.a, 0, 0)) * SE3::rot_x(r.alpha);
-    if (conv == DHConvention::Standard) {
-      l.placement = fixed_along_z;
-      l.link_offset = x_part;
-    } else {
-      l.placement = SE3::rot_x(r.alpha) * SE3::trans(Vec3(r.a, 0, 0)) * fixed_along_z;
-      l.link_offset = SE3::Identity();
-    }
+    const multibody::DHFrames<double> f =
+        multibody::dh_frames(r.type, r.theta, r.d, r.a, r.alpha, conv == DHConvention::Standard);
+    l.placement = f.placement;
+    l.link_offset = f.link_offset;
+    l.offset = f.offset;
     d.add_link(l);
   }
   return d;
@@ -135,42 +130,37 @@ void validate_link(const ModelDescription& d, int i, std::map<std::string, int>&
     throw Error(where + ": a fixed joint has no armature (hint: remove it, or give the joint a type that moves)");
 }
 
-/// Folds fixed joints: each link maps to a movable body (body_of, −1 = world) plus a fixed pose
-/// of the link frame in that body's frame (link_in_body); the movable ones become m's bodies.
-void fold_links(const ModelDescription& d, ModelData& m, std::vector<int>& body_of, std::vector<SE3>& link_in_body) {
-  const int nl = static_cast<int>(d.links.size());
-  for (int i = 0; i < nl; ++i) {
-    const LinkSpec& l = d.links[i];
-    // pose of the joint frame relative to the frame of the body the parent belongs to
-    int pb = l.parent < 0 ? -1 : body_of[l.parent];
-    SE3 parent_pose = l.parent < 0 ? d.base : link_in_body[l.parent];
-    SE3 joint_in_pb = parent_pose * l.placement;
-    Inertia I_link = Inertia::from_com(l.inertia.mass, l.inertia.com, l.inertia.I_com);
-    if (l.type == JointType::Fixed) {
-      body_of[i] = pb;
-      link_in_body[i] = joint_in_pb * l.link_offset;
-      if (pb >= 0) m.inertia[pb] += I_link.transformed(link_in_body[i]);
-      continue;
-    }
-    int b = m.nq++;
-    body_of[i] = b;
-    link_in_body[i] = l.link_offset;
-    m.parent.push_back(pb);
+/// The links as the fold (multibody/detail/fold.hpp) reads them.
+std::vector<multibody::FoldLink<double>> fold_input(const ModelDescription& d) {
+  std::vector<multibody::FoldLink<double>> links;
+  for (const LinkSpec& l : d.links)
+    links.push_back({l.parent, l.type, l.placement, l.link_offset,
+                     Inertia::from_com(l.inertia.mass, l.inertia.com, l.inertia.I_com)});
+  return links;
+}
+
+/// The bodies of the folded links: m's per-body members.
+void add_bodies(const ModelDescription& d, const multibody::Folded<double>& f, ModelData& m) {
+  for (int b = 0; b < f.size(); ++b) {
+    const LinkSpec& l = d.links[f.link_of_body[b]];
+    m.parent.push_back(f.parent[b]);
     m.joint_type.push_back(l.type);
-    m.placement.push_back(joint_in_pb);
+    m.placement.push_back(f.placement[b]);
     m.axis.push_back(l.axis.normalized());
     m.offset.push_back(l.offset);
-    m.inertia.push_back(I_link.transformed(l.link_offset));
+    m.inertia.push_back(f.inertia[b]);
     m.link_offset.push_back(l.link_offset);
     m.body_name.push_back(l.name);
     m.joint_name.push_back(l.joint_name.empty() ? l.name : l.joint_name);
     m.limits.push_back(l.limits);
+    m.armature.push_back(l.armature);
   }
+  m.nq = m.nv = f.size();
 }
 
 /// The named points of d, on the bodies their links were folded into.
 void add_points(const ModelDescription& d, const std::map<std::string, int>& link_by_name,
-                const std::vector<int>& body_of, const std::vector<SE3>& link_in_body, ModelData& m) {
+                const multibody::Folded<double>& f, ModelData& m) {
   for (size_t k = 0; k < d.points.size(); ++k) {
     const PointSpec& p = d.points[k];
     std::string where = "point '" + p.name + "'";
@@ -178,23 +168,20 @@ void add_points(const ModelDescription& d, const std::map<std::string, int>& lin
     for (const auto& n : m.point_name)
       if (n == p.name) throw Error(where + ": duplicate point name");
     if (!p.position.allFinite()) throw Error(where + ": position must be finite");
-    int body = -1;
-    SE3 pose = SE3::Identity();
-    if (p.link == "world" || p.link == "base") {
-      pose = p.link == "base" ? d.base : SE3::Identity();
-    } else {
+    int link = p.link == "world" ? multibody::kOnWorld : multibody::kOnBase;
+    if (p.link != "world" && p.link != "base") {
       auto it = link_by_name.find(p.link);
       if (it == link_by_name.end()) {
         std::vector<std::string> names;
         for (const auto& l : d.links) names.push_back(l.name);
         throw Error(where + ": unknown link '" + p.link + "'" + did_you_mean(p.link, names));
       }
-      body = body_of[it->second];
-      pose = link_in_body[it->second];  // base already folded in for links fixed to the world
+      link = it->second;
     }
+    const multibody::FoldedPoint<double> fp = multibody::place_point(f, link, d.base, p.position);
     m.point_name.push_back(p.name);
-    m.point_body.push_back(body);
-    m.point_position.push_back(pose.act_point(p.position));
+    m.point_body.push_back(fp.body);
+    m.point_position.push_back(fp.position);
   }
 }
 
@@ -207,27 +194,22 @@ Model build_model(const ModelDescription& d) {
   std::map<std::string, int> link_by_name;
   for (int i = 0; i < nl; ++i) validate_link(d, i, link_by_name);
 
-  std::vector<int> body_of(nl, -1);
-  std::vector<SE3> link_in_body(nl);  // pose of link frame in its body frame (or world)
   static std::atomic<std::uint64_t> next_id{1};
   ModelData m;
   m.id = next_id++;
   m.name = d.name;
   m.gravity = d.gravity;
-  fold_links(d, m, body_of, link_in_body);
-  m.nv = m.nq;
-  m.armature.assign(m.nq, 0.0);
-  for (int i = 0; i < nl; ++i)
-    if (d.links[i].type != JointType::Fixed) m.armature[body_of[i]] = d.links[i].armature;
+  const multibody::Folded<double> f = multibody::fold_links(fold_input(d), d.base);
+  add_bodies(d, f, m);
   for (int i = 0; i < nl; ++i) m.frame_name.push_back(d.links[i].name);
-  m.frame_body = body_of;
-  m.frame_pose = link_in_body;
+  m.frame_body = f.body_of;
+  m.frame_pose = f.link_in_body;
   m.support.resize(m.nq);
   for (int i = 0; i < m.nq; ++i) {
     if (m.parent[i] >= 0) m.support[i] = m.support[m.parent[i]];
     m.support[i].push_back(i);
   }
-  add_points(d, link_by_name, body_of, link_in_body, m);
+  add_points(d, link_by_name, f, m);
   return Model(std::move(m));
 }
 

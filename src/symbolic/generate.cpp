@@ -423,7 +423,7 @@ symbolic_detail::SymbolicModel symbolic_model_of(const Problem& problem, Binder&
       return B.parse(v.text, problem.parameters, "generate: " + v.where.file + ":" + std::to_string(v.where.line));
     });
   } else {
-    bodies = symbolic_detail::bodies_from_model(model);
+    bodies = multibody::bodies_from_model<GiNaC::ex>(model, symbolic_detail::CleanLift{});
   }
   return symbolic_detail::symbolic_model(bodies, model.gravity, q);
 }

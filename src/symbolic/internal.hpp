@@ -37,12 +37,21 @@ using SymbolicBody = multibody::Body<ex>;
 using SymbolicPoint = multibody::Point<ex>;
 using SymbolicBodies = multibody::Bodies<ex>;
 
-/// The compiled model's numbers (rotation entries within 4 ulp of 0 or ±1, and vector entries
-/// within 4 ulp of the vector's largest, are written exactly: a DH twist of 90° leaves 6e-17).
-SymbolicBodies bodies_from_model(const Model& model);
+/// How the generator lifts the compiled model's numbers (multibody::bodies_from_model<ex>(model,
+/// CleanLift{})): rotation entries within 4 ulp of 0 or ±1, and vector and inertia entries within
+/// 4 ulp of their largest, are written exactly (a DH twist of 90° leaves 6e-17); the axis and the
+/// scalars as they are.
+struct CleanLift {
+  ex scalar(double v) const;
+  Vec3s axis(const Vec3& v) const;
+  Vec3s vector(const Vec3& v) const;
+  Mat3s rotation(const Mat3& R) const;
+  Mat3s inertia(const Mat3& I) const;
+};
 /// The same bodies from the numbers of the scenario's `model:` section as the reader read them
 /// (Problem::model_numbers): `value` turns a Quantity into an expression of the parameters (its
-/// text). Folding (fixed joints, DH link offsets, the base) as build_model does it.
+/// text). The fold (fixed joints, DH link offsets, the base, the points) is build_model's own,
+/// multibody::fold_links over GiNaC::ex (refdyn/multibody/detail/fold.hpp).
 using QuantityValue = std::function<ex(const Quantity&)>;
 SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& numbers, const QuantityValue& value);
 

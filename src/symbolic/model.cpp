@@ -4,6 +4,8 @@
 // sub-expressions, and the C writer's common-subexpression elimination keeps them shared.
 #include "internal.hpp"
 
+#include "refdyn/multibody/detail/fold.hpp"
+
 #include "refdyn/common/error.hpp"
 
 #include <cln/float.h>
@@ -25,7 +27,6 @@ Mat3s zero33() { return multibody::zero33<ex>(); }
 Pose rot_x(const ex& a) { return multibody::rot_x(a); }
 Pose rot_y(const ex& a) { return multibody::rot_y(a); }
 Pose rot_z(const ex& a) { return multibody::rot_z(a); }
-Pose trans(const Vec3s& p) { return multibody::translation(p); }
 Vec3s vec(const Vec3& v) { return {number(v.x()), number(v.y()), number(v.z())}; }
 }  // namespace
 
@@ -132,41 +133,21 @@ Mat3s rotation(const Mat3& R) {
   return S;
 }
 
-SymbolicBodies bodies_from_model(const Model& model) {
-  SymbolicBodies out;
-  for (int i = 0; i < model.nq; ++i) {
-    SymbolicBody b;
-    b.parent = model.parent[i];
-    b.type = model.joint_type[i];
-    b.axis = vec(model.axis[i]);
-    b.R = rotation(model.placement[i].R);
-    b.p = clean(model.placement[i].p);
-    b.offset = number(model.offset[i]);
-    const Inertia& I = model.inertia[i];
-    b.m = number(I.m);
-    b.h = clean(I.h);
-    const double tol = 4 * std::numeric_limits<double>::epsilon() * I.I.cwiseAbs().maxCoeff();
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) b.I[3 * r + c] = std::fabs(I.I(r, c)) <= tol ? ex(0) : number(I.I(r, c));
-    b.armature = number(model.armature[i]);
-    out.bodies.push_back(b);
-  }
-  for (size_t k = 0; k < model.point_name.size(); ++k)
-    out.points.push_back({model.point_body[k], clean(model.point_position[k])});
-  return out;
+ex CleanLift::scalar(double v) const { return number(v); }
+Vec3s CleanLift::axis(const Vec3& v) const { return vec(v); }
+Vec3s CleanLift::vector(const Vec3& v) const { return clean(v); }
+Mat3s CleanLift::rotation(const Mat3& R) const { return symbolic_detail::rotation(R); }
+Mat3s CleanLift::inertia(const Mat3& I) const {
+  const double tol = 4 * std::numeric_limits<double>::epsilon() * I.cwiseAbs().maxCoeff();
+  Mat3s S;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) S[3 * r + c] = std::fabs(I(r, c)) <= tol ? ex(0) : number(I(r, c));
+  return S;
 }
 
+
 namespace {
-/// A link of the model section as expressions, before the fixed joints are folded.
-struct Link {
-  std::string name;
-  int parent = -1;
-  JointType type = JointType::Revolute;
-  Pose placement, link_offset;
-  ex offset = 0, m = 0;
-  Vec3s com = zero3();
-  Mat3s Ic = zero33();
-};
+using Fold = multibody::FoldAlgebra<ex>;
 
 /// The numbers of the model section as expressions (`value`: a parameter stays a symbol).
 struct Numbers {
@@ -183,149 +164,98 @@ struct Numbers {
     return X;
   }
   ex number_or_zero(const std::optional<Quantity>& q) const { return q ? value(*q) : ex(0); }
-  /// Mass, centre of mass and the inertia about it (9 elements, the diagonal, or 6: xx yy zz xy xz yz).
-  void inertia(const ModelNumbers::Link& n, Link& l) const {
-    if (n.mass) l.m = value(*n.mass);
-    if (n.com) l.com = v3(*n.com);
+  /// Mass, centre of mass and the inertia about it (9 elements, the diagonal, or 6: xx yy zz xy xz
+  /// yz), as the inertia about the link's origin.
+  Fold::Inertia inertia(const ModelNumbers::Link& n) const {
+    ex m = 0;
+    Vec3s com = zero3();
+    Mat3s Ic = zero33();
+    if (n.mass) m = value(*n.mass);
+    if (n.com) com = v3(*n.com);
     const auto& I = n.inertia;
     if (I.size() == 9) {
-      for (int k = 0; k < 9; ++k) l.Ic[k] = value(I[k]);
+      for (int k = 0; k < 9; ++k) Ic[k] = value(I[k]);
     } else if (I.size() == 3) {
-      for (int r = 0; r < 3; ++r) l.Ic[4 * r] = value(I[r]);
+      for (int r = 0; r < 3; ++r) Ic[4 * r] = value(I[r]);
     } else if (I.size() == 6) {
       ex x[6];
       for (int k = 0; k < 6; ++k) x[k] = value(I[k]);
-      l.Ic = {x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]};
+      Ic = {x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]};
     }
+    return Fold::from_com(m, com, Ic);
   }
 };
 
-/// One link of the section: its joint's placement from the DH numbers (as from_dh) or its origin,
-/// and its inertia.
-Link link_from_numbers(const ModelNumbers& spec, const ModelNumbers::Link& n, const Numbers& num) {
-  Link l;
-  l.name = n.name;
+/// One link of the section: its joint's frames from the DH numbers or its origin, and its inertia;
+/// `offset`: its joint offset.
+multibody::FoldLink<ex> link_from_numbers(const ModelNumbers& spec, const ModelNumbers::Link& n, const Numbers& num,
+                                          ex& offset) {
+  multibody::FoldLink<ex> l;
   l.parent = n.parent;
   l.type = n.type;
   if (spec.dh) {
-    const ex theta = num.number_or_zero(n.theta), d = num.number_or_zero(n.d);
-    const ex a = num.number_or_zero(n.a), alpha = num.number_or_zero(n.alpha);
-    // as from_dh: the joint variable enters through θ (revolute) or d (prismatic)
-    Pose along_z = l.type == JointType::Prismatic ? rot_z(theta) : trans({ex(0), ex(0), d});
-    if (l.type == JointType::Fixed) along_z = rot_z(theta) * trans({ex(0), ex(0), d});
-    l.offset = l.type == JointType::Prismatic ? d : (l.type == JointType::Revolute ? theta : ex(0));
-    const Pose x_part = trans({a, ex(0), ex(0)}) * rot_x(alpha);
-    if (spec.standard) {
-      l.placement = along_z;
-      l.link_offset = x_part;
-    } else {
-      l.placement = rot_x(alpha) * trans({a, ex(0), ex(0)}) * along_z;
-    }
+    const multibody::DHFrames<ex> f =
+        multibody::dh_frames(n.type, num.number_or_zero(n.theta), num.number_or_zero(n.d), num.number_or_zero(n.a),
+                             num.number_or_zero(n.alpha), spec.standard);
+    l.placement = f.placement;
+    l.link_offset = f.link_offset;
+    offset = f.offset;
   } else {
     l.placement = num.pose(n.origin);
     l.link_offset = num.pose(n.link_offset);
-    if (n.offset) l.offset = num.value(*n.offset);
+    offset = n.offset ? num.value(*n.offset) : ex(0);
   }
-  num.inertia(n, l);
+  l.inertia = num.inertia(n);
   return l;
 }
 
-/// The bodies of the folded links, and where each link went.
-struct Folded {
-  SymbolicBodies out;
-  std::vector<int> body_of;             ///< the body of each link (−1: the world)
-  std::vector<Pose> link_in_body;       ///< each link's frame in its body's
+/// Points: in the link frame as written, expressed in the body frame (multibody::place_point).
+void place_points(const Model& model, const ModelNumbers& spec, const Pose& base, const Numbers& num,
+                  const multibody::Folded<ex>& f, SymbolicBodies& out) {
   std::map<std::string, int> link_index;
-};
-
-/// Folds as build_model: fixed joints into their parent body, link offsets into the body.
-Folded fold_links(const Model& model, const std::vector<Link>& links, const Pose& base) {
-  Folded f;
-  SymbolicBodies& out = f.out;
-  const int nl = static_cast<int>(links.size());
-  std::vector<int>& body_of = f.body_of;
-  std::vector<Pose>& link_in_body = f.link_in_body;
-  body_of.assign(nl, -1);
-  link_in_body.resize(nl);
-  for (int i = 0; i < nl; ++i) {
-    const Link& l = links[i];
-    f.link_index[l.name] = i;
-    const int pb = l.parent < 0 ? -1 : body_of[l.parent];
-    const Pose joint_in_pb = (l.parent < 0 ? base : link_in_body[l.parent]) * l.placement;
-    Vec3s h = scale(l.com, l.m);
-    Mat3s I = multibody::add(l.Ic, scale(mul(skew(l.com), skew(l.com)), ex(-l.m)));  // about the link origin
-    if (l.type == JointType::Fixed) {
-      body_of[i] = pb;
-      link_in_body[i] = joint_in_pb * l.link_offset;
-      if (pb >= 0) {
-        multibody::transform_inertia(link_in_body[i], l.m, h, I);
-        SymbolicBody& B = out.bodies[pb];
-        B.m += l.m;
-        B.h = add(B.h, h);
-        B.I = multibody::add(B.I, I);
-      }
-      continue;
-    }
-    const int b = static_cast<int>(out.bodies.size());
-    body_of[i] = b;
-    link_in_body[i] = l.link_offset;
-    multibody::transform_inertia(l.link_offset, l.m, h, I);
-    SymbolicBody B;
-    B.parent = pb;
-    B.type = l.type;
-    B.axis = vec(model.axis.at(b));
-    B.R = joint_in_pb.R;
-    B.p = joint_in_pb.p;
-    B.offset = l.offset;
-    B.m = l.m;
-    B.h = h;
-    B.I = I;
-    out.bodies.push_back(B);
-  }
-  if (static_cast<int>(out.bodies.size()) != model.nq)
-    throw Error("generate: the model section gives " + std::to_string(out.bodies.size()) + " bodies, the model has " +
-                std::to_string(model.nq) + " (internal error)");
-  return f;
-}
-
-/// Armature: as written (a parameter stays a symbol), else the compiled model's number.
-void set_armature(const Model& model, const ModelNumbers& spec, const std::vector<Link>& links, const Numbers& num,
-                  Folded& f) {
-  for (int i = 0; i < static_cast<int>(links.size()); ++i)
-    if (links[i].type != JointType::Fixed) {
-      const std::optional<Quantity>& a = spec.links[i].armature;
-      f.out.bodies[f.body_of[i]].armature = a ? num.value(*a) : number(model.armature[f.body_of[i]]);
-    }
-}
-
-/// Points: in the link frame as written, expressed in the body frame.
-void place_points(const Model& model, const ModelNumbers& spec, const Pose& base, const Numbers& num, Folded& f) {
-  f.out.points.resize(model.point_name.size());
+  for (int i = 0; i < static_cast<int>(spec.links.size()); ++i) link_index[spec.links[i].name] = i;
+  out.points.resize(model.point_name.size());
   for (const ModelNumbers::Point& p : spec.points) {
-    const int k = model.point_index(p.name);
-    const Vec3s pos = p.position ? num.v3(*p.position) : zero3();
-    if (p.link == "world") {
-      f.out.points[k] = {-1, pos};
-    } else if (p.link == "base") {  // fixed in the world at the base pose (as build_model)
-      f.out.points[k] = {-1, add(mul(base.R, pos), base.p)};
-    } else {
-      const int li = f.link_index.at(p.link);
-      const Pose& X = f.link_in_body[li];
-      f.out.points[k] = {f.body_of[li], add(mul(X.R, pos), X.p)};
-    }
+    const int link = p.link == "world" ? multibody::kOnWorld
+                     : p.link == "base" ? multibody::kOnBase
+                                        : link_index.at(p.link);
+    const multibody::FoldedPoint<ex> fp =
+        multibody::place_point(f, link, base, p.position ? num.v3(*p.position) : zero3());
+    out.points[model.point_index(p.name)] = {fp.body, fp.position};
   }
 }
 }  // namespace
 
 SymbolicBodies bodies_from_numbers(const Model& model, const ModelNumbers& spec, const QuantityValue& value) {
   const Numbers num{value};
-  std::vector<Link> links;
-  for (const ModelNumbers::Link& n : spec.links) links.push_back(link_from_numbers(spec, n, num));
+  std::vector<multibody::FoldLink<ex>> links;
+  std::vector<ex> offsets(spec.links.size());
+  for (size_t i = 0; i < spec.links.size(); ++i) links.push_back(link_from_numbers(spec, spec.links[i], num, offsets[i]));
   const Pose base = num.pose(spec.base);
-  Folded f = fold_links(model, links, base);
-  set_armature(model, spec, links, num, f);
-  place_points(model, spec, base, num, f);
-  return std::move(f.out);
+  const multibody::Folded<ex> f = multibody::fold_links(links, base);
+  if (f.size() != model.nq)
+    throw Error("generate: the model section gives " + std::to_string(f.size()) + " bodies, the model has " +
+                std::to_string(model.nq) + " (internal error)");
+  SymbolicBodies out;
+  for (int b = 0; b < f.size(); ++b) {
+    const int i = f.link_of_body[b];
+    SymbolicBody B;
+    B.parent = f.parent[b];
+    B.type = links[i].type;
+    B.axis = vec(model.axis[b]);
+    B.R = f.placement[b].R;
+    B.p = f.placement[b].p;
+    B.offset = offsets[i];
+    B.m = f.inertia[b].m;
+    B.h = f.inertia[b].h;
+    B.I = f.inertia[b].I;
+    // armature: as written (a parameter stays a symbol), else the compiled model's number
+    const std::optional<Quantity>& a = spec.links[i].armature;
+    B.armature = a ? num.value(*a) : number(model.armature[b]);
+    out.bodies.push_back(B);
+  }
+  place_points(model, spec, base, num, f, out);
+  return out;
 }
 
 SymbolicModel symbolic_model(const SymbolicBodies& bodies, const Vec3& gravity, const std::vector<ex>& q) {

@@ -43,26 +43,38 @@ struct Bodies {
   int size() const { return static_cast<int>(bodies.size()); }
 };
 
-/// The model's numbers as S constants (exactly: no rounding to 0 or ±1).
+/// How the compiled model's doubles become S constants: exactly. (The generator passes its own
+/// policy, which writes entries within a few ulp of 0 or ±1 exactly: src/symbolic/model.cpp.)
 template <class S>
-Bodies<S> bodies_from_model(const Model& model) {
+struct ExactLift {
+  S scalar(double v) const { return from_double<S>(v); }
+  Vec3T<S> axis(const Vec3& v) const { return lift<S>(v); }
+  Vec3T<S> vector(const Vec3& v) const { return lift<S>(v); }
+  Mat3T<S> rotation(const Mat3& R) const { return lift<S>(R); }
+  Mat3T<S> inertia(const Mat3& I) const { return lift<S>(I); }
+};
+
+/// The compiled model's bodies and points over S, each number through `to` (Pinocchio's
+/// ModelTpl::cast).
+template <class S, class Lift = ExactLift<S>>
+Bodies<S> bodies_from_model(const Model& model, const Lift& to = Lift{}) {
   Bodies<S> out;
   out.bodies.resize(model.nv);
   for (int i = 0; i < model.nv; ++i) {
     Body<S>& b = out.bodies[i];
     b.parent = model.parent[i];
     b.type = model.joint_type[i];
-    b.axis = lift<S>(model.axis[i]);
-    b.R = lift<S>(model.placement[i].R);
-    b.p = lift<S>(model.placement[i].p);
-    b.offset = from_double<S>(model.offset[i]);
-    b.m = from_double<S>(model.inertia[i].m);
-    b.h = lift<S>(model.inertia[i].h);
-    b.I = lift<S>(model.inertia[i].I);
-    b.armature = from_double<S>(model.armature[i]);
+    b.axis = to.axis(model.axis[i]);
+    b.R = to.rotation(model.placement[i].R);
+    b.p = to.vector(model.placement[i].p);
+    b.offset = to.scalar(model.offset[i]);
+    b.m = to.scalar(model.inertia[i].m);
+    b.h = to.vector(model.inertia[i].h);
+    b.I = to.inertia(model.inertia[i].I);
+    b.armature = to.scalar(model.armature[i]);
   }
   for (std::size_t k = 0; k < model.point_name.size(); ++k)
-    out.points.push_back({model.point_body[k], lift<S>(model.point_position[k])});
+    out.points.push_back({model.point_body[k], to.vector(model.point_position[k])});
   return out;
 }
 
