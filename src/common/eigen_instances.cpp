@@ -1,6 +1,6 @@
 // The one compiled copy of Eigen's dense decompositions over MatrixXd
-// (include/refdyn/common/eigen_instances.hpp says why).
-#include "refdyn/common/eigen_instances.hpp"
+// (include/refdyn/common/detail/eigen_instances.hpp says why).
+#include "refdyn/common/detail/eigen_instances.hpp"
 
 namespace Eigen {
 template class JacobiSVD<MatrixXd, ColPivHouseholderQRPreconditioner>;

@@ -1,6 +1,7 @@
 // CRBA (body frame and world frame), the fused M, c + g sweep, the mass-matrix Cholesky and
 // forward dynamics by CRBA + Cholesky (the fast double kernels; see kernels.hpp).
 #include "refdyn/multibody/recursive_dynamics.hpp"
+#include "refdyn/common/crossovers.hpp"
 
 #include "kernels.hpp"
 
@@ -144,9 +145,6 @@ void crba_world(const Model& model, Data& data, const double* q) {
   }
 }
 
-/// Below this many bodies the body-frame CRBA is faster (measured crossover: 6–7 bodies).
-constexpr int kWorldCrbaFrom = 7;
-
 void crba_impl(const Model& model, Data& data, const Eigen::VectorXd& q) {
   if (model.nq < kWorldCrbaFrom) crba_local(model, data, q.data());
   else crba_world(model, data, q.data());
@@ -161,7 +159,6 @@ using kernels::check_q_fast;
 using kernels::crba_bias_local;
 using kernels::crba_impl;
 using kernels::crba_world;
-using kernels::kWorldCrbaFrom;
 using kernels::rnea_impl;
 
 namespace unchecked {

@@ -5,6 +5,7 @@
 /// These are the independent cross-check of the paper's trace route (trace_dynamics.hpp),
 /// and the fast route used by the planners and controllers.
 
+#include "refdyn/common/crossovers.hpp"
 #include "refdyn/multibody/model.hpp"
 
 namespace refdyn {
@@ -25,14 +26,7 @@ const Eigen::VectorXd& gravity_forces(const Model& model, Data& data, const Eige
 /// Also leaves data.liMi filled. O(n·depth).
 const Eigen::MatrixXd& mass_matrix(const Model& model, Data& data, const Eigen::VectorXd& q);
 
-/// Models with at least this many coordinates take the articulated-body algorithm in
-/// forward_dynamics; smaller ones CRBA + Cholesky. Measured with
-/// `dynamics_bench --benchmark_filter=FD` (bench/README.md, "Forward dynamics"; CPU-time medians
-/// of CRBA + RNEA + Cholesky over ABA, 2026-11-25): 1.11 at 2, 1.19 at 3, 1.32 at 4, 1.67 at 7,
-/// 1.88 at 15, 2.45 at 30, 4.35 at 60 DOF (the fused small-model sweep + Cholesky over ABA:
-/// 1.01 at 2, 1.13 at 3). ABA is faster from 2 coordinates on; at 2 the two are within noise,
-/// so one coordinate and two keep CRBA + Cholesky.
-inline constexpr int kAbaFrom = 3;
+/// (kAbaFrom, the crossover to the articulated-body algorithm: refdyn/common/crossovers.hpp)
 
 /// True when forward_dynamics uses the articulated-body algorithm for a model of nq coordinates.
 constexpr bool forward_dynamics_uses_aba(int nq) { return nq >= kAbaFrom; }
