@@ -8,6 +8,7 @@
 #include "test_support.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -104,6 +105,48 @@ TEST(RecursiveDynamics, BiasAndGravityAreInverseDynamicsWithZeroArguments) {
     const Eigen::VectorXd c1 = bias_forces(c.model, data, q, qd) - tau_0;
     const Eigen::VectorXd c2 = bias_forces(c.model, data, q, 2 * qd) - tau_0;
     EXPECT_TRUE(near(c2, 4 * c1, 0, 1e-12 * std::max(inf_norm(c2), inf_norm(tau_0)))) << c.label;
+  }
+}
+
+// The q̈ = 0 sweep behind bias_forces and unchecked::rnea(q, &q̇, nullptr, …) (the kernel's
+// rnea_impl<true, false>: no acceleration terms, gravity as the base acceleration) against the
+// full RNEA with q̈ = 0 given, with and without gravity, for chains and trees, DH (±z) and
+// general axes, revolute and prismatic joints, sizes 1–30 (the four-joint sin/cos blocks,
+// partial and whole): the torques and what the sweep leaves in data (joint placements, the body
+// motions the constraint kinematics read after it, body forces).
+TEST(RecursiveDynamics, BiasSweepEqualsInverseDynamicsWithZeroAcceleration) {
+  std::mt19937 rng(111);
+  for (const Case& c : random_models(rng)) {
+    const int n = c.model.nq;
+    const Eigen::VectorXd q = test::random_vector(rng, n, 3.0), qd = test::random_vector(rng, n, 2.0),
+                          z = Eigen::VectorXd::Zero(n);
+    for (bool gravity : {true, false}) {
+      Data d1(c.model), d2(c.model);
+      Eigen::VectorXd tau_bias(n), tau_id(n);
+      unchecked::rnea(c.model, d1, q, &qd, nullptr, gravity, tau_bias);
+      unchecked::rnea(c.model, d2, q, &qd, &z, gravity, tau_id);
+      const std::string label = c.label + (gravity ? ", gravity" : ", no gravity");
+      EXPECT_TRUE(near(tau_bias, tau_id, 1e-12)) << label;
+      if (gravity) {
+        EXPECT_TRUE(near(bias_forces(c.model, d1, q, qd), tau_id, 1e-12)) << label;
+      }
+      double sv = 0, sa = 0, sf = 0;  // scales of the body quantities
+      for (int i = 0; i < n; ++i) {
+        sv = std::max({sv, d2.v[i].w.cwiseAbs().maxCoeff(), d2.v[i].v.cwiseAbs().maxCoeff()});
+        sa = std::max({sa, d2.a[i].w.cwiseAbs().maxCoeff(), d2.a[i].v.cwiseAbs().maxCoeff()});
+        sf = std::max({sf, d2.f[i].n.cwiseAbs().maxCoeff(), d2.f[i].f.cwiseAbs().maxCoeff()});
+      }
+      for (int i = 0; i < n; ++i) {
+        EXPECT_EQ(d1.liMi[i].R, d2.liMi[i].R) << label << " body " << i;
+        EXPECT_EQ(d1.liMi[i].p, d2.liMi[i].p) << label << " body " << i;
+        EXPECT_TRUE(near(d1.v[i].w, d2.v[i].w, 0, 1e-12 * sv)) << label << " body " << i;
+        EXPECT_TRUE(near(d1.v[i].v, d2.v[i].v, 0, 1e-12 * sv)) << label << " body " << i;
+        EXPECT_TRUE(near(d1.a[i].w, d2.a[i].w, 0, 1e-12 * sa)) << label << " body " << i;
+        EXPECT_TRUE(near(d1.a[i].v, d2.a[i].v, 0, 1e-12 * sa)) << label << " body " << i;
+        EXPECT_TRUE(near(d1.f[i].n, d2.f[i].n, 0, 1e-12 * sf)) << label << " body " << i;
+        EXPECT_TRUE(near(d1.f[i].f, d2.f[i].f, 0, 1e-12 * sf)) << label << " body " << i;
+      }
+    }
   }
 }
 
