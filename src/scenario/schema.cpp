@@ -121,7 +121,7 @@ std::vector<Section> solver_sections() {
           {"output_interval", "number", "", "0", "s", "the sampling interval of the outputs; 0: every step", {}},
           {"min_step", "number", "", "min(1e-12, step/2)", "s", "dopri5, bdf: a smaller step means the run has collapsed", {}},
           {"max_order", "whole number 1 … 5", "", "5", "", "bdf only: the highest BDF order", {}},
-          {"residual_from", "number", "", "t0", "s", "report the max residual for t ≥ this", {}},
+          {"residual_from", "number", "", "0", "s", "report the max residual for t ≥ this", {}},
           {"residual_tolerance", "number or `none`", "", "1e-3", "",
            "the plan is cut where the constraint residual max |Φ| exceeds it (`none`: no check); see \"Trusting a "
            "plan\" below", {}},
