@@ -214,9 +214,34 @@ std::vector<Section> optimize_and_model_sections() {
   };
 }
 
+/// Value forms any section may use: a function of t written as a mapping, a pose.
+std::vector<Section> value_forms() {
+  return {
+      {"function of t", "a function of t written as a mapping (else a number or an expression in t)", {
+          {"cycloidal", "mapping", "", "", "", "`{rise, duration, from, start}`: a cycloidal rise", {}},
+          {"raised_cosine", "mapping", "", "", "", "`{base, amplitude, period}`: base + amplitude·(1 − cos(2πt/period))/2", {}},
+      }},
+      {"function of t.cycloidal", "from `from` to `from + rise` over [start, start + duration], zero speed and acceleration at both ends", {
+          {"rise", "number", "yes", "", "", "the change of the value (the function's unit)", {}},
+          {"duration", "number > 0", "yes", "", "s", "the time the rise takes", {}},
+          {"from", "number", "", "0", "", "the value before the rise (the function's unit)", {}},
+          {"start", "number", "", "0", "s", "when the rise starts", {}},
+      }},
+      {"function of t.raised_cosine", "base + amplitude·(1 − cos(2πt/period))/2", {
+          {"base", "number", "yes", "", "", "the value at t = 0 (the function's unit)", {}},
+          {"amplitude", "number", "yes", "", "", "the largest change (the function's unit)", {}},
+          {"period", "number > 0", "yes", "", "s", "the period", {}},
+      }},
+      {"pose", "a frame's pose in its parent (`base`, a link's `origin`)", {
+          {"xyz", "[x, y, z]", "", "[0, 0, 0]", "m", "the position", {}},
+          {"rpy", "[roll, pitch, yaw]", "", "[0, 0, 0]", "rad", "the orientation, R = Rz(yaw) Ry(pitch) Rx(roll) (URDF)", {}},
+      }},
+  };
+}
+
 std::vector<Section> all_sections() {
   std::vector<Section> all{root_section()};
-  for (auto* part : {&solver_sections, &run_sections, &optimize_and_model_sections})
+  for (auto* part : {&solver_sections, &run_sections, &optimize_and_model_sections, &value_forms})
     for (Section& s : part()) all.push_back(std::move(s));
   return all;
 }
@@ -280,8 +305,9 @@ std::string markdown() {
       os << "| key | required | meaning |\n|---|---|---|\n";
       for (const Key& k : s.keys)
         os << "| `" << k.name << "` | " << cell(k.required.empty() ? "no" : k.required) << " | " << cell(k.doc) << " |\n";
-      os << "\n### The keys of each section\n\nA default is what an absent key means; a unit is that of the number as "
-            "written (a per-joint value: of a revolute or a prismatic joint).\n";
+      os << "\n### The keys of each section\n\nLast, the mappings a value may be written as (a function of t, a pose). A "
+            "default is what an absent key means; a unit is that of the number as written (a per-joint value: of a "
+            "revolute or a prismatic joint).\n";
       continue;
     }
     os << "\n#### `" << s.path << "` — " << s.doc << "\n\n| key | type | required | default | unit | meaning |\n|---|---|---|---|---|---|\n";
