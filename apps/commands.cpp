@@ -14,6 +14,7 @@
 #include "refdyn/optimize/optimize.hpp"
 #include "refdyn/symbolic/symbolic.hpp"
 #include "refdyn/scenario/registry.hpp"
+#include "refdyn/scenario/schema.hpp"
 #include "refdyn/common/text.hpp"
 
 #include <algorithm>
@@ -451,8 +452,8 @@ int run_generate(const std::string& file, const std::string& out_dir, const std:
   return kOk;
 }
 
-int run_kinds() {
-  std::cout << registry_markdown();
+int run_kinds(bool sections) {
+  std::cout << (sections ? schema::markdown() : registry_markdown());
   return kOk;
 }
 

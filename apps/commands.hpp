@@ -71,7 +71,8 @@ int finish_family(const Problem& base, const std::vector<io::Variant>& variants,
 int finish_results(const Problem& problem, const io::Results& results, const std::string& out_dir, bool quiet,
                    bool report, bool run_csv_written);
 int run_plot(const std::string& dir);
-int run_kinds();
+/// refdyn kinds: the registries' reference, or (sections) the scenario sections' key tables.
+int run_kinds(bool sections);
 int run_generate(const std::string& file, const std::string& out_dir, const std::string& formats,
                  const std::string& prefix, bool quiet, const InputOptions& in);
 

@@ -32,7 +32,7 @@ std::string usage_message(const CLI::ParseError& e, int argc, char** argv, const
 /// Every option of every command, filled in by CLI11.
 struct Args {
   std::string file, out_dir = "results";
-  bool quiet = false, report = false;
+  bool quiet = false, report = false, sections = false;
   std::string scenario, report_out;
   std::string formats = "c,latex,json", prefix;
   refdyn::app::InputOptions in;
@@ -145,6 +145,8 @@ void add_other_commands(CLI::App& app, Args& a, Commands& c) {
   add_input_options(c.generate, a);
 
   c.kinds = app.add_subcommand("kinds", "List the constraint kinds, force elements and controllers with their keys");
+  c.kinds->add_flag("--sections", a.sections,
+                    "List the keys of the scenario's sections instead (the tables of docs/scenario.md)");
 }
 
 /// Runs the chosen command; refdyn::Error and the rest are mapped to exit codes by the caller.
@@ -160,7 +162,7 @@ int dispatch(const Commands& c, Args& a) {
   if (*c.report) return run_report(a.out_dir, a.scenario, a.report_out, a.quiet, a.in, a.mesh_budget);
   if (*c.paper) return run_paper_command(a.out_dir, a.quiet, a.report, a.run.jobs < 0 ? 0 : a.run.jobs);
   if (*c.generate) return run_generate(a.file, a.out_dir, a.formats, a.prefix, a.quiet, a.in);
-  if (*c.kinds) return run_kinds();
+  if (*c.kinds) return run_kinds(a.sections);
   return kOk;
 }
 

@@ -1,18 +1,23 @@
 // Registries of constraint kinds, force elements and controllers: every entry documented (and the
 // docs/scenario.md reference generated from them is current), unknown names answered with "did
 // you mean", and the kind added as one file (distance) checked against finite differences and a
-// closed-form motion.
+// closed-form motion. The scenario sections' declarations (scenario/schema.hpp): documented,
+// their tables in docs/scenario.md current, their defaults those of a built problem.
 #include "refdyn/constraints/constraints.hpp"
 #include "refdyn/io/scenario.hpp"
 #include "refdyn/multibody/kinematics.hpp"
+#include "refdyn/optimize/optimize.hpp"
 #include "refdyn/scenario/registry.hpp"
+#include "refdyn/scenario/schema.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numbers>
+#include <set>
 #include <sstream>
 
 using namespace refdyn;
@@ -156,4 +161,133 @@ TEST(DistanceKind, CoincidingPointsAreReportedNotDividedBy) {
         io::parse_problem(two_link("  - {name: reach, kind: distance, points: [B, E], length: 0}", "[0, pi]"), "fold.yaml");
       },
       {"fold.yaml", "coincide"});
+}
+
+namespace {
+
+/// A declared default as a number.
+double declared(const char* section, const char* key) {
+  const std::string& t = schema::key(section, key).default_text;
+  size_t used = 0;
+  double v = std::nan("");
+  try {
+    v = std::stod(t, &used);
+  } catch (const std::exception&) {
+  }
+  EXPECT_EQ(used, t.size()) << section << "." << key << ": default '" << t << "' is not a number";
+  return v;
+}
+
+}  // namespace
+
+TEST(Schema, EveryKeyIsDocumentedOnceAndTheScenarioTablesAreCurrent) {
+  std::set<std::string> paths;
+  for (const schema::Section& s : schema::sections()) {
+    EXPECT_TRUE(paths.insert(s.path).second) << "section '" << s.path << "' declared twice";
+    EXPECT_FALSE(s.doc.empty()) << s.path;
+    std::set<std::string> names;
+    for (const schema::Key& k : s.keys) {
+      EXPECT_TRUE(names.insert(k.name).second) << s.path << "." << k.name << " declared twice";
+      EXPECT_FALSE(k.doc.empty()) << s.path << "." << k.name;
+      EXPECT_FALSE(k.type.empty()) << s.path << "." << k.name;
+      EXPECT_TRUE(k.required.empty() || k.default_text.empty())
+          << s.path << "." << k.name << ": a required key has no default";
+      if (!k.choices.empty() && !k.default_text.empty())
+        EXPECT_NE(std::find(k.choices.begin(), k.choices.end(), k.default_text), k.choices.end())
+            << s.path << "." << k.name << ": the default is not one of its choices";
+    }
+  }
+  const std::string doc = read_text(std::string(REFDYN_SOURCE_DIR) + "/docs/scenario.md");
+  EXPECT_NE(doc.find(schema::markdown()), std::string::npos)
+      << "docs/scenario.md does not contain the current key tables; regenerate them with `refdyn kinds --sections`";
+  EXPECT_THROW(schema::keys("integrater"), std::logic_error);
+  EXPECT_THROW(schema::key("integrator", "stepp"), std::logic_error);
+}
+
+TEST(Schema, TheDeclaredDefaultsAreThoseOfABuiltProblem) {
+  // Every optional section absent: what build_problem takes is what the tables say.
+  auto p = io::parse_problem(R"(name: bare
+model:
+  links:
+    - {name: l1, joint: q1, parent: base, type: revolute, axis: [0, 1, 0], mass: 1, com: [0.5, 0, 0], inertia: [0.01, 0.1, 0.1]}
+initial: {q: [0.1]}
+)", "bare.yaml");
+  EXPECT_EQ(p->options.alpha, declared("baumgarte", "alpha"));
+  EXPECT_EQ(p->options.beta, declared("baumgarte", "beta"));
+  EXPECT_EQ(p->options.beta_first_order, declared("baumgarte", "beta_first_order"));
+  EXPECT_EQ(p->kappa, declared("baumgarte", "kappa"));
+  EXPECT_EQ(p->options.stabilization, Stabilization::Baumgarte);
+  EXPECT_EQ(schema::key("stabilization", "method").required, "yes");  // the top-level default instead
+  EXPECT_EQ(schema::key("", "stabilization").default_text, to_string(Stabilization::Baumgarte));
+  EXPECT_EQ(p->options.projection_tolerance, declared("stabilization", "tolerance"));
+  EXPECT_EQ(p->options.projection_max_iterations, declared("stabilization", "max_iterations"));
+  EXPECT_EQ(p->options.automatic_partition, schema::key("partition", "automatic_switch").default_text == "true");
+  EXPECT_EQ(p->options.max_condition, declared("partition", "max_condition"));
+  EXPECT_EQ(p->initial_tolerance, declared("initial", "tolerance"));
+  EXPECT_EQ(p->integrator.method, IntegratorMethod::RK4);
+  EXPECT_EQ(schema::key("integrator", "method").default_text, to_string(IntegratorMethod::RK4));
+  EXPECT_EQ(p->integrator.step, declared("integrator", "step"));
+  EXPECT_EQ(p->integrator.t0, declared("integrator", "t0"));
+  EXPECT_EQ(p->integrator.t1, declared("integrator", "t1"));
+  EXPECT_EQ(p->integrator.rtol, declared("integrator", "rtol"));
+  EXPECT_EQ(p->integrator.atol, declared("integrator", "atol"));
+  EXPECT_EQ(p->integrator.output_interval, declared("integrator", "output_interval"));
+  EXPECT_EQ(p->integrator.max_order, declared("integrator", "max_order"));
+  EXPECT_EQ(p->integrator.min_step, std::min(1e-12, 0.5 * p->integrator.step));
+  EXPECT_EQ(schema::key("integrator", "min_step").default_text, "min(1e-12, step/2)");
+  EXPECT_EQ(p->residual_from, declared("integrator", "residual_from"));
+  EXPECT_EQ(p->residual_tolerance, declared("integrator", "residual_tolerance"));
+  EXPECT_EQ(p->limits.max_steps, declared("limits", "max_steps"));
+  EXPECT_EQ(p->limits.max_samples, declared("limits", "max_samples"));
+  EXPECT_EQ(p->limits.max_runs, declared("limits", "max_runs"));
+  const ScenarioSpec spec;
+  EXPECT_EQ(spec.solver, schema::key("", "solver").default_text);
+  EXPECT_EQ(spec.paper_literal_forces, schema::key("", "paper_literal_forces").default_text == "true");
+  EXPECT_EQ(OptimizeSpec{}.method, schema::key("optimize", "method").default_text);
+  const OptimizeSetup o;
+  EXPECT_EQ(std::string(to_string(o.method)), schema::key("optimize", "method").default_text);
+  EXPECT_EQ(o.xtol, declared("optimize.tolerance", "x"));
+  EXPECT_EQ(o.ftol, declared("optimize.tolerance", "f"));
+  EXPECT_EQ(o.budget, declared("optimize", "budget"));
+  EXPECT_EQ(o.feasible, schema::key("optimize.constraints", "feasible").default_text == "true");
+}
+
+TEST(Schema, TheReaderRefusesAKeyNoSectionDeclares) {
+  // One misspelt key per section read by hand: the message names the section's path and the
+  // declared key it resembles.
+  const std::string base = R"(name: bare
+model:
+  links:
+    - {name: l1, joint: q1, parent: base, type: revolute, axis: [0, 1, 0], mass: 1, com: [0.5, 0, 0], inertia: [0.01, 0.1, 0.1]}
+)";
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"initial: {q: [0.1], toleranse: 1}\n", "initial.toleranse: unknown key 'toleranse' (did you mean 'tolerance'?)"},
+      {"initial: {q: [0.1]}\nintegrator: {stepp: 1}\n", "integrator.stepp: unknown key 'stepp' (did you mean 'step'?)"},
+      {"initial: {q: [0.1]}\nlimits: {max_step: 1}\n", "limits.max_step: unknown key 'max_step' (did you mean 'max_steps'?)"},
+      {"initial: {q: [0.1]}\ntime_law: {task_duraton: 1}\n",
+       "time_law.task_duraton: unknown key 'task_duraton' (did you mean 'task_duration'?)"},
+      {"initial: {q: [0.1]}\nintegrater: {}\n", "integrater: unknown key 'integrater' (did you mean 'integrator'?)"},
+  };
+  for (const auto& [text, message] : cases) test::expect_error_mentioning([&] { io::parse_scenario(base + text, "bare.yaml"); }, {message});
+}
+
+TEST(Schema, TheChoiceWordsAreTheEnumsNames) {
+  // integrator.method: every enumerator's name, in order, and nothing else.
+  std::vector<std::string> methods;
+  for (IntegratorMethod m : {IntegratorMethod::RK4, IntegratorMethod::DormandPrince45, IntegratorMethod::BDF})
+    methods.push_back(to_string(m));
+  EXPECT_EQ(schema::choices("integrator", "method"), methods);
+  for (const std::string& w : schema::choices("integrator", "method")) {
+    IntegratorMethod m{};
+    EXPECT_TRUE(from_string(w, m)) << w;
+  }
+  std::vector<std::string> optimizers;
+  for (OptimizeMethod m : {OptimizeMethod::Slsqp, OptimizeMethod::Mma, OptimizeMethod::Cobyla, OptimizeMethod::Bobyqa,
+                           OptimizeMethod::PhasePlane})
+    optimizers.push_back(to_string(m));
+  EXPECT_EQ(schema::choices("optimize", "method"), optimizers);
+  std::vector<std::string> stabilizations;
+  for (Stabilization s : {Stabilization::Baumgarte, Stabilization::Projection, Stabilization::Both})
+    stabilizations.push_back(to_string(s));
+  EXPECT_EQ(schema::choices("stabilization", "method"), stabilizations);
 }

@@ -7,6 +7,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/io/urdf.hpp"
 #include "refdyn/scenario/registry.hpp"
+#include "refdyn/scenario/schema.hpp"
 #include "refdyn/common/text.hpp"
 
 #include <yaml-cpp/eventhandler.h>
@@ -255,7 +256,7 @@ class Reader {
 /// monte_carlo: {samples, seed, distributions: {name: {normal: {mean, std}} | {uniform: {low, high}}}};
 /// the numbers stay text (build_problem evaluates and checks them).
 MonteCarloSpec monte_carlo(const SpecReader& c, const SpecValue& mc, const std::string& key) {
-  c.keys(mc, key, {"samples", "seed", "distributions"});
+  c.keys(mc, key, schema::keys("monte_carlo"));
   MonteCarloSpec m;
   m.value = mc;
   m.samples = c.need(mc, "samples", key);
@@ -436,7 +437,7 @@ void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::
 
   s.model.value = c.need(root, "model", "");
   if (const SpecValue& u = s.model.value["urdf"]) {
-    c.keys(u, "model.urdf", {"file", "root", "packages", "dynamics"});
+    c.keys(u, "model.urdf", schema::keys("model.urdf"));
     const std::string f = c.string(c.need(u, "file", "model.urdf"), "model.urdf.file");
     const fs::path here = fs::path(source).parent_path();
     fs::path p(f);
@@ -474,27 +475,27 @@ void read_parameters_and_model(const SpecReader& c, const SpecValue& root, std::
 /// baumgarte:, solver:, paper_literal_forces:, partition:, initial: and integrator:.
 void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSpec& s) {
   if (const SpecValue& b = root["baumgarte"]) {
-    c.keys(b, "baumgarte", {"alpha", "beta", "beta_first_order", "kappa"});
+    c.keys(b, "baumgarte", schema::keys("baumgarte"));
     s.baumgarte = {b["alpha"], b["beta"], b["beta_first_order"], b, b["kappa"]};
   }
   if (const SpecValue& st = root["stabilization"]) {  // baumgarte | projection | both, or {method, tolerance, max_iterations}
     const SpecValue* method = &st;
     if (!st.is_scalar()) {
-      c.keys(st, "stabilization", {"method", "tolerance", "max_iterations"});
+      c.keys(st, "stabilization", schema::keys("stabilization"));
       method = &c.need(st, "method", "stabilization");
       s.stabilization.tolerance = st["tolerance"];
       s.stabilization.max_iterations = st["max_iterations"];
     }
-    s.stabilization.method = c.choice(*method, "stabilization", {"baumgarte", "projection", "both"});
+    s.stabilization.method = c.choice(*method, "stabilization", schema::choices("stabilization", "method"));
     s.stabilization.value = st;
   }
-  if (root["solver"]) s.solver = c.choice(root["solver"], "solver", {"projection", "lagrange", "auto"});
+  if (root["solver"]) s.solver = c.choice(root["solver"], "solver", schema::choices("", "solver"));
   if (root["paper_literal_forces"]) s.paper_literal_forces = c.boolean(root["paper_literal_forces"], "paper_literal_forces");
 
   const SpecValue& part = root["partition"];
   s.partition.value = part;
   if (part && !(part.is_scalar() && part.text == "auto")) {
-    c.keys(part, "partition", {"independent", "automatic_switch", "max_condition"});
+    c.keys(part, "partition", schema::keys("partition"));
     const SpecValue& ind = c.need(part, "independent", "partition");
     s.partition.automatic_switch = part["automatic_switch"];
     s.partition.max_condition = part["max_condition"];
@@ -508,17 +509,15 @@ void read_solver_sections(const SpecReader& c, const SpecValue& root, ScenarioSp
   }
 
   const SpecValue& ini = c.need(root, "initial", "");
-  c.keys(ini, "initial", {"q", "qd", "qdd", "consistency", "tolerance"});
+  c.keys(ini, "initial", schema::keys("initial"));
   c.need(ini, "q", "initial");
   s.initial = {ini["q"], ini["qd"], false, ini["tolerance"], ini, ini["qdd"]};
-  if (ini["consistency"]) s.initial.project = c.choice(ini["consistency"], "initial.consistency", {"check", "project"}) == "project";
+  if (ini["consistency"]) s.initial.project = c.choice(ini["consistency"], "initial.consistency", schema::choices("initial", "consistency")) == "project";
 
   if (const SpecValue& in = root["integrator"]) {
-    c.keys(in, "integrator",
-           {"method", "step", "t0", "t1", "rtol", "atol", "output_interval", "min_step", "max_order",
-            "residual_from", "residual_tolerance"});
+    c.keys(in, "integrator", schema::keys("integrator"));
     IntegratorSpec& o = s.integrator;
-    if (in["method"]) o.method = c.choice(in["method"], "integrator.method", {"rk4", "dopri5", "bdf"});
+    if (in["method"]) o.method = c.choice(in["method"], "integrator.method", schema::choices("integrator", "method"));
     o.max_order = in["max_order"];
     o.step = in["step"];
     o.t0 = in["t0"];
@@ -539,7 +538,7 @@ ExperimentSpec read_experiment(const SpecReader& c, const Reader& rd, const Spec
   const SpecValue& e = ex[i];
   ExperimentSpec x;
   x.key = "experiments[" + std::to_string(i) + "]";
-  c.keys(e, x.key, {"name", "sweep", "grid", "monte_carlo", "initial", "plant_forces", "controller"});
+  c.keys(e, x.key, schema::keys("experiments[]"));
   x.value = e;
   {  // at most one way of expanding an experiment into runs; the second one written is named
     std::vector<const SpecValue::Entry*> given;
@@ -586,7 +585,7 @@ ExperimentSpec read_experiment(const SpecReader& c, const Reader& rd, const Spec
     x.monte_carlo = monte_carlo(c, e["monte_carlo"], x.key + ".monte_carlo");
   }
   if (const SpecValue& in = e["initial"]) {
-    c.keys(in, x.key + ".initial", {"q", "qd"});
+    c.keys(in, x.key + ".initial", schema::keys("experiments[].initial"));
     x.initial_q = in["q"];
     x.initial_qd = in["qd"];
   }
@@ -608,9 +607,7 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   long budget = kMaxSpecValues;
   s.root = to_spec(yroot, source, "", c, budget, text);
   const SpecValue& root = s.root;
-  c.keys(root, "", {"name", "parameters", "model", "constraints", "partition", "forces", "baumgarte", "stabilization", "solver",
-                    "paper_literal_forces", "initial", "integrator", "controller", "effort_limit", "actuators", "plant_forces",
-                    "experiments", "variants", "optimize", "outputs", "limits", "time_law"});
+  c.keys(root, "", schema::keys(""));
   const Reader rd(c);
   s.name = root["name"] ? c.string(root["name"], "name") : fs::path(source).stem().string();
 
@@ -639,15 +636,15 @@ ScenarioSpec parse_scenario(const std::string& text, const std::string& source, 
   if (root["optimize"] || std::any_of(root.entries.begin(), root.entries.end(), [](const auto& e) { return e.key == "optimize"; }))
     s.optimize = detail::read_optimize(c, root["optimize"], root.key_location("optimize"));
   if (const SpecValue& tl = root["time_law"]) {
-    c.keys(tl, "time_law", {"task_duration", "segments", "knot_speeds"});
+    c.keys(tl, "time_law", schema::keys("time_law"));
     s.time_law = tl;
   }
   if (const SpecValue& lim = root["limits"]) {
-    c.keys(lim, "limits", {"max_steps", "max_samples", "max_runs"});
+    c.keys(lim, "limits", schema::keys("limits"));
     s.limits = lim;
   }
   if (const SpecValue& out = root["outputs"]) {
-    c.keys(out, "outputs", {"points"});
+    c.keys(out, "outputs", schema::keys("outputs"));
     std::vector<SpecValue> pts;
     if (const SpecValue& ps = out["points"]) {
       if (!ps.is_list()) c.fail(ps, "outputs.points", "expected a list of point names");

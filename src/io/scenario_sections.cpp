@@ -3,6 +3,7 @@
 #include "scenario_sections.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/scenario/schema.hpp"
 
 #include <string>
 #include <utility>
@@ -13,7 +14,7 @@ namespace refdyn::io::detail {
 VariantsSpec read_variants(const SpecReader& c, const SpecValue& va) {
   VariantsSpec v;
   v.value = va;
-  c.keys(va, "variants", {"name", "sweep", "grid"});
+  c.keys(va, "variants", schema::keys("variants"));
   if (va["name"]) {
     v.name = c.string(va["name"], "variants.name");
     v.named = true;
@@ -39,7 +40,7 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
   OptimizeSpec o;
   o.value = op;
   if (!op.is_map()) c.fail(op.where.line ? op.where : at, "optimize", "expected a mapping with variables, objective (and constraints, method, tolerance, budget), got " + op.describe());
-  c.keys(op, "optimize", {"variables", "objective", "constraints", "method", "tolerance", "budget"});
+  c.keys(op, "optimize", schema::keys("optimize"));
   const SpecValue& vars = c.need(op, "variables", "optimize");
   if (!vars.is_list() || vars.size() == 0)
     c.fail(vars.where.line ? vars.where : op.key_location("variables"), "optimize.variables",
@@ -50,7 +51,7 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
     v.key = "optimize.variables[" + std::to_string(i) + "]";
     v.value = vars[i];
     if (!vars[i].is_map()) c.fail(vars[i], v.key, "expected a mapping {name, lower, upper[, start]}, got " + vars[i].describe());
-    c.keys(vars[i], v.key, {"name", "lower", "upper", "start"});
+    c.keys(vars[i], v.key, schema::keys("optimize.variables[]"));
     v.name = c.string(c.need(vars[i], "name", v.key), v.key + ".name");
     v.lower = c.need(vars[i], "lower", v.key);
     v.upper = c.need(vars[i], "upper", v.key);
@@ -65,7 +66,7 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
   o.objective_value = o.maximize ? obj["maximize"] : obj["minimize"];
   o.objective = c.string(o.objective_value, std::string("optimize.objective.") + (o.maximize ? "maximize" : "minimize"));
   if (const SpecValue& cs = op["constraints"]) {
-    c.keys(cs, "optimize.constraints", {"feasible", "bounds"});
+    c.keys(cs, "optimize.constraints", schema::keys("optimize.constraints"));
     if (cs["feasible"]) o.feasible = c.boolean(cs["feasible"], "optimize.constraints.feasible");
     if (const SpecValue& bs = cs["bounds"]) {
       if (!bs.is_list()) c.fail(bs, "optimize.constraints.bounds", "expected a list of {expression, lower and/or upper}, got " + bs.describe());
@@ -74,7 +75,7 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
         b.key = "optimize.constraints.bounds[" + std::to_string(i) + "]";
         b.value = bs[i];
         if (!bs[i].is_map()) c.fail(bs[i], b.key, "expected a mapping {expression, lower and/or upper}, got " + bs[i].describe());
-        c.keys(bs[i], b.key, {"expression", "lower", "upper"});
+        c.keys(bs[i], b.key, schema::keys("optimize.constraints.bounds[]"));
         b.expression = c.string(c.need(bs[i], "expression", b.key), b.key + ".expression");
         b.lower = bs[i]["lower"];
         b.upper = bs[i]["upper"];
@@ -84,11 +85,11 @@ OptimizeSpec read_optimize(const SpecReader& c, const SpecValue& op, const Sourc
     }
   }
   if (const SpecValue& m = op["method"]) {
-    o.method = c.choice(m, "optimize.method", {"slsqp", "mma", "cobyla", "bobyqa", "phase_plane"});
+    o.method = c.choice(m, "optimize.method", schema::choices("optimize", "method"));
     o.method_value = m;
   }
   if (const SpecValue& t = op["tolerance"]) {
-    c.keys(t, "optimize.tolerance", {"x", "f"});
+    c.keys(t, "optimize.tolerance", schema::keys("optimize.tolerance"));
     o.tolerance_x = t["x"];
     o.tolerance_f = t["f"];
   }

@@ -2,48 +2,27 @@
 // optimized.yaml (the scenario rewritten at the values found).
 #include "evaluator.hpp"
 
-#include <sstream>
+#include "refdyn/common/fields_json.hpp"
+#include "refdyn/io/csv.hpp"
 
 namespace refdyn {
 
 using optimize_detail::list_element;
 
-JsonValue OptimizeSummary::to_json() const {
-  JsonValue j = JsonValue::object();
-  j["method"] = method;
-  j["sense"] = maximize ? "maximize" : "minimize";
-  j["status"] = status;
-  j["message"] = message;
-  j["evaluations"] = evaluations;
-  JsonValue b = JsonValue::object();
-  for (size_t i = 0; i < variables.size() && i < best_x.size(); ++i) b[variables[i]] = best_x[i];
-  j["best"] = b;
-  if (std::isfinite(best_objective)) j["objective"] = best_objective;
-  else j["objective"] = nullptr;
-  j["feasible"] = feasible;
-  j["constraints"] = constraint_names;
-  j["wall_time_s"] = wall_time;
-  JsonValue ph = JsonValue::object();
-  for (const auto& [name, seconds] : phases) ph[name] = seconds;
-  j["phases_s"] = ph;
-  return j;
-}
+JsonValue OptimizeSummary::to_json() const { return refdyn::to_json(*this); }
 
 std::string optimization_csv(const OptimizeSummary& s) {
-  std::ostringstream o;
-  o << "index";
-  for (const auto& v : s.variables) o << "," << io::csv_text(v);
-  o << ",objective";
-  for (const auto& c : s.constraint_names) o << "," << io::csv_text(c);
-  o << ",feasible,status,reason\n";
-  for (const auto& r : s.history) {
-    o << r.index;
-    for (double x : r.x) o << "," << io::csv_number(x);
-    o << "," << io::csv_number(r.objective);
-    for (double g : r.constraints) o << "," << io::csv_number(g);
-    o << "," << (r.feasible ? 1 : 0) << "," << (r.ok ? "ok" : "failed") << "," << io::csv_text(r.reason) << "\n";
+  const FieldContext c;
+  const io::ColumnLists lists{{"x", &s.variables}, {"constraints", &s.constraint_names}};
+  std::vector<std::string> head;
+  io::csv_columns<OptimizeEvaluation>(head, c, &lists);
+  std::string out = io::csv_line(head);
+  for (const OptimizeEvaluation& r : s.history) {
+    std::vector<std::string> cells;
+    io::csv_cells(cells, r, c, &lists);
+    out += io::csv_line(cells);
   }
-  return o.str();
+  return out;
 }
 
 std::string optimized_yaml(const std::string& text, const SpecValue& root, const std::vector<std::string>& names,

@@ -11,6 +11,7 @@
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/scenario/schema.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
@@ -220,7 +221,7 @@ namespace {
 void read_time_law(SpecReader& c, const ScenarioSpec& spec) {
   const SpecValue& tl = spec.time_law;
   if (!tl) return;
-  c.keys(tl, "time_law", {"task_duration", "segments", "knot_speeds"});
+  c.keys(tl, "time_law", schema::keys("time_law"));
   const Quantity Tp = c.quantity(c.need(tl, "task_duration", "time_law"), "time_law.task_duration");
   if (!(Tp.value > 0))
     c.fail(tl["task_duration"], "time_law.task_duration", "expected the task's duration > 0 [s], got " + fmt(Tp.value));

@@ -3,6 +3,7 @@
 #include "refdyn/expression/expression.hpp"
 #include "refdyn/expression/time_law.hpp"
 #include "refdyn/scenario/registry.hpp"
+#include "refdyn/scenario/schema.hpp"
 #include "refdyn/common/text.hpp"
 
 #include <algorithm>
@@ -128,7 +129,7 @@ Vec3 SpecReader::vec3(const SpecValue& n, const std::string& key) const {
 }
 
 SE3 SpecReader::pose(const SpecValue& n, const std::string& key) const {
-  keys(n, key, {"xyz", "rpy"});
+  keys(n, key, schema::keys("pose"));
   SE3 X;
   if (n["xyz"]) X.p = vec3(n["xyz"], key + ".xyz");
   if (n["rpy"]) {
@@ -210,11 +211,11 @@ TimeFunctionPtr SpecReader::function_of_task_time(const SpecValue& n, const std:
     }
   }
   if (n.is_map()) {
-    keys(n, key, {"cycloidal", "raised_cosine"});
+    keys(n, key, schema::keys("function of t"));
     if (n.size() != 1) fail(n, key, "expected one of cycloidal or raised_cosine, got " + std::to_string(n.size()));
     if (const SpecValue& cy = n["cycloidal"]) {
       const std::string k = key + ".cycloidal";
-      keys(cy, k, {"rise", "duration", "from", "start"});
+      keys(cy, k, schema::keys("function of t.cycloidal"));
       const Number rise = quantity(need(cy, "rise", k), k + ".rise").number();
       const Number dur = quantity(need(cy, "duration", k), k + ".duration").number();
       if (!(dur > 0)) fail(cy["duration"], k + ".duration", "expected a duration > 0 [s], got " + fmt(dur));
@@ -223,7 +224,7 @@ TimeFunctionPtr SpecReader::function_of_task_time(const SpecValue& n, const std:
     }
     const SpecValue& rc = n["raised_cosine"];
     const std::string k = key + ".raised_cosine";
-    keys(rc, k, {"base", "amplitude", "period"});
+    keys(rc, k, schema::keys("function of t.raised_cosine"));
     const Number period = quantity(need(rc, "period", k), k + ".period").number();
     if (!(period > 0)) fail(rc["period"], k + ".period", "expected a period > 0 [s], got " + fmt(period));
     const Number amplitude = quantity(need(rc, "amplitude", k), k + ".amplitude").number();

@@ -1,8 +1,9 @@
 #pragma once
 /// JSON of described structs (common/fields.hpp): to_json writes the fields that go to
 /// sink::Json (in their order; keys with "{late}" expanded), from_json reads the stored ones
-/// back (null → NaN for numbers). The one JSON path of RunSummary, VariantSummary,
-/// IntegrationSummary and the feasibility report.
+/// back (null → NaN for numbers). Named values (std::vector<std::pair<std::string, double>>)
+/// are an object. The one JSON path of RunSummary, VariantSummary, IntegrationSummary, the
+/// feasibility report and OptimizeSummary.
 
 #include "refdyn/common/error.hpp"
 #include "refdyn/common/fields.hpp"
@@ -42,6 +43,10 @@ JsonValue json_of(const V& v, const FieldContext& c, const char* label, unsigned
   } else if constexpr (is_described_v<V>) {
     JsonValue o = JsonValue::object();
     write_fields_json(o, v, c, in);
+    return o;
+  } else if constexpr (std::is_same_v<V, std::vector<std::pair<std::string, double>>>) {
+    JsonValue o = JsonValue::object();  // named values: an object, in their order
+    for (const auto& [name, x] : v) o[name] = x;
     return o;
   } else {
     static_assert(is_vector<V>::value, "a field of a type the JSON writer does not know");
@@ -83,6 +88,13 @@ void read_json(const JsonValue& j, V& v, const FieldContext& c, const std::strin
     read_json(j[1], v.second, c, where);
   } else if constexpr (is_described_v<V>) {
     read_fields_json(j, v, c, where);
+  } else if constexpr (std::is_same_v<V, std::vector<std::pair<std::string, double>>>) {
+    if (!j.is_object()) throw Error(where + ": expected an object");
+    v.clear();
+    for (const auto& [name, x] : j.items()) {
+      v.emplace_back(name, 0.0);
+      read_json(x, v.back().second, c, where + "." + name);
+    }
   } else {
     if (!j.is_array()) throw Error(where + ": expected an array");
     v.resize(j.size());

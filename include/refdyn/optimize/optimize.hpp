@@ -11,6 +11,7 @@
 /// A candidate whose build or plan fails is a failed evaluation (a row with its reason), never
 /// an exception out of the optimizer. The same x is planned once (NLopt asks for the objective
 /// and the constraints separately).
+#include "refdyn/common/fields.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/expression/expression.hpp"
 #include "refdyn/scenario/problem.hpp"
@@ -142,5 +143,43 @@ std::string optimized_yaml(const std::string& text, const SpecValue& root, const
                            const std::vector<double>& values);
 /// The same, parsing `text` first (io::parse_yaml_tree).
 std::string optimized_yaml(const std::string& text, const std::vector<std::string>& names, const std::vector<double>& values);
+
+// The fields of the optimization's outputs (common/fields.hpp): summary.json's "optimization"
+// object (OptimizeSummary::to_json) and the rows of optimization.csv (optimization_csv, whose
+// vector fields are named by the summary's variables and constraint names: io::ColumnLists).
+template <>
+struct Fields<OptimizeSummary> {
+  using S = OptimizeSummary;
+  static std::string sense(const S& s) { return s.maximize ? "maximize" : "minimize"; }
+  /// The best point, variable → value.
+  static std::vector<std::pair<std::string, double>> best(const S& s) {
+    std::vector<std::pair<std::string, double>> b;
+    for (size_t i = 0; i < s.variables.size() && i < s.best_x.size(); ++i) b.emplace_back(s.variables[i], s.best_x[i]);
+    return b;
+  }
+  static constexpr unsigned in = sink::Json;
+  static constexpr auto list() {
+    return std::make_tuple(field("method", &S::method, "", in), derived("sense", &sense, "", in),
+                           field("status", &S::status, "", in), field("message", &S::message, "", in),
+                           field("evaluations", &S::evaluations, "", in), derived("best", &best, "", in),
+                           field("best_objective", &S::best_objective, "", in) | JsonKey{"objective"},  // null when not finite
+                           field("feasible", &S::feasible, "", in),
+                           field("constraint_names", &S::constraint_names, "", in) | JsonKey{"constraints"},
+                           field("wall_time", &S::wall_time, "s", in) | JsonKey{"wall_time_s"},
+                           field("phases", &S::phases, "s", in) | JsonKey{"phases_s"});
+  }
+};
+template <>
+struct Fields<OptimizeEvaluation> {
+  using S = OptimizeEvaluation;
+  static std::string status(const S& e) { return e.ok ? "ok" : "failed"; }
+  static constexpr unsigned in = sink::Csv;
+  static constexpr auto list() {
+    return std::make_tuple(field("index", &S::index, "", in), field("x", &S::x, "", in),
+                           field("objective", &S::objective, "", in), field("constraints", &S::constraints, "", in),
+                           field("feasible", &S::feasible, "", in), derived("status", &status, "", in),
+                           field("reason", &S::reason, "", in));
+  }
+};
 
 }  // namespace refdyn
