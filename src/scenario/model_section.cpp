@@ -8,6 +8,7 @@
 #include "refdyn/multibody/recursive_dynamics.hpp"
 #include "refdyn/common/json.hpp"
 #include "refdyn/common/text.hpp"
+#include "refdyn/scenario/schema.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
@@ -66,7 +67,7 @@ LinkInertia read_inertia(const SpecReader& c, const SpecValue& n, const std::str
 JointLimits read_limits(const SpecReader& c, const SpecValue& n, const std::string& key) {
   JointLimits l;
   if (!n) return l;
-  c.keys(n, key, {"lower", "upper", "velocity", "effort"});
+  c.keys(n, key, schema::keys("model.dh.joints[].limits"));
   l.lower = c.number_or(n, "lower", key, l.lower);
   l.upper = c.number_or(n, "upper", key, l.upper);
   l.velocity = c.number_or(n, "velocity", key, l.velocity);
@@ -84,7 +85,7 @@ double read_armature(const SpecReader& c, const SpecValue& n, const std::string&
 }
 
 JointType read_joint_type(const SpecReader& c, const SpecValue& n, const std::string& key) {
-  const std::string t = c.choice(n, key, {"revolute", "prismatic", "fixed"});
+  const std::string t = c.choice(n, key, schema::choices("model.links[]", "type"));
   return t == "revolute" ? JointType::Revolute : t == "prismatic" ? JointType::Prismatic : JointType::Fixed;
 }
 
@@ -129,7 +130,7 @@ void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecVal
   for (const auto& kv : ps.entries) {
     const std::string& name = kv.key;
     const std::string k = "model.points." + name;
-    c.keys(kv.value, k, {"link", "position"});
+    c.keys(kv.value, k, schema::keys("model.points"));
     const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
     Vec3 pos = Vec3::Zero();
     if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");
@@ -185,14 +186,14 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
                             std::vector<std::string>& notes) {
   const ModelNumberReader nr{c};
   const std::string key = "model";
-  c.keys(m, key, {"name", "gravity", "base", "dh", "links", "urdf", "points", "armature"});
+  c.keys(m, key, schema::keys("model"));
   const int sources = (m["dh"] ? 1 : 0) + (m["links"] ? 1 : 0) + (m["urdf"] ? 1 : 0);
   if (sources != 1) c.fail(m, key, "expected exactly one of 'dh', 'links' or 'urdf', got " + std::to_string(sources));
   ModelDescription d;
   if (const SpecValue& dh = m["dh"]) {
-    c.keys(dh, "model.dh", {"convention", "joints"});
+    c.keys(dh, "model.dh", schema::keys("model.dh"));
     DHConvention conv = DHConvention::Standard;
-    if (dh["convention"]) conv = c.choice(dh["convention"], "model.dh.convention", {"standard", "modified"}) == "standard"
+    if (dh["convention"]) conv = c.choice(dh["convention"], "model.dh.convention", schema::choices("model.dh", "convention")) == "standard"
                                      ? DHConvention::Standard : DHConvention::Modified;
     const SpecValue& js = c.need(dh, "joints", "model.dh");
     if (!js.is_list() || js.size() == 0) c.fail(js, "model.dh.joints", "expected a non-empty list of joints");
@@ -204,7 +205,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     for (size_t i = 0; i < js.size(); ++i) {
       const SpecValue& j = js[i];
       const std::string k = "model.dh.joints[" + std::to_string(i) + "]";
-      c.keys(j, k, {"name", "link", "type", "theta", "d", "a", "alpha", "mass", "com", "inertia", "limits", "armature"});
+      c.keys(j, k, schema::keys("model.dh.joints[]"));
       DHRow r;
       r.name = c.string(c.need(j, "name", k), k + ".name");
       r.type = read_joint_type(c, c.need(j, "type", k), k + ".type");
@@ -243,8 +244,7 @@ ModelDescription read_model(const SpecReader& c, const SpecValue& m, const std::
     for (size_t i = 0; i < ls.size(); ++i) {
       const SpecValue& l = ls[i];
       const std::string k = "model.links[" + std::to_string(i) + "]";
-      c.keys(l, k, {"name", "joint", "parent", "type", "axis", "origin", "link_offset", "offset", "mass", "com", "inertia", "limits",
-                    "armature"});
+      c.keys(l, k, schema::keys("model.links[]"));
       LinkSpec s;
       s.name = c.string(c.need(l, "name", k), k + ".name");
       s.joint_name = l["joint"] ? c.string(l["joint"], k + ".joint") : s.name;

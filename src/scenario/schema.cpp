@@ -2,7 +2,7 @@
 // keys and choice words, and the key tables of docs/scenario.md, come from the tables below.
 // A key is added here, read where its section is read (src/io/scenario.cpp,
 // src/io/scenario_sections.cpp, src/scenario/problem.cpp) and documented by `refdyn kinds
-// --sections` (paste its output into docs/scenario.md; tests/schema_test.cpp checks the page).
+// --sections` (paste its output into docs/scenario.md; tests/registry_test.cpp checks the page).
 #include "refdyn/scenario/schema.hpp"
 
 #include <functional>
@@ -41,7 +41,7 @@ Section root_section() {
        "counts `projections` and `max_projection_correction` are in the plan summary (docs/implicit.md)", {}},
       {"solver", "word", "", "auto", "",
        "`projection` (the paper's reduced form), `lagrange` (KKT) or `auto` (default): `lagrange` from 7 coordinates "
-       "on, else `projection` (the measured crossover, `kLagrangeFrom` in reference_dynamics.hpp; bench/README.md). "
+       "on, else `projection` (the measured crossover, `kLagrangeFrom` in common/crossovers.hpp; bench/README.md). "
        "Both give the same q̈ to rounding (cond(M)·ε); with `projection` the partition (`independent`) is still "
        "checked and reported, but the solve of models above 4 coordinates does not depend on its conditioning",
        {"projection", "lagrange", "auto"}},
@@ -174,7 +174,7 @@ std::vector<Section> run_sections() {
 }
 
 /// optimize: and its parts; model.urdf:.
-std::vector<Section> optimize_and_model_sections() {
+std::vector<Section> optimize_sections() {
   return {
       {"optimize", "the task parameters to choose (docs/optimize.md)", {
           {"variables", "list", "yes", "", "", "`{name, lower, upper, start}` per variable", {}},
@@ -203,6 +203,67 @@ std::vector<Section> optimize_and_model_sections() {
       {"optimize.tolerance", "the relative stopping tolerances", {
           {"x", "number ≥ 0", "", "1e-6", "", "on the variables", {}},
           {"f", "number ≥ 0", "", "1e-9", "", "on the objective", {}},
+      }},
+  };
+}
+
+/// The model section's own tables (read in src/scenario/model_section.cpp).
+std::vector<Section> model_sections() {
+  const Key inertia{"inertia", "[Ixx, Iyy, Izz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] or a 3×3 list", "", "0", "kg m²",
+                    "about the centre of mass, in link axes", {}};
+  const Key mass{"mass", "number ≥ 0", "", "0", "kg", "the link's mass", {}};
+  const Key limits{"limits", "mapping", "", "none", "", "the joint's limits (`model.dh.joints[].limits` below)", {}};
+  const Key armature{"armature", "number ≥ 0", "", "0", "kg m² (kg: prismatic)",
+                     "rotor inertia reflected to the joint, I_r N² (or under `model.armature`)", {}};
+  return {
+      {"model", "the mechanism: exactly one of `dh`, `links`, `urdf`", {
+          {"name", "text", "", "the scenario's name", "", "the model's name", {}},
+          {"gravity", "[x, y, z]", "", "[0, 0, -9.81]", "m/s²", "gravity in the world frame", {}},
+          {"base", "pose", "", "identity", "", "the base frame's pose in the world (`{xyz, rpy}`)", {}},
+          {"dh", "mapping", "", "", "", "a serial chain by Denavit–Hartenberg rows (`model.dh` below)", {}},
+          {"links", "list", "", "", "", "links with joint origins (`model.links[]` below)", {}},
+          {"urdf", "mapping", "", "", "", "a URDF file (`model.urdf` below)", {}},
+          {"points", "mapping", "", "", "", "`{name: {link, position}}`: named points (`model.points` below)", {}},
+          {"armature", "mapping", "", "", "", "`{joint: a}`: a joint's armature for any model (replaces a URDF's)", {}},
+      }},
+      {"model.dh", "a serial chain by DH rows; the joint variable is added to θ (revolute) or d (prismatic)", {
+          {"convention", "word", "", "standard", "", "`standard` or `modified` DH", {"standard", "modified"}},
+          {"joints", "list", "yes", "", "", "one row per joint, base to tip (`model.dh.joints[]` below)", {}},
+      }},
+      {"model.dh.joints[]", "one DH row: a joint and the link it moves", {
+          {"name", "text", "yes", "", "", "the joint's name", {}},
+          {"link", "text", "", "the joint's name", "", "the link's name", {}},
+          {"type", "word", "yes", "", "", "`revolute`, `prismatic` or `fixed`", {"revolute", "prismatic", "fixed"}},
+          {"theta", "number", "", "0", "rad", "θ", {}},
+          {"d", "number", "", "0", "m", "d", {}},
+          {"a", "number", "", "0", "m", "a", {}},
+          {"alpha", "number", "", "0", "rad", "α", {}},
+          mass,
+          {"com", "[x, y, z]", "", "[0, 0, 0]", "m", "the centre of mass in the link's DH frame", {}},
+          inertia, limits, armature,
+      }},
+      {"model.links[]", "one link and the joint that moves it", {
+          {"name", "text", "yes", "", "", "the link's name", {}},
+          {"joint", "text", "", "the link's name", "", "the joint's name", {}},
+          {"parent", "link or `base`", "", "base", "", "a link listed before, or `base` (`world`)", {}},
+          {"type", "word", "yes", "", "", "`revolute`, `prismatic` or `fixed`", {"revolute", "prismatic", "fixed"}},
+          {"axis", "[x, y, z]", "", "[0, 0, 1]", "", "the joint axis in the joint frame (normalized)", {}},
+          {"origin", "pose", "", "identity", "", "the joint frame in the parent link's frame", {}},
+          {"link_offset", "pose", "", "identity", "", "the link frame in the moved joint frame", {}},
+          {"offset", "number", "", "0", "rad or m", "added to the joint variable", {}},
+          mass,
+          {"com", "[x, y, z]", "", "[0, 0, 0]", "m", "the centre of mass in the link frame", {}},
+          inertia, limits, armature,
+      }},
+      {"model.dh.joints[].limits", "a joint's limits, here and under `model.links[]` (leave one out: unlimited)", {
+          {"lower", "number", "", "−∞", "rad or m", "lowest position", {}},
+          {"upper", "number", "", "+∞", "rad or m", "highest position", {}},
+          {"velocity", "number ≥ 0", "", "∞", "rad/s or m/s", "largest speed", {}},
+          {"effort", "number ≥ 0", "", "∞", "N m or N", "largest effort", {}},
+      }},
+      {"model.points", "one named point: `{name: {link, position}}`", {
+          {"link", "link, `world` or `base`", "yes", "", "", "the link it is fixed to", {}},
+          {"position", "[x, y, z]", "", "[0, 0, 0]", "m", "in that link's frame", {}},
       }},
       {"model.urdf", "a model read from a URDF file (`model:` below)", {
           {"file", "path", "yes", "", "", "the URDF file, relative to the scenario file", {}},
@@ -241,7 +302,7 @@ std::vector<Section> value_forms() {
 
 std::vector<Section> all_sections() {
   std::vector<Section> all{root_section()};
-  for (auto* part : {&solver_sections, &run_sections, &optimize_and_model_sections, &value_forms})
+  for (auto* part : {&solver_sections, &run_sections, &model_sections, &optimize_sections, &value_forms})
     for (Section& s : part()) all.push_back(std::move(s));
   return all;
 }

@@ -3,8 +3,8 @@
 /// type as written, whether it is required, default, unit, one line of documentation, and the
 /// words of a choice). The reader's unknown-key checks (SpecReader::keys), its choice lists,
 /// the key tables of docs/scenario.md (`refdyn kinds --sections`, checked by
-/// tests/schema_test.cpp) and the defaults' agreement with the option structs
-/// (tests/schema_test.cpp) come from these tables; src/scenario/schema.cpp holds them.
+/// tests/registry_test.cpp) and the defaults' agreement with the option structs
+/// (tests/registry_test.cpp) come from these tables; src/scenario/schema.cpp holds them.
 ///
 /// The entries of the registries (constraint kinds, force elements, controllers) declare
 /// their own keys (scenario/registry.hpp, KeyDoc); this file declares the fixed sections.
