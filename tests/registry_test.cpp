@@ -269,6 +269,28 @@ model:
       {"initial: {q: [0.1]}\nintegrater: {}\n", "integrater: unknown key 'integrater' (did you mean 'integrator'?)"},
   };
   for (const auto& [text, message] : cases) test::expect_error_mentioning([&] { io::parse_scenario(base + text, "bare.yaml"); }, {message});
+  // The model section (read when the problem is built) and a Monte Carlo distribution.
+  const std::string link = "{name: l1, joint: q1, parent: base, type: revolute, axis: [0, 1, 0], mass: 1}";
+  const std::vector<std::pair<std::string, std::string>> built{
+      {"model:\n  gravty: [0, 0, -9.81]\n  links:\n    - " + link + "\ninitial: {q: [0.1]}\n",
+       "model.gravty: unknown key 'gravty' (did you mean 'gravity'?)"},
+      {"model:\n  links:\n    - {name: l1, typ: revolute}\ninitial: {q: [0.1]}\n",
+       "model.links[0].typ: unknown key 'typ' (did you mean 'type'?)"},
+      {"model:\n  links:\n    - {name: l1, type: revolute, limits: {lowr: -1}}\ninitial: {q: [0.1]}\n",
+       "model.links[0].limits.lowr: unknown key 'lowr' (did you mean 'lower'?)"},
+      {"model:\n  dh:\n    joints:\n      - {name: q1, type: revolute, alpah: 0}\ninitial: {q: [0.1]}\n",
+       "model.dh.joints[0].alpah: unknown key 'alpah' (did you mean 'alpha'?)"},
+      {"model:\n  links:\n    - " + link + "\n  points: {E: {link: l1, positon: [1, 0, 0]}}\ninitial: {q: [0.1]}\n",
+       "model.points.E.positon: unknown key 'positon' (did you mean 'position'?)"},
+      {"model:\n  links:\n    - " + link + "\ninitial: {q: [0.1]}\ncontroller: {type: pd_gravity, kp: 1, kd: 1}\n"
+       "experiments:\n  - {name: mc, monte_carlo: {samples: 2, seed: 1, distributions: {m: {normall: {mean: 1, std: 0}}}}}\n",
+       "unknown distribution 'normall' (did you mean 'normal'?)"},
+      {"model:\n  links:\n    - " + link + "\ninitial: {q: [0.1]}\ncontroller: {type: pd_gravity, kp: 1, kd: 1}\n"
+       "experiments:\n  - {name: mc, monte_carlo: {samples: 2, seed: 1, distributions: {m: {uniform: {low: 0, hihg: 1}}}}}\n",
+       "uniform.hihg: unknown key 'hihg' (did you mean 'high'?)"},
+  };
+  for (const auto& [text, message] : built)
+    test::expect_error_mentioning([&] { io::parse_problem("name: bare\n" + text, "bare.yaml"); }, {message});
 }
 
 TEST(Schema, TheChoiceWordsAreTheEnumsNames) {

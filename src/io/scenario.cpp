@@ -266,7 +266,7 @@ MonteCarloSpec monte_carlo(const SpecReader& c, const SpecValue& mc, const std::
     c.fail(ds, key + ".distributions",
            "expected a mapping  name: {normal: {mean: ..., std: ...}} or {uniform: {low: ..., high: ...}}  with at least "
            "one parameter, got " + ds.describe());
-  static const std::vector<std::string> kinds{"normal", "uniform"};
+  const std::vector<std::string>& kinds = schema::keys("monte_carlo.distributions.<p>");
   for (const auto& en : ds.entries) {
     const std::string dk = key + ".distributions." + en.key;
     const SpecValue& d = en.value;
@@ -275,12 +275,13 @@ MonteCarloSpec monte_carlo(const SpecReader& c, const SpecValue& mc, const std::
              "expected exactly one distribution, {normal: {mean: ..., std: ...}} or {uniform: {low: ..., high: ...}}, got " +
                  (d.is_map() ? std::to_string(d.size()) + " entries" : d.describe()));
     const SpecValue::Entry& kind = d.entries[0];
-    if (kind.key != "normal" && kind.key != "uniform")
+    if (std::find(kinds.begin(), kinds.end(), kind.key) == kinds.end())
       c.fail(SourceLocation{d.where.file, kind.key_line}, dk + "." + kind.key,
              "unknown distribution '" + kind.key + "'" + did_you_mean(kind.key, kinds));
-    const bool normal = kind.key == "normal";
-    const std::string first = normal ? "mean" : "low", second = normal ? "std" : "high";
-    c.keys(kind.value, dk + "." + kind.key, {first, second});
+    const std::vector<std::string>& ab = schema::keys("monte_carlo.distributions.<p>." + kind.key);  // {a, b}
+    const std::string& first = ab.at(0);
+    const std::string& second = ab.at(1);
+    c.keys(kind.value, dk + "." + kind.key, ab);
     DistributionSpec s;
     s.parameter = en.key;
     s.kind = kind.key;

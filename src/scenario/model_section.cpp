@@ -130,7 +130,7 @@ void read_points(const SpecReader& c, const ModelNumberReader& nr, const SpecVal
   for (const auto& kv : ps.entries) {
     const std::string& name = kv.key;
     const std::string k = "model.points." + name;
-    c.keys(kv.value, k, schema::keys("model.points"));
+    c.keys(kv.value, k, schema::keys("model.points.<name>"));
     const std::string link = c.string(c.need(kv.value, "link", k), k + ".link");
     Vec3 pos = Vec3::Zero();
     if (kv.value["position"]) pos = c.vec3(kv.value["position"], k + ".position");

@@ -151,6 +151,18 @@ std::vector<Section> run_sections() {
           {"distributions", "mapping", "yes", "", "",
            "`{p: {normal: {mean: μ, std: σ}}}` (σ ≥ 0) or `{p: {uniform: {low: a, high: b}}}` (a ≤ b), in the order drawn", {}},
       }},
+      {"monte_carlo.distributions.<p>", "the distribution of parameter p: exactly one of", {
+          {"normal", "mapping", "", "", "", "`{mean, std}`: a normal distribution", {}},
+          {"uniform", "mapping", "", "", "", "`{low, high}`: a uniform distribution", {}},
+      }},
+      {"monte_carlo.distributions.<p>.normal", "a normal distribution (p's unit)", {
+          {"mean", "number", "yes", "", "", "μ", {}},
+          {"std", "number ≥ 0", "yes", "", "", "σ", {}},
+      }},
+      {"monte_carlo.distributions.<p>.uniform", "a uniform distribution on [low, high] (p's unit)", {
+          {"low", "number", "yes", "", "", "a", {}},
+          {"high", "number ≥ low", "yes", "", "", "b", {}},
+      }},
       {"variants", "a family of tasks (below)", {
           {"name", "text", "", "v<k>", "", "the variant's folder name, with `{param}` as for experiments", {}},
           {"sweep", "mapping", "", "", "", "`{param: [values]}`: one variant per value", {}},
@@ -223,7 +235,7 @@ std::vector<Section> model_sections() {
           {"dh", "mapping", "", "", "", "a serial chain by Denavit–Hartenberg rows (`model.dh` below)", {}},
           {"links", "list", "", "", "", "links with joint origins (`model.links[]` below)", {}},
           {"urdf", "mapping", "", "", "", "a URDF file (`model.urdf` below)", {}},
-          {"points", "mapping", "", "", "", "`{name: {link, position}}`: named points (`model.points` below)", {}},
+          {"points", "mapping", "", "", "", "`{name: {link, position}}`: named points (`model.points.<name>` below)", {}},
           {"armature", "mapping", "", "", "", "`{joint: a}`: a joint's armature for any model (replaces a URDF's)", {}},
       }},
       {"model.dh", "a serial chain by DH rows; the joint variable is added to θ (revolute) or d (prismatic)", {
@@ -261,7 +273,7 @@ std::vector<Section> model_sections() {
           {"velocity", "number ≥ 0", "", "∞", "rad/s or m/s", "largest speed", {}},
           {"effort", "number ≥ 0", "", "∞", "N m or N", "largest effort", {}},
       }},
-      {"model.points", "one named point: `{name: {link, position}}`", {
+      {"model.points.<name>", "one named point: `points: {name: {link, position}}`", {
           {"link", "link, `world` or `base`", "yes", "", "", "the link it is fixed to", {}},
           {"position", "[x, y, z]", "", "[0, 0, 0]", "m", "in that link's frame", {}},
       }},
