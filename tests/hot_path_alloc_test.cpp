@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstdlib>
 
 extern "C" void* __libc_malloc(size_t);
@@ -100,4 +101,37 @@ TEST(HotPathAllocation, ControllerAndDynamics) {
     inverse_dynamics(ex.model, data, q, qd, qdd);
   }
   EXPECT_EQ(g_mallocs - before, 0);
+}
+
+// A recorded motion stores each series in one buffer (SampleSeries): a plan and a closed-loop
+// run twice as long make a handful more allocations (buffer growth), not one per sample and series.
+TEST(HotPathAllocation, RecordingAllocatesPerSeriesNotPerSample) {
+  models::PaperExample ex;
+  ReferenceDynamics rd(ex.model, ex.forces, ex.constraints, ex.options());
+  ComputedTorquePD ctrl(ex.model, Eigen::Vector3d(40, 3, 60));
+  const Eigen::VectorXd x0 = rd.make_state(ex.q0(), Eigen::VectorXd::Zero(3));
+  long plan_mallocs[2], run_mallocs[2];
+  size_t samples[2];
+  for (int i = 0; i < 2; ++i) {
+    IntegratorOptions io;
+    io.t0 = 0, io.t1 = 0.25 * (i + 1), io.step = 1e-3;
+    long before = g_mallocs;
+    const Plan plan = plan_motion(rd, x0, {io});
+    plan_mallocs[i] = g_mallocs - before;
+    ASSERT_TRUE(plan.summary.ok()) << plan.summary.message;
+    samples[i] = plan.size();
+    ClosedLoopOptions o;
+    o.integrator = io;
+    before = g_mallocs;
+    const ClosedLoopResult run = simulate_closed_loop(ex.model, ex.forces, ctrl, plan, nullptr, plan.x.front(), o);
+    run_mallocs[i] = g_mallocs - before;
+    ASSERT_TRUE(run.summary.ok()) << run.summary.message;
+    ASSERT_EQ(run.size(), plan.size());
+  }
+  ASSERT_EQ(samples[1], 2 * samples[0] - 1);  // 251 and 501 samples
+  std::printf("mallocs: plan %ld then %ld, closed loop %ld then %ld (samples %zu then %zu)\n", plan_mallocs[0],
+              plan_mallocs[1], run_mallocs[0], run_mallocs[1], samples[0], samples[1]);
+  // One allocation per sample and series would add 250 × (8 plan series, 4 run series).
+  EXPECT_LT(plan_mallocs[1] - plan_mallocs[0], 40) << plan_mallocs[0] << " then " << plan_mallocs[1];
+  EXPECT_LT(run_mallocs[1] - run_mallocs[0], 40) << run_mallocs[0] << " then " << run_mallocs[1];
 }

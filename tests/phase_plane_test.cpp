@@ -133,6 +133,10 @@ TEST(PhasePlaneOptimize, RetimingConvergesInKAndItsOptimumHoldsAtAnyStep) {
                   T, Tstar, 100 * (T / Tstar - 1), r.summary.evaluations, r.summary.message.c_str());
       EXPECT_GT(T, Tstar);
       EXPECT_LT(T, previous);
+      // The T* the summary reports (a knot at every path sample, extrapolated in K) is the
+      // reference's, whatever K the law has.
+      EXPECT_NEAR(r.summary.time_optimum, Tstar, 1e-4 * Tstar) << "K = " << K;
+      EXPECT_NE(r.summary.message.find("T* ≈ " + fmt(r.summary.time_optimum)), std::string::npos) << r.summary.message;
       // refdyn's plan of the K-part law is within the limits, or exceeds one by rounding-level
       // amounts between the path samples (then one lowering by that excess and 1e-4)
       EXPECT_LE(r.summary.evaluations, 2);
@@ -237,6 +241,8 @@ TEST(PhasePlaneOptimize, RotorBangBangMatchesTheClosedForm) {
               100 * (r.summary.best_objective / Tstar - 1), r.summary.evaluations, r.summary.message.c_str());
   EXPECT_GE(r.summary.best_objective, Tstar * (1 - 1e-9));
   EXPECT_LT(r.summary.best_objective, Tstar * 1.002);
+  // The reported time optimum: the fine laws switch on a knot too, so both are T* itself.
+  EXPECT_NEAR(r.summary.time_optimum, Tstar, 1e-9 * Tstar);
 }
 
 // Issue 23, item 3 / example 4c: the circle retimed by `refdyn optimize` (method phase_plane)

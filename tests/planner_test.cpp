@@ -58,7 +58,7 @@ bool same_bits(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return a.size() == b.size() && (a.size() == 0 || std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0);
 }
 
-void expect_same_series(const std::vector<Eigen::VectorXd>& a, const std::vector<Eigen::VectorXd>& b, const char* what) {
+void expect_same_series(const SampleSeries& a, const SampleSeries& b, const char* what) {
   ASSERT_EQ(a.size(), b.size()) << what;
   for (size_t k = 0; k < a.size(); ++k) ASSERT_TRUE(same_bits(a[k], b[k])) << what << " differs at sample " << k;
 }

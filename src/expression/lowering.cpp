@@ -268,6 +268,17 @@ ex parameter(double v) {
 /// n = 3.3e30 running for minutes in GMP).
 constexpr double kMaxSymbolicExponent = 4096;
 
+/// A constant's value as a real number (itself when it is one; evalf of an expression without
+/// symbols, such as e, pi^2 or 3^e); else the expression unchanged. The powers inside a constant
+/// went through power() already, so evaluating it stays within kMaxExactPowerBits.
+ex value_if_constant(const ex& e) {
+  if (real_number(e)) return e;
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) return e;
+  const ex v = e.evalf();
+  return real_number(v) ? v : e;
+}
+
 ex power(const ex& b, const ex& p) {
   if (real_number(b) && num(b).is_zero() && real_number(p) && num(p).is_negative())
     throw std::domain_error("division by zero");  // 0^negative, before GiNaC (see Product)
@@ -276,12 +287,16 @@ ex power(const ex& b, const ex& p) {
     throw std::domain_error("the integer exponent " + to_text(p) + " of a non-constant base is larger than " +
                             fmt(kMaxSymbolicExponent) + " in magnitude");
   // Integer or not: a power of numbers too large to represent exactly (a float tower such as
-  // 2.^4.^2.^2.1 made CLN ask for a 70 GB block) is computed in double precision.
-  if (real_number(b) && real_number(p) && !num(b).is_zero()) {
-    const double bits = std::fabs(num(p).to_double()) *
-                        std::max(1.0, std::fabs(std::log2(std::fabs(num(b).to_double()))));
+  // 2.^4.^2.^2.1 made CLN ask for a 70 GB block) is computed in double precision. Constants that
+  // are not numbers yet (3666666^e, pi^…) count by their values (value_if_constant): GiNaC keeps such a power
+  // unevaluated and evalf later builds it exactly (a fuzzer found 6336^33333333336316666668^3666666^e
+  // asking CLN for 1e18 bytes).
+  const ex bv = value_if_constant(b), pv = value_if_constant(p);
+  if (real_number(bv) && real_number(pv) && !num(bv).is_zero()) {
+    const double bits = std::fabs(num(pv).to_double()) *
+                        std::max(1.0, std::fabs(std::log2(std::fabs(num(bv).to_double()))));
     if (bits > kMaxExactPowerBits) {
-      const double v = std::pow(num(b).to_double(), num(p).to_double());
+      const double v = std::pow(num(bv).to_double(), num(pv).to_double());
       if (!std::isfinite(v) && v != 0.0)
         throw BadConstant{"evaluates to " + fmt(v), to_text(b) + "^" + to_text(p), true};
       return GiNaC::numeric(cln::cl_float(v, cln::float_format_dfloat));

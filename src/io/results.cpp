@@ -127,7 +127,8 @@ Results run_problem(const Problem& p, const RunOptions& o) {
   res.plan = plan_problem(p, *res.planner, o.progress ? o.progress("planning", p.integrator.t0, p.integrator.t1)
                                                  : std::function<void(double)>());
   const int n = p.model.nv;
-  std::vector<Eigen::VectorXd> q, qd;
+  SampleSeries q, qd;
+  q.reserve(res.plan.x.size()), qd.reserve(res.plan.x.size());
   for (const auto& x : res.plan.x) q.push_back(x.head(n)), qd.push_back(x.segment(n, n));
   res.feasibility = assess_feasibility(p.model, res.plan.t, q, qd, res.plan.qdd, res.plan.actuator_effort);
   if (!res.plan.summary.ok()) {

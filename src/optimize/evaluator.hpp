@@ -220,6 +220,6 @@ inline std::string trimmed(const std::string& t) {
 
 /// method: phase_plane (phase_plane_run.cpp).
 std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli,
-                            std::vector<std::pair<std::string, double>>& phases);
+                            std::vector<std::pair<std::string, double>>& phases, double& time_optimum);
 
 }  // namespace refdyn::optimize_detail

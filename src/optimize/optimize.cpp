@@ -394,7 +394,7 @@ OptimizeResult optimize_scenario(const ScenarioSpec& spec, const OptimizeOptions
   const auto search_start = std::chrono::steady_clock::now();
   try {
     if (s.method == OptimizeMethod::PhasePlane) {
-      sum.message = run_phase_plane(spec, s, ev, !options.method.empty(), sum.phases);
+      sum.message = run_phase_plane(spec, s, ev, !options.method.empty(), sum.phases, sum.time_optimum);
       res = nlopt::SUCCESS;  // failure when no plan of it is feasible (below)
     } else {
       nlopt::opt opt = make_nlopt(s, n, m, ev);

@@ -240,6 +240,21 @@ std::vector<double> phase_plane_knot_law(const PathDynamics& path, int K, const 
   return x;
 }
 
+double phase_plane_time_optimum(const PathDynamics& path, const PhasePlaneLimits& limits, double max_x) {
+  const int fine = static_cast<int>(path.tau.size()) - 1, half = fine / 2;
+  if (half < 2) return std::numeric_limits<double>::quiet_NaN();
+  const double task = path.tau.back() - path.tau.front();
+  auto fastest = [&](int K) {
+    const std::vector<double> lower(static_cast<size_t>(K) + 1, 0.0), upper(static_cast<size_t>(K) + 1, max_x);
+    return knot_law_duration(phase_plane_knot_law(path, K, limits, lower, upper), task);
+  };
+  try {
+    return 2 * fastest(fine) - fastest(half);
+  } catch (const Error&) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
 double knot_law_duration(const std::vector<double>& x, double Tp) {
   const double delta = Tp / static_cast<double>(x.size() - 1);
   double T = 0;

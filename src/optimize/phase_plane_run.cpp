@@ -156,13 +156,27 @@ PhasePlaneLimits joint_limits(const Model& m, const MethodFailure& fail_method) 
 /// that plan exceeds a limit, the limits are lowered by the excess and TOPP-RA runs again (at
 /// most 8 times). Returns the run's message.
 std::string retime(const PathDynamics& path, size_t K, const std::vector<size_t>& var_of, const OptimizeSetup& s,
-                   const PhasePlaneLimits& limits, Evaluator& ev, std::vector<std::pair<std::string, double>>& phases) {
+                   const PhasePlaneLimits& limits, Evaluator& ev, std::vector<std::pair<std::string, double>>& phases,
+                   double& time_optimum) {
   std::vector<double> lo(K + 1, 0.0), hi(K + 1, 0.0);
   for (size_t i = 0; i < var_of.size(); ++i) {
     lo[i + 1] = s.lower[var_of[i]] > 0 ? s.lower[var_of[i]] * s.lower[var_of[i]] : 0.0;
     hi[i + 1] = s.upper[var_of[i]] * s.upper[var_of[i]];
   }
   const double task = path.tau.back() - path.tau.front();
+  {  // what the answer is judged against: the path's own time optimum (a knot at every path sample)
+    const auto start = std::chrono::steady_clock::now();
+    time_optimum = phase_plane_time_optimum(path, limits, *std::max_element(hi.begin(), hi.end()));
+    phases.emplace_back("time_optimum", since(start));
+    phases.emplace_back("topp_ra", 0.0);
+  }
+  // "; T* ≈ … s: the answer is +x % over it" (nothing when T* could not be estimated)
+  auto versus = [&](double T) {
+    if (!std::isfinite(time_optimum)) return std::string();
+    return "; the path's time optimum under these limits T* ≈ " + fmt(time_optimum) + " s (a knot at every path " +
+           "sample, extrapolated): this answer is " + (T >= time_optimum ? "+" : "") +
+           fmt(std::round(1e4 * (T / time_optimum - 1)) / 100) + " % over it";
+  };
   double mu = 1, first = 0;
   for (int round = 0;; ++round) {
     const PhasePlaneLimits L{limits.effort * mu, limits.speed * mu};
@@ -184,7 +198,8 @@ std::string retime(const PathDynamics& path, size_t K, const std::vector<size_t>
     if (r.feasible)
       return head + (mu < 1 ? "; refdyn's plan of it exceeded the limits, so they were lowered to " + fmt(mu) +
                                   " of the joints' (" + std::to_string(round + 1) + " plans): " + fmt(r.objective) + " s"
-                            : "; refdyn's plan of it is within the limits");
+                            : "; refdyn's plan of it is within the limits") +
+             versus(r.objective);
     if (!r.ok) return head + "; its plan failed: " + r.reason;
     double excess = 0;
     for (size_t i = 0; i < s.constraints.size(); ++i) {
@@ -209,7 +224,7 @@ std::string retime(const PathDynamics& path, size_t K, const std::vector<size_t>
 /// where s̈ jumps at a knot), the limits given to TOPP-RA are lowered by the excess and it runs
 /// again (at most 8 times). Every plan is a row of the history.
 std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Evaluator& ev, bool from_cli,
-                            std::vector<std::pair<std::string, double>>& phases) {
+                            std::vector<std::pair<std::string, double>>& phases, double& time_optimum) {
   const SpecReader c = parameter_reader(spec);
   const MethodFailure fail_method{*spec.optimize, c, from_cli};
   check_section(spec, c, fail_method);
@@ -221,9 +236,8 @@ std::string run_phase_plane(const ScenarioSpec& spec, const OptimizeSetup& s, Ev
   const Model& m = own.problem->model;
   const PathDynamics path = path_of(m, own.plan, fail_method);
   phases.emplace_back("path", since(path_start));
-  phases.emplace_back("topp_ra", 0.0);
   const PhasePlaneLimits limits = joint_limits(m, fail_method);
-  return retime(path, K, var_of, s, limits, ev, phases);
+  return retime(path, K, var_of, s, limits, ev, phases, time_optimum);
 }
 
 }  // namespace refdyn::optimize_detail

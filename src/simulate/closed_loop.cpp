@@ -462,13 +462,13 @@ class ClosedLoopRun {
     out.tau.push_back(w_.tau);
     out.q_ref.push_back(w_.qr);
     out.qd_ref.push_back(w_.qdr);
-    Eigen::VectorXd pts(3 * options_.points.size());
+    pts_.resize(3 * static_cast<Eigen::Index>(options_.points.size()));
     if (!options_.points.empty()) {
       forward_kinematics(plant_, kin_, w_.q);
       for (size_t k = 0; k < options_.points.size(); ++k)
-        pts.segment<3>(3 * k) = point_position(plant_, kin_, options_.points[k]);
+        pts_.segment<3>(3 * k) = point_position(plant_, kin_, options_.points[k]);
     }
-    out.point_positions.push_back(std::move(pts));
+    out.point_positions.push_back(pts_);
     if (w_.constrained) {  // the material rows and their reactions at this sample
       const ConstrainedPlant& p = *w_.constrained;
       const ConstraintEval& ev = p.rd->constraints();
@@ -500,7 +500,7 @@ class ClosedLoopRun {
   int n_, nz_, nc_, nx_;
   PlantWorkspace w_;
   Data kin_;
-  Eigen::VectorXd xp_projected_;
+  Eigen::VectorXd xp_projected_, pts_;  // workspaces (pts_: the recorded points of a sample)
 };
 
 }  // namespace

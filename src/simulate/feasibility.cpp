@@ -20,9 +20,9 @@ std::string num(double x) {
 }  // namespace
 
 FeasibilityReport assess_feasibility(const Model& model, const std::vector<double>& t,
-                                     const std::vector<Eigen::VectorXd>& q, const std::vector<Eigen::VectorXd>& qd,
-                                     const std::vector<Eigen::VectorXd>& qdd,
-                                     const std::vector<Eigen::VectorXd>& effort) {
+                                     const SampleSeries& q, const SampleSeries& qd,
+                                     const SampleSeries& qdd,
+                                     const SampleSeries& effort) {
   const size_t K = t.size();
   if (q.size() != K || qd.size() != K || qdd.size() != K || effort.size() != K)
     throw Error(expected_got("feasibility samples", std::to_string(K) + " of each of q, qd, qdd, effort",
@@ -49,7 +49,7 @@ FeasibilityReport assess_feasibility(const Model& model, const std::vector<doubl
       const char* what;
       double limit;
       bool upper;
-      const std::vector<Eigen::VectorXd>* v;
+      const SampleSeries* v;
       bool absolute;
     };
     const Check checks[] = {{"position", jf.limits.upper, true, &q, false},

@@ -19,7 +19,7 @@ Metric make(std::string name, MetricKind kind, int joint) {
 }
 
 // max over samples of |series[k][j]| with its sample and sign; NaN samples are skipped.
-void peak_abs(const std::vector<Eigen::VectorXd>& series, int j, long offset, Metric& m) {
+void peak_abs(const SampleSeries& series, int j, long offset, Metric& m) {
   m.value = 0;
   m.sample = series.empty() ? -1 : 0;
   for (size_t k = 0; k < series.size(); ++k) {
@@ -125,7 +125,7 @@ std::vector<Metric> plan_metrics(const Model& model, const Plan& plan, double re
       if (k > 0 && std::abs(plan.t[k - 1] - 0.5 * (ta + tb)) < std::abs(plan.t[k] - 0.5 * (ta + tb))) --k;
       k0 = k1 = k;
     }
-    auto part = [&](const char* base, MetricKind kind, const std::vector<Eigen::VectorXd>& series, long offset) {
+    auto part = [&](const char* base, MetricKind kind, const SampleSeries& series, long offset) {
       for (int j = 0; j < n; ++j) {
         Metric m = make(std::string(base) + std::to_string(i) + "(" + model.joint_name[j] + ")", kind, j);
         m.value = 0;

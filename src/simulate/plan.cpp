@@ -37,9 +37,10 @@ struct SecondOrderSource {
   void row_names(Plan& plan, bool& any_material) const { set_rows(constraint_set(), plan, any_material); }
   void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { rd.derivative(t, x, dx); }
   /// q̈ is the dynamics' output: not a number where it failed.
-  Eigen::VectorXd qdd(const Eigen::VectorXd&, const Eigen::VectorXd& dx, bool ok) const {
+  void qdd(const Eigen::VectorXd&, const Eigen::VectorXd& dx, bool ok, Eigen::VectorXd& out) const {
     const int n = rd.nq();
-    return ok ? Eigen::VectorXd(dx.segment(n, n)) : Eigen::VectorXd::Constant(n, std::nan(""));
+    if (ok) out = dx.segment(n, n);
+    else out.setConstant(n, std::nan(""));
   }
   /// The kinematics of the evaluation (a failed one may not have reached them: done here).
   const Data& kinematics(const Eigen::VectorXd& q, bool ok) {
@@ -90,8 +91,8 @@ struct JerkSource {
   }
   void derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) { jd.derivative(t, x, dx); }
   /// q̈ is part of the state.
-  Eigen::VectorXd qdd(const Eigen::VectorXd& x, const Eigen::VectorXd&, bool) const {
-    return x.segment(2 * jd.nq(), jd.nq());
+  void qdd(const Eigen::VectorXd& x, const Eigen::VectorXd&, bool, Eigen::VectorXd& out) const {
+    out = x.segment(2 * jd.nq(), jd.nq());
   }
   const Data& kinematics(const Eigen::VectorXd& q, bool) {
     forward_kinematics(jd.model(), data, q);
@@ -133,7 +134,7 @@ class PlanRecorder {
       for (size_t k = 0; k < fs->elements().size(); ++k) {
         const auto& e = fs->elements()[k];
         const auto names = e->signal_names();
-        if (!names.empty()) signal_elements_.push_back(static_cast<int>(k));
+        if (!names.empty()) signal_elements_.push_back(static_cast<int>(k)), signal_counts_.push_back(names.size());
         plan.force_signals.insert(plan.force_signals.end(), names.begin(), names.end());
         if (e->actuator()) actuators_.push_back(static_cast<int>(k));
       }
@@ -159,52 +160,65 @@ class PlanRecorder {
     const ForceSet* fs = src_.forces();
     const double nan = std::nan("");
     const bool ok = ok_;
-    q_ = x.head(n_);  // workspaces: no allocation per sample for them
+    q_ = x.head(n_);  // workspaces (members): no allocation per sample
     qd_ = x.segment(n_, n_);
     const Eigen::VectorXd& q = q_;
     const Eigen::VectorXd& qd = qd_;
     const double* z = fs && fs->num_states() ? x.data() + src_.z_offset() : nullptr;
-    plan_.qdd.push_back(src_.qdd(x, dx_, ok));
+    src_.qdd(x, dx_, ok, qdd_);
+    plan_.qdd.push_back(qdd_);
     const Data& data = src_.kinematics(q, ok);
-    Eigen::VectorXd pts(3 * points_.size());
-    for (size_t k = 0; k < points_.size(); ++k) pts.segment<3>(3 * k) = point_position(src_.model(), data, points_[k]);
-    plan_.point_positions.push_back(std::move(pts));
-    Eigen::VectorXd tg(targets_.size());
-    for (size_t k = 0; k < targets_.size(); ++k) tg[k] = targets_[k]->eval(t).f;
-    plan_.targets.push_back(std::move(tg));
-    Eigen::VectorXd sig(plan_.force_signals.size());
+    pts_.resize(3 * static_cast<Eigen::Index>(points_.size()));
+    for (size_t k = 0; k < points_.size(); ++k) pts_.segment<3>(3 * k) = point_position(src_.model(), data, points_[k]);
+    plan_.point_positions.push_back(pts_);
+    tg_.resize(static_cast<Eigen::Index>(targets_.size()));
+    for (size_t k = 0; k < targets_.size(); ++k) tg_[k] = targets_[k]->eval(t).f;
+    plan_.targets.push_back(tg_);
+    sig_.resize(static_cast<Eigen::Index>(plan_.force_signals.size()));
     for (size_t k = 0, o = 0; k < signal_elements_.size(); ++k) {
       const int e = signal_elements_[k];
-      fs->elements()[e]->signals(t, q, qd, z ? z + fs->state_offset(e) : nullptr, sig.data() + o);
-      o += fs->elements()[e]->signal_names().size();
+      fs->elements()[e]->signals(t, q, qd, z ? z + fs->state_offset(e) : nullptr, sig_.data() + o);
+      o += signal_counts_[k];
     }
-    plan_.forces.push_back(std::move(sig));
-    plan_.phi.push_back(ok ? src_.phi() : Eigen::VectorXd::Constant(m_, nan));
-    plan_.phid.push_back(ok ? src_.phid() : Eigen::VectorXd::Constant(m_, nan));
-    plan_.lambda.push_back(ok ? src_.lambda() : Eigen::VectorXd::Constant(m_, nan));
-    plan_.Qc.push_back(ok ? src_.constraint_force() : Eigen::VectorXd::Constant(n_, nan));
+    plan_.forces.push_back(sig_);
+    if (ok) {
+      plan_.phi.push_back(src_.phi());
+      plan_.phid.push_back(src_.phid());
+      plan_.lambda.push_back(src_.lambda());
+      plan_.Qc.push_back(src_.constraint_force());
+    } else {
+      for (SampleSeries* s : {&plan_.phi, &plan_.phid, &plan_.lambda}) s->push_back(Eigen::VectorXd::Constant(m_, nan));
+      plan_.Qc.push_back(Eigen::VectorXd::Constant(n_, nan));
+    }
     // Actuator effort: actuator elements + programmed-constraint forces; reaction: material rows.
-    Eigen::VectorXd act = plan_.Qc.back();
+    act_ = plan_.Qc.back();
     if (any_material_) {
-      Eigen::VectorXd reaction = Eigen::VectorXd::Zero(n_);
+      reaction_.setZero(n_);
       if (ok)
         for (int r = 0; r < m_; ++r)
-          if (plan_.material_row[r]) reaction -= src_.row_jacobian().row(r).transpose() * src_.lambda()[r];
-      if (!ok) reaction.setConstant(nan);
-      act -= reaction;
-      plan_.reaction_effort.push_back(std::move(reaction));
+          if (plan_.material_row[r]) reaction_ -= src_.row_jacobian().row(r).transpose() * src_.lambda()[r];
+      if (!ok) reaction_.setConstant(nan);
+      act_ -= reaction_;
+      plan_.reaction_effort.push_back(reaction_);
     }
-    for (int k : actuators_) act += fs->element_force(k, t, q, qd, z);
-    plan_.actuator_effort.push_back(std::move(act));
+    for (int k : actuators_) {  // ForceSet::element_force without its allocations
+      element_q_.setZero(n_);
+      element_zdot_.resize(std::max(1, fs->elements()[k]->num_states()));
+      fs->elements()[k]->apply(t, q, qd, z + fs->state_offset(k), element_q_, element_zdot_.data(), nullptr);
+      act_ += element_q_;
+    }
+    plan_.actuator_effort.push_back(act_);
   }
 
  private:
   Source src_;
   Plan& plan_;
   int n_, m_;
-  Eigen::VectorXd dx_, q_, qd_;
+  Eigen::VectorXd dx_, q_, qd_, qdd_, pts_, tg_, sig_, act_, reaction_, element_q_;
+  std::vector<double> element_zdot_;
   bool ok_ = false;
   std::vector<int> points_, signal_elements_, actuators_;
+  std::vector<size_t> signal_counts_;  ///< per element of signal_elements_: its signals
   std::vector<const TimeFunction*> targets_;
   bool any_material_ = false;
 };
@@ -320,15 +334,15 @@ bool explain_unstable_step(ReferenceDynamics& rd, const IntegratorOptions& o, co
                            IntegrationSummary& s) {
   const long nsteps = std::lround(std::ceil((o.t1 - o.t0) / o.step - 1e-9));
   const double h = (o.t1 - o.t0) / nsteps;
-  std::vector<std::pair<double, const Eigen::VectorXd*>> states{{o.t0, &x0}};
+  std::vector<std::pair<double, Eigen::VectorXd>> states{{o.t0, x0}};
   const size_t count = plan.x.size(), stride = std::max<size_t>(1, count / 64);
-  for (size_t k = 0; k < count; k += stride) states.push_back({plan.t[k], &plan.x[k]});
+  for (size_t k = 0; k < count; k += stride) states.emplace_back(plan.t[k], plan.x[k]);
   Eigen::MatrixXd J;
   std::optional<StepStability> first;
   double t_first = 0, smallest = std::numeric_limits<double>::infinity(), reference_conditioning = 0;
   for (const auto& [t, x] : states) {
     try {
-      rd.jacobian(t, *x, J);  // also evaluates the constraints at (t, x)
+      rd.jacobian(t, x, J);  // also evaluates the constraints at (t, x)
     } catch (const Error&) {
       continue;  // no Jacobian at this state (a singular partition, an element without one)
     }

@@ -20,6 +20,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -110,8 +111,11 @@ struct OptimizeSummary {
   /// Seconds: optimize_scenario's own time; `refdyn optimize` sets it to the whole command's
   /// (reading the file to writing the outputs).
   double wall_time = 0;
-  /// Where the time went, in order (seconds): optimize_scenario adds setup (build + check), path and
-  /// topp_ra (phase_plane), plans (every candidate's build + plan + metrics) and optimizer (the
+  /// method phase_plane: the path's time optimum T* under the joints' limits, estimated
+  /// (phase_plane_time_optimum), against which the answer's t_end is judged; NaN otherwise.
+  double time_optimum = std::numeric_limits<double>::quiet_NaN();
+  /// Where the time went, in order (seconds): optimize_scenario adds setup (build + check), path,
+  /// time_optimum and topp_ra (phase_plane), plans (every candidate's build + plan + metrics) and optimizer (the
   /// whole search, plans included); `refdyn optimize` adds load, check, final_plan and write.
   std::vector<std::pair<std::string, double>> phases;
   JsonValue to_json() const;            ///< summary.json's "optimization" object
@@ -165,6 +169,7 @@ struct Fields<OptimizeSummary> {
                            field("best_objective", &S::best_objective, "", in) | JsonKey{"objective"},  // null when not finite
                            field("feasible", &S::feasible, "", in),
                            field("constraint_names", &S::constraint_names, "", in) | JsonKey{"constraints"},
+                           field("time_optimum", &S::time_optimum, "s", in) | JsonKey{"time_optimum_s"},  // null: not phase_plane
                            field("wall_time", &S::wall_time, "s", in) | JsonKey{"wall_time_s"},
                            field("phases", &S::phases, "s", in) | JsonKey{"phases_s"});
   }

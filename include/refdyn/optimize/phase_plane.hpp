@@ -48,6 +48,14 @@ struct PhasePlaneLimits {
 std::vector<double> phase_plane_knot_law(const PathDynamics& path, int K, const PhasePlaneLimits& limits,
                                          const std::vector<double>& lower, const std::vector<double>& upper);
 
+/// The path's time optimum T* under the limits, estimated (the distance of a K-part law from it,
+/// docs/optimize.md): the fastest laws with a knot at every path sample (K_f parts) and at every
+/// second one (K_f/2 parts), extrapolated as T* ≈ 2 T(K_f) − T(K_f/2), the fastest K-part law
+/// being T* + C/K + o(1/K) (s̈ constant on a part of width Δτ loses O(Δτ) of the slope the limits
+/// allow). Every knot's x is at most max_x (the knot speeds' largest bound, squared). NaN when no
+/// law on those knots is admissible.
+double phase_plane_time_optimum(const PathDynamics& path, const PhasePlaneLimits& limits, double max_x);
+
 /// The real duration of the knot-speed law x_0 … x_K over Tp: Σ 2Δτ/(√x_i + √x_{i+1}).
 double knot_law_duration(const std::vector<double>& x, double Tp);
 

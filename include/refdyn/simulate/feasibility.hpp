@@ -5,6 +5,7 @@
 #include "refdyn/common/fields.hpp"
 #include "refdyn/common/json_fwd.hpp"
 #include "refdyn/multibody/model.hpp"
+#include "refdyn/simulate/trajectory.hpp"
 
 #include <string>
 #include <utility>
@@ -87,8 +88,8 @@ struct Fields<FeasibilityReport> {
 /// efforts plus the forces of the programmed constraints; reaction forces of material
 /// constraints are carried by the structure and are not checked against effort limits).
 FeasibilityReport assess_feasibility(const Model& model, const std::vector<double>& t,
-                                     const std::vector<Eigen::VectorXd>& q, const std::vector<Eigen::VectorXd>& qd,
-                                     const std::vector<Eigen::VectorXd>& qdd,
-                                     const std::vector<Eigen::VectorXd>& effort);
+                                     const SampleSeries& q, const SampleSeries& qd,
+                                     const SampleSeries& qdd,
+                                     const SampleSeries& effort);
 
 }  // namespace refdyn
