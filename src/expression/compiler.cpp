@@ -87,6 +87,56 @@ class Compiler {
     return r;
   }
 
+  /// A structural key of e that is the same in every run: GiNaC orders the operands of sums and
+  /// products by hashes seeded with addresses, so its order changes between runs, and a tape
+  /// that summed in that order rounded differently from run to run (examples/mixed_orders'
+  /// plan.csv differed in the last bits). The key mixes names, numbers and the operands' keys,
+  /// sorted for sums and products; compile_add and compile_mul take their operands in key order.
+  std::uint64_t structural_key(const ex& e) {
+    const GiNaC::basic* p = &GiNaC::ex_to<GiNaC::basic>(e);
+    auto it = skey_.find(p);
+    if (it != skey_.end()) return it->second;
+    auto mix = [](std::uint64_t h, std::uint64_t v) {
+      return h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
+    };
+    auto text = [](const std::string& t) {  // FNV-1a
+      std::uint64_t h = 0xcbf29ce484222325ULL;
+      for (unsigned char ch : t) h = (h ^ ch) * 0x100000001b3ULL;
+      return h;
+    };
+    std::uint64_t h;
+    if (GiNaC::is_a<GiNaC::symbol>(e)) {
+      h = mix(1, text(GiNaC::ex_to<GiNaC::symbol>(e).get_name()));
+    } else if (GiNaC::is_a<GiNaC::numeric>(e)) {
+      const GiNaC::numeric& n = GiNaC::ex_to<GiNaC::numeric>(e);
+      h = mix(mix(2, std::bit_cast<std::uint64_t>(GiNaC::real(n).to_double())),
+              std::bit_cast<std::uint64_t>(GiNaC::imag(n).to_double()));
+    } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+      std::vector<std::uint64_t> keys;
+      for (std::size_t i = 0; i < e.nops(); ++i) keys.push_back(structural_key(e.op(i)));
+      std::sort(keys.begin(), keys.end());
+      h = GiNaC::is_a<GiNaC::add>(e) ? 3 : 4;
+      for (std::uint64_t k : keys) h = mix(h, k);
+    } else {  // functions (by name), powers, constants (pi, e: by their text): operands in order
+      h = mix(5, text(GiNaC::is_a<GiNaC::function>(e) ? GiNaC::ex_to<GiNaC::function>(e).get_name()
+                      : e.nops() == 0                 ? to_text(e)
+                                                      : std::string(GiNaC::ex_to<GiNaC::basic>(e).class_name())));
+      for (std::size_t i = 0; i < e.nops(); ++i) h = mix(h, structural_key(e.op(i)));
+    }
+    skey_.emplace(key(e), h);
+    return h;
+  }
+
+  /// The operands of a sum or product in structural_key order.
+  std::vector<ex> operands_in_key_order(const ex& e) {
+    std::vector<std::pair<std::uint64_t, ex>> ops;
+    for (std::size_t i = 0; i < e.nops(); ++i) ops.emplace_back(structural_key(e.op(i)), e.op(i));
+    std::stable_sort(ops.begin(), ops.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<ex> out;
+    for (auto& [k, o] : ops) out.push_back(std::move(o));
+    return out;
+  }
+
   Operand emit(Op op, std::uint32_t a, std::uint32_t b = 0, double c = 0.0, double d = 0.0) {
     using Key = std::tuple<int, std::uint32_t, std::uint32_t, std::uint64_t, std::uint64_t>;
     Key key{static_cast<int>(op), a, info(op).inputs >= 2 ? b : 0u,
@@ -173,11 +223,11 @@ class Compiler {
   std::pair<double, ex> split_coefficient(const ex& e) {
     if (GiNaC::is_a<GiNaC::mul>(e)) {
       ex constant = 1, rest = 1;
-      for (std::size_t i = 0; i < e.nops(); ++i) {
-        if (has_sym(e.op(i)))
-          rest *= e.op(i);
+      for (const ex& f : operands_in_key_order(e)) {
+        if (has_sym(f))
+          rest *= f;
         else
-          constant *= e.op(i);
+          constant *= f;
       }
       return {constant_value(constant), rest};
     }
@@ -199,8 +249,7 @@ class Compiler {
   Operand compile_add(const ex& e) {
     ex constant = 0;
     std::vector<std::pair<double, Operand>> terms;
-    for (std::size_t i = 0; i < e.nops(); ++i) {
-      const ex& term = e.op(i);
+    for (const ex& term : operands_in_key_order(e)) {
       if (!has_sym(term)) {
         constant += term;
         continue;
@@ -228,8 +277,7 @@ class Compiler {
   Operand compile_mul(const ex& e) {
     ex constant = 1;
     std::vector<Operand> num, den;
-    for (std::size_t i = 0; i < e.nops(); ++i) {
-      const ex& f = e.op(i);
+    for (const ex& f : operands_in_key_order(e)) {
       if (!has_sym(f)) {
         constant *= f;
         continue;
@@ -381,6 +429,7 @@ class Compiler {
   std::uint32_t next_value_ = 0;
   std::vector<ex> alive_;
   std::unordered_map<const GiNaC::basic*, bool> has_sym_;
+  std::unordered_map<const GiNaC::basic*, std::uint64_t> skey_;
   std::unordered_set<const GiNaC::basic*> scanned_;
   std::unordered_map<const GiNaC::basic*, Operand> by_object_;
   std::map<ex, Operand, GiNaC::ex_is_less> memo_;
