@@ -142,6 +142,18 @@ class PlanRecorder {
 
   Source& source() { return src_; }
 
+  /// Room for the samples an integration over [t0, t1] with these options records (a guess for
+  /// adaptive methods; at most 1e7, the series grow past it if need be).
+  void reserve(const IntegratorOptions& io) {
+    const double every = io.output_interval > 0 ? io.output_interval : io.step;
+    const double guess = every > 0 ? (io.t1 - io.t0) / every + 2 : 0;
+    const size_t k = std::isfinite(guess) && guess > 0 ? static_cast<size_t>(std::min(guess, 1e7)) : 0;
+    plan_.t.reserve(k);
+    for (SampleSeries* v : {&plan_.x, &plan_.qdd, &plan_.point_positions, &plan_.targets, &plan_.forces, &plan_.phi,
+                            &plan_.phid, &plan_.lambda, &plan_.Qc, &plan_.actuator_effort, &plan_.reaction_effort})
+      v->reserve(k);
+  }
+
   /// Evaluates the dynamics at (t, x); false where it failed (NumericalFailure).
   bool evaluate(double t, const Eigen::VectorXd& x) {
     try {
@@ -399,6 +411,7 @@ Plan plan_motion(ReferenceDynamics& rd, const Eigen::VectorXd& x0, const PlanSet
   const int n = rd.nq();
   Plan plan;
   PlanRecorder<SecondOrderSource> recorder(SecondOrderSource{rd}, plan, settings.record);
+  recorder.reserve(settings.integrator);
   const int nz = rd.num_force_states(), m = rd.num_constraints();
   StageRecorder stages(plan.stages, options, n, nz + m);
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& dx) {
@@ -481,6 +494,7 @@ Plan plan_jerk_motion(JerkDynamics& jd, const Eigen::VectorXd& x0, const PlanSet
   const int n = jd.nq(), m = jd.num_constraints();
   Plan plan;
   PlanRecorder<JerkSource> recorder(JerkSource{jd}, plan, settings.record);
+  recorder.reserve(settings.integrator);
   StageRecorder stages(plan.stages, options, n);  // x[0, 3n) is [q̂, q̂̇, q̂̈] at every stage
   double worst = 0;
   auto rhs = [&](const Stage& stage, double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
