@@ -622,6 +622,23 @@ TEST(Outcomes, ResultsAreBitIdenticalAcrossProcesses) {
   }
 }
 
+// The generator writes a time law into the rows as one expression of t: a law of 128 knot
+// speeds (the example) makes them too long, and the message says so and what to do instead of
+// the expression engine's generic "split it" (which the user cannot do).
+TEST(Generate, ATimeLawTooLongForTheGeneratorIsNamedWithWhatToDo) {
+  Scratch s;
+  const fs::path out = s.root() / "gen";
+  const Result r = run(s, "generate " + quote(kSource / "examples/planar_2r_circle/retime_speeds.yaml") + " -o " +
+                              quote(out));
+  EXPECT_EQ(r.code, 2) << describe(r);
+  for (const char* frag : {"constraint 'ex'", "time law of 128 parts", "669433 characters", "limit of 65536",
+                           "without its time_law"})
+    EXPECT_NE(r.err.find(frag), std::string::npos) << frag << describe(r);
+  EXPECT_EQ(r.err.find("split it"), std::string::npos) << describe(r);
+  EXPECT_EQ(count_lines(r.err), 1) << describe(r);
+  EXPECT_FALSE(fs::exists(out)) << "nothing is written";
+}
+
 TEST(CommandLine, UsageErrorsAreOneLineWithDidYouMean) {
   Scratch s;
   Result r = run(s, "plna " + quote(kGood));
