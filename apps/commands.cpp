@@ -5,6 +5,7 @@
 #include "report.hpp"
 
 #include "refdyn/common/error.hpp"
+#include "refdyn/common/fields_json.hpp"
 #include "refdyn/io/check.hpp"
 #include "refdyn/io/output.hpp"
 #include "refdyn/io/scenario.hpp"
@@ -118,10 +119,11 @@ void check_optimize_section(const ScenarioSpec& spec) {
   (void)check_optimize(spec, *build_problem(spec));
 }
 
-int run_check(const std::string& file, const InputOptions& in) {
+int run_check(const std::string& file, const InputOptions& in, bool json) {
   const ScenarioSpec spec = io::load_scenario(file, in.max_input_bytes);
   // Everything is evaluated before anything is printed: "valid" is never followed by an error.
-  const std::string text = io::check_text(io::check_scenario(spec, file));
+  const io::CheckReport report = io::check_scenario(spec, file);
+  const std::string text = json ? json_text(to_json(report), 2) + "\n" : io::check_text(report);
   check_optimize_section(spec);
   std::cout << text;
   return kOk;
@@ -286,7 +288,7 @@ int plan_or_track(const std::string& file, const std::string& out_dir, bool quie
         error = e.what();
       }
     code = mpi->broadcast(error.empty() ? code : -1);
-    if (code == -1) throw Error(mpi->rank() == 0 ? error : "rank 0 failed to write the results");
+    if (code == -1) mpi->fail(mpi->rank() == 0 ? error : "rank 0 failed to write the results");
     return code;
   };
   if (!variants.empty()) {

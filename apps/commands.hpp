@@ -49,7 +49,8 @@ io::ProgressFactory terminal_progress(bool enabled);
 /// One line on stderr per run that stopped early (printed even with -q).
 void report_stopped(const io::Results& results);
 
-int run_check(const std::string& file, const InputOptions& in);
+/// `refdyn check`: the report as text, or as JSON (--json: Fields<io::CheckReport>).
+int run_check(const std::string& file, const InputOptions& in, bool json = false);
 /// The scenario's optimize: section checked (check_optimize; nothing when it has none), so that
 /// check, plan and track reject a file that optimize would.
 void check_optimize_section(const ScenarioSpec& spec);

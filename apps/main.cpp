@@ -32,7 +32,7 @@ std::string usage_message(const CLI::ParseError& e, int argc, char** argv, const
 /// Every option of every command, filled in by CLI11.
 struct Args {
   std::string file, out_dir = "results";
-  bool quiet = false, report = false, sections = false;
+  bool quiet = false, report = false, sections = false, json = false;
   std::string scenario, report_out;
   std::string formats = "c,latex,json", prefix;
   refdyn::app::InputOptions in;
@@ -80,6 +80,8 @@ void add_output_options(CLI::App* c, Args& a) {
 void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   c.check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
   c.check->add_option("file", a.file, "Scenario file (YAML)")->required();
+  c.check->add_flag("--json", a.json,
+                    "Print the report as JSON (the keys of Python's refdyn.check, without its text; docs/scenario.md)");
   add_input_options(c.check, a);
 
   c.plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
@@ -152,7 +154,7 @@ void add_other_commands(CLI::App& app, Args& a, Commands& c) {
 /// Runs the chosen command; refdyn::Error and the rest are mapped to exit codes by the caller.
 int dispatch(const Commands& c, Args& a) {
   using namespace refdyn::app;
-  if (*c.check) return run_check(a.file, a.in);
+  if (*c.check) return run_check(a.file, a.in, a.json);
   if (a.report) require_report_template();
   a.run.report = a.report;
   if (*c.plan) return run_plan(a.file, a.out_dir, a.quiet, a.in, a.run);

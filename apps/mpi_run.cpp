@@ -2,11 +2,14 @@
 // buffers: numbers as their bytes (bit-exact), strings with their length.
 #include "mpi_run.hpp"
 
+#include "commands.hpp"
+
 #include "refdyn/common/error.hpp"
 
 #include "refdyn/common/fields.hpp"
 
 #include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <string>
 #include <type_traits>
@@ -32,6 +35,7 @@ namespace {
 MpiSession::MpiSession() { no_mpi(); }
 MpiSession::~MpiSession() = default;
 void MpiSession::agree(const std::string&) const { no_mpi(); }
+void MpiSession::fail(const std::string&) const { no_mpi(); }
 void MpiSession::gather_runs(io::Results&) const { no_mpi(); }
 void MpiSession::gather_variants(std::vector<io::VariantSummary>&) const { no_mpi(); }
 std::vector<char> MpiSession::gather_bytes(const std::vector<char>&) const { no_mpi(); }
@@ -174,7 +178,20 @@ void MpiSession::agree(const std::string& error) const {
   std::string msg(static_cast<size_t>(n), ' ');
   if (rank_ == first) msg = error;
   check(MPI_Bcast(msg.data(), n, MPI_CHAR, first, MPI_COMM_WORLD), "MPI_Bcast");
-  throw Error(msg);
+  fail(msg);
+}
+
+void MpiSession::fail(const std::string& message) const {
+  if (rank_ == 0 && error_output()) {
+    std::string line = message;
+    for (char& ch : line)
+      if (ch == '\n') ch = ' ';
+    std::fprintf(stderr, "refdyn: error: %s\n", line.c_str());
+    std::fflush(stderr);
+  }
+  set_error_output(false);  // said once, by rank 0
+  check(MPI_Barrier(MPI_COMM_WORLD), "MPI_Barrier");
+  throw Error(message);
 }
 
 int MpiSession::broadcast(int value) const {

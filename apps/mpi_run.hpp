@@ -30,6 +30,10 @@ class MpiSession {
   /// Collective: throws refdyn::Error on every rank when `error` is non-empty on any (the
   /// message of the lowest such rank), so that no rank waits for one that gave up.
   void agree(const std::string& error) const;
+  /// Collective: every rank throws refdyn::Error(message), rank 0 having printed it first (as
+  /// main prints an error, then no more): a rank that exits non-zero makes mpirun end the job, so
+  /// rank 0 must not leave its line to after MPI_Finalize (it was lost now and then).
+  [[noreturn]] void fail(const std::string& message) const;
   /// Collective: the summaries of every rank's finished runs reach rank 0's `results` (there
   /// RunRecord::done becomes true for all of them).
   void gather_runs(io::Results& results) const;

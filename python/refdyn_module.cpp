@@ -71,7 +71,8 @@ py::tuple table_of(const Trajectory& tr) {
 }
 
 /// Python values of described fields (common/fields.hpp): numbers, text, enums as their names,
-/// structs as dicts of their sink::Python fields, vectors as lists.
+/// structs as dicts of their sink::Python fields, named values as dicts, an empty optional as
+/// None (or no key: OmitIfEmpty), vectors as lists.
 template <class V>
 py::object py_of(const V& v);
 
@@ -79,7 +80,7 @@ template <class T>
 py::dict py_dict(const T& x) {
   py::dict d;
   for_each_field<T>([&](const auto& f) {
-    if (f.in & sink::Python) d[f.name] = py_of(f.get(x));
+    if ((f.in & sink::Python) && !omitted(f, x)) d[f.name] = py_of(f.get(x));
   });
   return d;
 }
@@ -92,6 +93,12 @@ py::object py_of(const V& v) {
     return py_dict(v);
   } else if constexpr (std::is_arithmetic_v<V> || std::is_same_v<V, std::string>) {
     return py::cast(v);
+  } else if constexpr (is_optional<V>::value) {
+    return v ? py_of(*v) : py::none();
+  } else if constexpr (is_named<V>::value) {
+    py::dict d;
+    for (const auto& [name, x] : v) d[py::str(name)] = py_of(x);
+    return d;
   } else {
     py::list l;
     for (const auto& e : v) l.append(py_of(e));
@@ -223,92 +230,9 @@ ScenarioSpec scenario_spec(const std::string& source, bool is_text, const std::s
 }
 
 // ---------------------------------------------------------------- check
-py::dict check_dict(const io::CheckReport& r) {
-  py::dict d;
-  d["scenario"] = r.name;
-  d["file"] = r.file;
-  d["valid"] = true;
-  d["model"] = r.model_summary;
-  d["model_notes"] = r.model_notes;
-  d["joints"] = r.joints;
-  py::list cs;
-  for (const io::CheckReport::Constraint& c : r.constraints) {
-    py::dict e;
-    e["name"] = c.name;
-    e["origin"] = c.origin;
-    e["kind"] = c.kind;
-    e["order"] = c.order;
-    e["order_label"] = order_label(c.order);
-    e["rheonomic"] = c.rheonomic;
-    e["rows"] = c.rows;
-    e["description"] = c.description;
-    cs.append(e);
-  }
-  d["constraints"] = cs;
-  py::dict rows;
-  rows["total"] = r.rows;
-  rows["material"] = r.material_rows;
-  rows["programmed"] = r.programmed_rows;
-  rows["holonomic"] = r.holonomic_rows;
-  rows["first_order"] = r.first_order_rows;
-  rows["acceleration"] = r.acceleration_rows;
-  rows["jerk"] = r.jerk_rows;
-  d["rows"] = rows;
-  d["force_elements"] = r.force_elements;
-  d["planner"] = r.planner_description;
-  d["t0"] = r.t0;
-  py::object acc = py::none();
-  if (r.has_initial_acceleration) {
-    py::dict a;
-    for (size_t j = 0; j < r.joints.size(); ++j) a[py::str(r.joints[j])] = r.initial_acceleration[j];
-    acc = py::dict("values"_a = a, "source"_a = r.initial_acceleration_source,
-                   "consistent_with"_a = r.initial_acceleration_rows);
-  }
-  d["initial_acceleration"] = acc;
-  py::object part = py::none();
-  if (r.has_partition)
-    part = py::dict("independent"_a = r.independent, "dependent"_a = r.dependent, "automatic"_a = r.automatic_partition,
-                    "condition"_a = r.condition, "used_by_solver"_a = r.partition_used);
-  d["partition"] = part;
-  py::object proj = py::none();
-  if (r.projected) {
-    py::dict p;
-    for (const io::CheckReport::Correction& c : r.corrections)
-      p[py::str(c.joint)] = py::dict("dq"_a = c.dq, "q"_a = c.q, "dqd"_a = c.dqd, "qd"_a = c.qd);
-    proj = p;
-  }
-  d["projection"] = proj;
-  py::dict res;
-  for (const io::CheckReport::RowResiduals& row : r.residuals) {
-    py::dict v;
-    for (size_t k = 0; k < row.values.size(); ++k) v[py::str(r.residual_labels[k])] = row.values[k];
-    res[py::str(row.row)] = v;
-  }
-  d["residuals"] = res;
-  py::dict integ;
-  integ["method"] = r.method;
-  if (r.method == to_string(IntegratorMethod::RK4)) {
-    integ["step"] = r.step;
-  } else {
-    integ["rtol"] = r.rtol;
-    integ["atol"] = r.atol;
-    if (r.method == to_string(IntegratorMethod::BDF)) integ["max_order"] = r.max_order;
-    integ["sample_interval"] = r.sample_interval;
-  }
-  integ["t0"] = r.t0;
-  integ["t1"] = r.t1;
-  integ["stabilization"] = r.stabilization;
-  if (r.stabilization != to_string(Stabilization::Baumgarte)) integ["projection_tolerance"] = r.projection_tolerance;
-  integ["residual_tolerance"] =
-      r.checks_residual ? py::object(py::float_(r.residual_tolerance)) : py::object(py::none());
-  d["integrator"] = integ;
-  d["experiments"] = r.experiments;
-  d["plant"] = py::dict(py::arg("actuators") = r.actuators, py::arg("assigned") = r.plant_independent,
-                        py::arg("material_rows") = r.plant_material_rows);
-  d["variants"] = r.variants;
-  d["text"] = io::check_text(r);
-  return d;
-}
+/// What `refdyn check` reports, as a dict: Fields<io::CheckReport> (io/check.hpp), the same
+/// fields `refdyn check --json` writes, plus the command's text.
+py::dict check_dict(const io::CheckReport& r) { return py_dict(r); }
 
 // ---------------------------------------------------------------- generate
 py::dict generate(const Problem& problem, bool c, bool latex, bool json, const std::string& prefix) {

@@ -313,6 +313,39 @@ TEST(GoodScenario, CheckPrintsDofAndResiduals) {
   EXPECT_TRUE(empty_dir(s.cwd())) << "check wrote something:" << listing(s.cwd());
 }
 
+// `refdyn check --json`: the report's fields (Fields<io::CheckReport>), the keys Python's
+// refdyn.check has, for a scenario with a partition and an RK4 integrator and for a jerk problem
+// with an initial acceleration consistent with its rows.
+TEST(GoodScenario, CheckJsonIsTheReportsFields) {
+  Scratch s;
+  Result r = run(s, "check --json " + quote(kGood));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  refdyn::JsonValue j = refdyn::parse_json(r.out, "check --json");
+  EXPECT_EQ(j["scenario"], "minimal_arm");
+  EXPECT_EQ(j["valid"], true);
+  EXPECT_EQ(j["joints"], refdyn::JsonValue::array({"j1", "j2"}));
+  EXPECT_EQ(j["rows"]["total"], 1);
+  EXPECT_EQ(j["constraints"][0]["name"], "tip_x");
+  EXPECT_EQ(j["partition"]["independent"], refdyn::JsonValue::array({"j2"}));
+  EXPECT_GE(j["partition"]["condition"].get<double>(), 1.0);  // ‖A‖₁ ‖K_dc⁻¹‖₁ ≥ 1
+  EXPECT_TRUE(j["initial_acceleration"].is_null());
+  EXPECT_TRUE(j["residuals"]["tip_x"].contains("|Phi|")) << r.out;
+  EXPECT_EQ(j["integrator"]["method"], "rk4");
+  EXPECT_TRUE(j["integrator"].contains("step"));
+  EXPECT_FALSE(j["integrator"].contains("rtol")) << "an RK4 integrator has no tolerances";
+  EXPECT_FALSE(j.contains("text")) << "the text is the command's other output";
+  EXPECT_EQ(r.err, "");
+  EXPECT_TRUE(empty_dir(s.cwd())) << listing(s.cwd());
+
+  r = run(s, "check --json " + quote(kSource / "examples/mixed_orders/mixed_orders.yaml"));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  j = refdyn::parse_json(r.out, "check --json");
+  EXPECT_EQ(j["initial_acceleration"]["source"], "consistent_with");
+  EXPECT_EQ(j["initial_acceleration"]["consistent_with"], refdyn::JsonValue::array({"wrist"}));
+  EXPECT_EQ(j["initial_acceleration"]["values"].size(), 3u);
+  EXPECT_EQ(j["rows"]["jerk"], 1);
+}
+
 void expect_plan_written(const fs::path& dir) {
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) {

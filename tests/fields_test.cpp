@@ -12,6 +12,8 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <utility>
 
 using namespace refdyn;
 
@@ -37,7 +39,61 @@ io::RunSummary sample_run() {
   return s;
 }
 
+/// Optional and named values (what the check report's JSON and Python dict are made of).
+struct Inner {
+  double a = 0;
+  long b = 0;
+};
+struct Outer {
+  int order = 0;
+  std::optional<double> kept, omitted;
+  std::optional<Inner> inner;
+  std::vector<std::pair<std::string, double>> named;
+  std::vector<std::pair<std::string, Inner>> named_inner;
+};
+
 }  // namespace
+
+template <>
+struct refdyn::Fields<Inner> {
+  static constexpr auto list() { return std::make_tuple(field("a", &Inner::a), field("b", &Inner::b)); }
+};
+template <>
+struct refdyn::Fields<Outer> {
+  static constexpr auto list() {
+    return std::make_tuple(field("order", &Outer::order), field("kept", &Outer::kept),
+                           field("omitted", &Outer::omitted) | OmitIfEmpty{}, field("inner", &Outer::inner),
+                           field("named", &Outer::named), field("named_inner", &Outer::named_inner));
+  }
+};
+
+// An empty optional is null, or no key at all with OmitIfEmpty; named values are an object in
+// their order (of numbers or of structs); int reads back. Everything round-trips.
+TEST(Fields, OptionalAndNamedValues) {
+  Outer o;
+  o.order = 3;
+  o.named = {{"z", 1.5}, {"a", -2}};
+  o.named_inner = {{"q2", {0.5, 7}}, {"q1", {0.25, -1}}};
+  JsonValue j = to_json(o);
+  EXPECT_EQ(json_text(j, 0), R"({"order": 3, "kept": null, "inner": null, "named": {"z": 1.5, "a": -2}, )"
+                             R"("named_inner": {"q2": {"a": 0.5, "b": 7}, "q1": {"a": 0.25, "b": -1}}})");
+  o.kept = 0.1 + 0.2;
+  o.omitted = 4;
+  o.inner = Inner{1e-300, 9};
+  j = to_json(o);
+  EXPECT_TRUE(j.contains("omitted"));
+  const Outer r = from_json<Outer>(parse_json(json_text(j), "test"));
+  EXPECT_EQ(r.order, 3);
+  ASSERT_TRUE(r.kept && r.omitted && r.inner);
+  EXPECT_EQ(*r.kept, 0.1 + 0.2);
+  EXPECT_EQ(*r.omitted, 4.0);
+  EXPECT_EQ(r.inner->a, 1e-300);
+  EXPECT_EQ(r.inner->b, 9);
+  EXPECT_EQ(r.named, o.named);
+  ASSERT_EQ(r.named_inner.size(), 2u);
+  EXPECT_EQ(r.named_inner[0].first, "q2");
+  EXPECT_EQ(r.named_inner[1].second.b, -1);
+}
 
 TEST(Fields, RunSummaryJsonRoundTrip) {
   const io::RunSummary s = sample_run();

@@ -211,3 +211,67 @@ std::string check_text(const CheckReport& r) {
 }
 
 }  // namespace refdyn::io
+
+namespace refdyn {
+
+io::CheckRows Fields<io::CheckReport>::rows(const S& r) {
+  return {r.rows, r.material_rows, r.programmed_rows, r.holonomic_rows, r.first_order_rows, r.acceleration_rows,
+          r.jerk_rows};
+}
+
+std::optional<io::CheckInitialAcceleration> Fields<io::CheckReport>::initial_acceleration(const S& r) {
+  if (!r.has_initial_acceleration) return std::nullopt;
+  io::CheckInitialAcceleration a;
+  for (size_t j = 0; j < r.joints.size() && j < r.initial_acceleration.size(); ++j)
+    a.values.emplace_back(r.joints[j], r.initial_acceleration[j]);
+  a.source = r.initial_acceleration_source;
+  a.consistent_with = r.initial_acceleration_rows;
+  return a;
+}
+
+std::optional<io::CheckPartition> Fields<io::CheckReport>::partition(const S& r) {
+  if (!r.has_partition) return std::nullopt;
+  return io::CheckPartition{r.independent, r.dependent, r.automatic_partition, r.condition, r.partition_used};
+}
+
+std::optional<std::vector<std::pair<std::string, io::CheckCorrection>>> Fields<io::CheckReport>::projection(
+    const S& r) {
+  if (!r.projected) return std::nullopt;
+  std::vector<std::pair<std::string, io::CheckCorrection>> p;
+  for (const io::CheckReport::Correction& c : r.corrections) p.emplace_back(c.joint, io::CheckCorrection{c.dq, c.q, c.dqd, c.qd});
+  return p;
+}
+
+std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> Fields<io::CheckReport>::residuals(
+    const S& r) {
+  std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> out;
+  for (const io::CheckReport::RowResiduals& row : r.residuals) {
+    out.emplace_back(row.row, std::vector<std::pair<std::string, double>>{});
+    for (size_t k = 0; k < row.values.size() && k < r.residual_labels.size(); ++k)
+      out.back().second.emplace_back(r.residual_labels[k], row.values[k]);
+  }
+  return out;
+}
+
+io::CheckIntegrator Fields<io::CheckReport>::integrator(const S& r) {
+  io::CheckIntegrator i;
+  i.method = r.method;
+  if (r.method == to_string(IntegratorMethod::RK4)) {
+    i.step = r.step;
+  } else {
+    i.rtol = r.rtol, i.atol = r.atol;
+    if (r.method == to_string(IntegratorMethod::BDF)) i.max_order = r.max_order;
+    i.sample_interval = r.sample_interval;
+  }
+  i.t0 = r.t0, i.t1 = r.t1;
+  i.stabilization = r.stabilization;
+  if (r.stabilization != to_string(Stabilization::Baumgarte)) i.projection_tolerance = r.projection_tolerance;
+  if (r.checks_residual) i.residual_tolerance = r.residual_tolerance;
+  return i;
+}
+
+io::CheckPlant Fields<io::CheckReport>::plant(const S& r) {
+  return {r.actuators, r.plant_independent, r.plant_material_rows};
+}
+
+}  // namespace refdyn

@@ -13,9 +13,12 @@
 /// rows; apps/mpi_run.cpp: MPI payloads; python/refdyn_module.cpp: dicts) walk this list: a
 /// field added here appears in every output that lists it.
 ///
-/// Values: double, long, bool, std::string, an enum with to_string(e) / from_string(s, e) found
-/// by ADL, a described struct, std::vector of those, std::vector<std::pair<double, double>>.
+/// Values: double, long, int, bool, std::string, an enum with to_string(e) / from_string(s, e)
+/// found by ADL, a described struct, std::vector of those, std::vector<std::pair<double, double>>,
+/// named values std::vector<std::pair<std::string, V>> (an object keyed by the names, in their
+/// order) and std::optional<V> (null when empty; absent with `| OmitIfEmpty{}`).
 
+#include <optional>
 #include <string>
 #include <tuple>
 #include <type_traits>
@@ -62,6 +65,7 @@ struct MemberField {
   unsigned only_if = 0;           ///< written only when the writer's conditions hold these (when::…)
   unsigned valid_if = 0;          ///< CSV: the cell is empty ("nan" for numbers) unless these hold
   const char* label = nullptr;    ///< vector of structs in JSON: each object starts with label: name of element j
+  bool omit_empty = false;        ///< an empty std::optional is left out (else it is null)
   const M& get(const T& x) const { return x.*member; }
   M& ref(T& x) const { return x.*member; }
   const char* key() const { return json ? json : name; }
@@ -84,6 +88,7 @@ struct DerivedField {
   unsigned only_if = 0;
   unsigned valid_if = 0;
   const char* label = nullptr;
+  bool omit_empty = false;
   R get(const T& x) const { return fn(x); }
   const char* key() const { return json ? json : name; }
   const char* column() const { return csv ? csv : name; }
@@ -103,11 +108,30 @@ struct CsvColumn { const char* column; int block = 0; };
 struct OnlyIf { unsigned bits; };
 struct ValidIf { unsigned bits; };
 struct Label { const char* name; };
+struct OmitIfEmpty {};
 template <class F> constexpr F operator|(F f, JsonKey k) { f.json = k.key; return f; }
 template <class F> constexpr F operator|(F f, CsvColumn c) { if (c.column) f.csv = c.column; f.csv_block = c.block; return f; }
 template <class F> constexpr F operator|(F f, OnlyIf c) { f.only_if = c.bits; return f; }
 template <class F> constexpr F operator|(F f, ValidIf c) { f.valid_if = c.bits; return f; }
 template <class F> constexpr F operator|(F f, Label l) { f.label = l.name; return f; }
+template <class F> constexpr F operator|(F f, OmitIfEmpty) { f.omit_empty = true; return f; }
+
+template <class V>
+struct is_optional : std::false_type {};
+template <class V>
+struct is_optional<std::optional<V>> : std::true_type {};
+/// std::vector<std::pair<std::string, V>>: named values
+template <class V>
+struct is_named : std::false_type {};
+template <class V>
+struct is_named<std::vector<std::pair<std::string, V>>> : std::true_type {};
+
+/// True when the field's value is an empty std::optional that the field leaves out.
+template <class F, class T>
+bool omitted(const F& f, const T& x) {
+  if constexpr (is_optional<std::decay_t<decltype(f.get(x))>>::value) return f.omit_empty && !f.get(x).has_value();
+  else return false;
+}
 
 /// Specialized for every described struct: static constexpr auto list() → tuple of fields.
 template <class T>

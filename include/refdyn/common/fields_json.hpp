@@ -1,8 +1,8 @@
 #pragma once
 /// JSON of described structs (common/fields.hpp): to_json writes the fields that go to
 /// sink::Json (in their order; keys with "{late}" expanded), from_json reads the stored ones
-/// back (null → NaN for numbers). Named values (std::vector<std::pair<std::string, double>>)
-/// are an object. The one JSON path of RunSummary, VariantSummary, IntegrationSummary, the
+/// back (null → NaN for numbers, an empty std::optional). Named values
+/// (std::vector<std::pair<std::string, V>>) are an object. The one JSON path of RunSummary, VariantSummary, IntegrationSummary, the
 /// feasibility report and OptimizeSummary.
 
 #include "refdyn/common/error.hpp"
@@ -33,6 +33,10 @@ JsonValue json_of(const V& v, const FieldContext& c, const char* label, unsigned
   if constexpr (std::is_same_v<V, double> || std::is_same_v<V, long> || std::is_same_v<V, bool> ||
                 std::is_same_v<V, std::string>) {
     return JsonValue(v);
+  } else if constexpr (std::is_same_v<V, int>) {
+    return JsonValue(static_cast<long>(v));
+  } else if constexpr (is_optional<V>::value) {
+    return v ? json_of(*v, c, label, in) : JsonValue();
   } else if constexpr (std::is_enum_v<V>) {
     return JsonValue(to_string(v));
   } else if constexpr (std::is_same_v<V, std::pair<double, double>>) {
@@ -44,9 +48,9 @@ JsonValue json_of(const V& v, const FieldContext& c, const char* label, unsigned
     JsonValue o = JsonValue::object();
     write_fields_json(o, v, c, in);
     return o;
-  } else if constexpr (std::is_same_v<V, std::vector<std::pair<std::string, double>>>) {
+  } else if constexpr (is_named<V>::value) {
     JsonValue o = JsonValue::object();  // named values: an object, in their order
-    for (const auto& [name, x] : v) o[name] = x;
+    for (const auto& [name, x] : v) o[name] = json_of(x, c, nullptr, in);
     return o;
   } else {
     static_assert(is_vector<V>::value, "a field of a type the JSON writer does not know");
@@ -71,9 +75,16 @@ void read_json(const JsonValue& j, V& v, const FieldContext& c, const std::strin
     if (j.is_null()) v = std::nan("");
     else if (j.is_number()) v = j.get<double>();
     else throw Error(where + ": expected a number");
-  } else if constexpr (std::is_same_v<V, long>) {
+  } else if constexpr (std::is_same_v<V, long> || std::is_same_v<V, int>) {
     if (!j.is_number_integer()) throw Error(where + ": expected an integer");
-    v = j.get<long>();
+    v = static_cast<V>(j.get<long>());
+  } else if constexpr (is_optional<V>::value) {
+    if (j.is_null()) {
+      v.reset();
+    } else {
+      v.emplace();
+      read_json(j, *v, c, where);
+    }
   } else if constexpr (std::is_same_v<V, bool>) {
     if (!j.is_boolean()) throw Error(where + ": expected true or false");
     v = j.get<bool>();
@@ -88,11 +99,11 @@ void read_json(const JsonValue& j, V& v, const FieldContext& c, const std::strin
     read_json(j[1], v.second, c, where);
   } else if constexpr (is_described_v<V>) {
     read_fields_json(j, v, c, where);
-  } else if constexpr (std::is_same_v<V, std::vector<std::pair<std::string, double>>>) {
+  } else if constexpr (is_named<V>::value) {
     if (!j.is_object()) throw Error(where + ": expected an object");
     v.clear();
     for (const auto& [name, x] : j.items()) {
-      v.emplace_back(name, 0.0);
+      v.emplace_back(name, typename V::value_type::second_type{});
       read_json(x, v.back().second, c, where + "." + name);
     }
   } else {
@@ -107,7 +118,7 @@ void read_json(const JsonValue& j, V& v, const FieldContext& c, const std::strin
 template <class T>
 void write_fields_json(JsonValue& o, const T& x, const FieldContext& c, unsigned in) {
   for_each_field<T>([&](const auto& f) {
-    if (!(f.in & in) || !c.allows(f.only_if)) return;
+    if (!(f.in & in) || !c.allows(f.only_if) || omitted(f, x)) return;
     o[c.expand(f.key())] = detail::json_of(f.get(x), c, f.label, in);
   });
 }
