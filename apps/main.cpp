@@ -81,7 +81,7 @@ void add_scenario_commands(CLI::App& app, Args& a, Commands& c) {
   c.check = app.add_subcommand("check", "Validate a scenario and print its summary (DOF, constraints, partition, residuals)");
   c.check->add_option("file", a.file, "Scenario file (YAML)")->required();
   c.check->add_flag("--json", a.json,
-                    "Print the report as JSON (the keys of Python's refdyn.check, without its text; docs/scenario.md)");
+                    "Print the report as JSON (the keys of Python's refdyn.check, without its text; docs/python.md)");
   add_input_options(c.check, a);
 
   c.plan = app.add_subcommand("plan", "Solve the reference dynamics: planned motion (CSV), feasibility report (JSON)");
