@@ -65,10 +65,17 @@ void ForceSet::evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorX
 
 Eigen::VectorXd ForceSet::element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                         const double* z) const {
-  Eigen::VectorXd Q = Eigen::VectorXd::Zero(q.size());
-  std::vector<double> zd(std::max(1, elements_[k]->num_states()));
-  elements_[k]->apply(t, q, qd, z + offsets_[k], Q, zd.data(), nullptr);
+  Eigen::VectorXd Q;
+  std::vector<double> zd;
+  element_force(k, t, q, qd, z, Q, zd);
   return Q;
+}
+
+void ForceSet::element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                             Eigen::VectorXd& Q, std::vector<double>& zdot) const {
+  Q.setZero(q.size());
+  zdot.resize(static_cast<size_t>(std::max(1, elements_[k]->num_states())));
+  elements_[k]->apply(t, q, qd, z + offsets_[k], Q, zdot.data(), nullptr);
 }
 
 }  // namespace refdyn

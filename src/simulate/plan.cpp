@@ -213,10 +213,8 @@ class PlanRecorder {
       act_ -= reaction_;
       plan_.reaction_effort.push_back(reaction_);
     }
-    for (int k : actuators_) {  // ForceSet::element_force without its allocations
-      element_q_.setZero(n_);
-      element_zdot_.resize(std::max(1, fs->elements()[k]->num_states()));
-      fs->elements()[k]->apply(t, q, qd, z + fs->state_offset(k), element_q_, element_zdot_.data(), nullptr);
+    for (int k : actuators_) {
+      fs->element_force(k, t, q, qd, z, element_q_, element_zdot_);
       act_ += element_q_;
     }
     plan_.actuator_effort.push_back(act_);

@@ -3,6 +3,7 @@
 
 #include "../expression/internal.hpp"
 #include "refdyn/common/error.hpp"
+#include "refdyn/expression/expression.hpp"
 #include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/common/text.hpp"
 #include "refdyn/reference/jerk.hpp"
@@ -228,23 +229,18 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
                   std::to_string(c.rows()));
     for (int r = 0; r < c.rows(); ++r) {
       const int row = cs.row_offset(k) + r;
-      ex f;
-      try {
-        f = B.parse(form->rows[r], form->parameters, where);
-      } catch (const Error& e) {
-        // The generator writes a time law into the rows as one expression of t: with many knots
-        // that text passes the expression limit, and the generic hint (split it) cannot be followed.
-        const std::string what = e.what();
-        const size_t at = what.find(" characters long, more than the limit of ");
-        if (!problem.time_law || at == std::string::npos) throw;
-        const size_t from = what.rfind(' ', at - 1) + 1, limit_end = what.find_first_not_of("0123456789", at + 41);
+      // The generator writes a time law into the rows as one expression of t: with many knots the
+      // text passes the expression limit, and the engine's generic hint (split it) cannot be followed.
+      const size_t limit = ExpressionOptions{}.max_length;
+      if (problem.time_law && form->rows[r].size() > limit)
         throw Error(where + ": with the scenario's time law of " +
                     std::to_string(problem.time_law_knots.empty() ? 0 : problem.time_law_knots.size() - 1) +
-                    " parts written into it as one expression of t, the row is " + what.substr(from, at - from) +
-                    " characters long, more than the generator's limit of " + what.substr(at + 41, limit_end - at - 41) +
+                    " parts written into it as one expression of t, the row is " +
+                    std::to_string(form->rows[r].size()) + " characters long, more than the generator's limit of " +
+                    std::to_string(limit) +
                     " (hint: generate the scenario without its time_law: section, i.e. the equations in the task's "
                     "own time, which the law then maps to t; or use a law of fewer parts)");
-      }
+      const ex f = B.parse(form->rows[r], form->parameters, where);
       S.row_names.push_back(cs.row_name(row));
       S.row_origin.push_back(to_string(c.origin));
       S.row_order.push_back(static_cast<char>(c.order()));

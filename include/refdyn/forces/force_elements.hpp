@@ -251,6 +251,9 @@ class ForceSet {
   /// Generalized force of element k alone (allocates; for reporting).
   Eigen::VectorXd element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                 const double* z) const;
+  /// The same into Q, with zdot as the element's state-rate workspace (no allocation once sized).
+  void element_force(int k, double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
+                     Eigen::VectorXd& Q, std::vector<double>& zdot) const;
   int state_offset(int k) const { return offsets_[k]; }
  private:
   std::vector<ForceElementPtr> elements_;

@@ -16,86 +16,8 @@
 
 namespace refdyn::io {
 
-struct CheckReport {
-  std::string name;           ///< the scenario's
-  std::string file;           ///< as given (a path, or the source name of a text)
-  std::string model_summary;  ///< Model::summary(), lines ending in "\n"
-  std::vector<std::string> model_notes;  ///< Problem::model_notes (armature read from a URDF, <dynamics>)
-  std::vector<std::string> joints;
-
-  struct Constraint {
-    std::string name;
-    std::string origin;       ///< "material" or "programmed"
-    std::string kind;         ///< "holonomic", "first-order", "acceleration-level" or "jerk-level"
-    int order = 0;            ///< 0 position, 1 velocity, 2 acceleration, 3 jerk
-    bool rheonomic = false;
-    int rows = 0;
-    std::string description;  ///< Constraint::describe()
-  };
-  std::vector<Constraint> constraints;
-  int rows = 0;  ///< constraint rows in all
-  int material_rows = 0, programmed_rows = 0;
-  int holonomic_rows = 0, first_order_rows = 0, acceleration_rows = 0, jerk_rows = 0;
-
-  std::vector<std::string> force_elements;  ///< names
-  std::string planner_description;          ///< Planner::description() (may be empty)
-
-  double t0 = 0;
-  /// The planner's state holds q̈ (jerk problems): its initial value, from initial.qdd or free.
-  bool has_initial_acceleration = false;
-  bool initial_acceleration_given = false;
-  /// "initial.qdd" (a hint per joint), "consistent_with" (jerk rows made with differentiate: true
-  /// satisfy their acceleration rows: initial_acceleration_rows) or "free".
-  std::string initial_acceleration_source;
-  std::vector<std::string> initial_acceleration_rows;
-  std::vector<double> initial_acceleration;  ///< per joint
-
-  /// The closed loops' plant (docs/scenario.md, "The plant"): its motors, its material rows and
-  /// the coordinates the controllers assign (joint names; empty without experiments).
-  std::vector<std::string> actuators, plant_independent;
-  int plant_material_rows = 0;
-
-  bool has_partition = false;
-  std::vector<std::string> independent, dependent;  ///< joint names
-  bool automatic_partition = false;  ///< chosen at t0 (partition.independent: auto)
-  double condition = 0;  ///< cond(K_dc) at t0, 1-norm (io::partition_at_t0)
-  /// The reference solver ("projection" or "lagrange") and whether it uses the partition: the
-  /// Lagrange (KKT) solver does not; the partition shown is then the projection solver's.
-  std::string solver;
-  bool partition_used = true;
-
-  /// The initial state was projected onto the constraints; the joints it moved.
-  bool projected = false;
-  struct Correction {
-    std::string joint;
-    double dq = 0, q = 0, dqd = 0, qd = 0;  ///< correction and corrected value
-  };
-  std::vector<Correction> corrections;
-
-  /// Residuals of every constraint row at t0 (after the projection): one label per kind of
-  /// residual ("|Phi|", …) and per row one value for each.
-  std::vector<std::string> residual_labels;
-  struct RowResiduals {
-    std::string row;
-    std::vector<double> values;
-  };
-  std::vector<RowResiduals> residuals;
-
-  // the integrator
-  std::string method;  ///< "rk4", "dopri5", "bdf"
-  double step = 0, rtol = 0, atol = 0, sample_interval = 0, t1 = 0;
-  int max_order = 0;            ///< BDF
-  std::string stabilization;    ///< "baumgarte", "projection" or "both"
-  double projection_tolerance = 0;
-  bool checks_residual = false;  ///< the plan stops where max |Phi| > residual_tolerance
-  double residual_tolerance = 0;
-
-  long experiments = 0;
-  std::vector<std::string> variants;  ///< every variant's name (empty: no variants: section)
-};
-
-/// The report in the shapes its JSON (`refdyn check --json`) and Python's dict have: built from
-/// the report by the derived fields of Fields<CheckReport> below.
+/// The parts of the report, in the shapes its JSON (`refdyn check --json`) and Python's dict
+/// have (Fields below).
 struct CheckRows {
   long total = 0, material = 0, programmed = 0, holonomic = 0, first_order = 0, acceleration = 0, jerk = 0;
 };
@@ -126,6 +48,49 @@ struct CheckIntegrator {
 struct CheckPlant {
   std::vector<std::string> actuators, assigned;
   long material_rows = 0;
+};
+
+struct CheckReport {
+  std::string name;           ///< the scenario's
+  std::string file;           ///< as given (a path, or the source name of a text)
+  std::string model_summary;  ///< Model::summary(), lines ending in "\n"
+  std::vector<std::string> model_notes;  ///< Problem::model_notes (armature read from a URDF, <dynamics>)
+  std::vector<std::string> joints;
+
+  struct Constraint {
+    std::string name;
+    std::string origin;       ///< "material" or "programmed"
+    std::string kind;         ///< "holonomic", "first-order", "acceleration-level" or "jerk-level"
+    int order = 0;            ///< 0 position, 1 velocity, 2 acceleration, 3 jerk
+    bool rheonomic = false;
+    int rows = 0;
+    std::string description;  ///< Constraint::describe()
+  };
+  std::vector<Constraint> constraints;
+  CheckRows rows;  ///< constraint rows in all and by kind
+
+  std::vector<std::string> force_elements;  ///< names
+  std::string planner_description;          ///< Planner::description() (may be empty)
+  double t0 = 0;
+  /// The planner's state holds q̈ (jerk problems): its initial value, from initial.qdd, consistent
+  /// with acceleration rows, or free; none otherwise.
+  std::optional<CheckInitialAcceleration> initial_acceleration;
+  /// The partition at t0 (io::partition_at_t0); none for a jerk problem.
+  std::optional<CheckPartition> partition;
+  /// The reference solver ("projection" or "lagrange"); under Lagrange the partition shown is
+  /// the one the projection solver would take (partition->used_by_solver false).
+  std::string solver;
+  /// The initial state was projected onto the constraints: per joint it moved, the correction
+  /// and the corrected value; none when no projection was made.
+  std::optional<std::vector<std::pair<std::string, CheckCorrection>>> projection;
+  /// Residuals of every constraint row at t0 (after the projection): per row, label ("|Phi|", …) → value.
+  std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> residuals;
+  CheckIntegrator integrator;
+  long experiments = 0;
+  /// The closed loops' plant (docs/scenario.md, "The plant"): its motors, the coordinates the
+  /// controllers assign and the material rows kept (empty without experiments).
+  CheckPlant plant;
+  std::vector<std::string> variants;  ///< every variant's name (empty: no variants: section)
 };
 
 /// Checks `spec` (read from `file`, which names it in the report) as `refdyn check` does.
@@ -220,13 +185,6 @@ template <>
 struct Fields<io::CheckReport> {
   using S = io::CheckReport;
   static bool valid(const S&) { return true; }  // an invalid scenario is an error, never a report
-  static io::CheckRows rows(const S& r);
-  static std::optional<io::CheckInitialAcceleration> initial_acceleration(const S& r);
-  static std::optional<io::CheckPartition> partition(const S& r);
-  static std::optional<std::vector<std::pair<std::string, io::CheckCorrection>>> projection(const S& r);
-  static std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> residuals(const S& r);
-  static io::CheckIntegrator integrator(const S& r);
-  static io::CheckPlant plant(const S& r);
   static std::string text(const S& r) { return io::check_text(r); }
   static constexpr unsigned in = sink::Json | sink::Python;
   static constexpr auto list() {
@@ -234,12 +192,12 @@ struct Fields<io::CheckReport> {
         field("scenario", &S::name, "", in), field("file", &S::file, "", in), derived("valid", &valid, "", in),
         field("model", &S::model_summary, "", in), field("model_notes", &S::model_notes, "", in),
         field("joints", &S::joints, "", in), field("constraints", &S::constraints, "", in),
-        derived("rows", &rows, "", in), field("force_elements", &S::force_elements, "", in),
+        field("rows", &S::rows, "", in), field("force_elements", &S::force_elements, "", in),
         field("planner", &S::planner_description, "", in), field("t0", &S::t0, "s", in),
-        derived("initial_acceleration", &initial_acceleration, "", in), derived("partition", &partition, "", in),
-        derived("projection", &projection, "", in), derived("residuals", &residuals, "", in),
-        derived("integrator", &integrator, "", in), field("experiments", &S::experiments, "", in),
-        derived("plant", &plant, "", in), field("variants", &S::variants, "", in),
+        field("initial_acceleration", &S::initial_acceleration, "", in), field("partition", &S::partition, "", in),
+        field("projection", &S::projection, "", in), field("residuals", &S::residuals, "", in),
+        field("integrator", &S::integrator, "", in), field("experiments", &S::experiments, "", in),
+        field("plant", &S::plant, "", in), field("variants", &S::variants, "", in),
         derived("text", &text, "", sink::Python));
   }
 };

@@ -41,14 +41,8 @@ class SampleSeries {
 
   SampleSeries() = default;
   /// From separately stored vectors (tests, callers that built their samples one by one).
-  SampleSeries(const std::vector<Eigen::VectorXd>& samples) {  // NOLINT(google-explicit-constructor): reads like one
-    reserve(samples.size());
-    for (const Eigen::VectorXd& v : samples) push_back(v);
-  }
-  SampleSeries(std::initializer_list<Eigen::VectorXd> samples) {
-    reserve(samples.size());
-    for (const Eigen::VectorXd& v : samples) push_back(v);
-  }
+  SampleSeries(const std::vector<Eigen::VectorXd>& samples) { append(samples); }  // NOLINT: reads like one
+  SampleSeries(std::initializer_list<Eigen::VectorXd> samples) { append(samples); }
 
   size_t size() const { return offset_.empty() ? 0 : offset_.size() - 1; }
   bool empty() const { return size() == 0; }
@@ -113,6 +107,12 @@ class SampleSeries {
   std::vector<double> values_;  ///< the samples, one after another
   std::vector<size_t> offset_;  ///< sample k is values_[offset_[k], offset_[k + 1]); empty: no samples
   size_t reserve_samples_ = 0;
+
+  template <class Range>
+  void append(const Range& samples) {
+    reserve(size() + samples.size());
+    for (const Eigen::VectorXd& v : samples) push_back(v);
+  }
 };
 
 /// A recorded motion, one entry per output sample. What is recorded depends on the recorder:
