@@ -525,6 +525,47 @@ TEST(Expression, DerivativeOrderLimitsWhatIsCompiled) {
   EXPECT_NE(e1.derivative_text(0).find("cos(x)"), std::string::npos) << e1.derivative_text(0);
 }
 
+// The texts of an expression and of its derivatives are refdyn syntax (source_text): parsed
+// again they are the same functions, the piecewise ones included (GiNaC printed those under
+// internal names such as rd_sgn, which `differentiate: true` then failed to parse), and sums and
+// products are printed in one fixed order.
+TEST(Expression, TextsParseBackToTheSameFunctions) {
+  const std::vector<std::string> vars{"x", "y", "z"};
+  const char* sources[] = {
+      "abs(x)*y^2 - 3*x/(y*z)",
+      "min(x, y)*z + max(sin(x), z) - step(y)*x^3",
+      "clamp(x, -0.5, 0.5)*exp(-y) + if(x < y, x*y, z/2) + if(z >= 0.1, x, -y)",
+      "sqrt(x^2 + y^2 + 1)/3 + atan2(y, x + 2) - pi*(1 + x^2)^(1/3)*z",
+      "log(1 + x^2)*tanh(y) - 1/(1 + z^2)^2 + 0.25*x*y*z - 2.5e-3",
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.15, 1.3);
+  for (const char* src : sources) {
+    SCOPED_TRACE(src);
+    const Expression e(src, vars, {}, 2);
+    const Expression again(e.text(), vars, {}, 2);
+    EXPECT_EQ(again.text(), e.text()) << "printing is a fixed point";
+    for (int trial = 0; trial < 20; ++trial) {
+      const Vec x{{(trial % 2 ? -1.0 : 1.0) * u(rng), u(rng), (trial % 3 ? 1.0 : -1.0) * u(rng)}};
+      const Eval a = evaluate(e, x), b = evaluate(again, x);
+      EXPECT_NEAR(b.value, a.value, 1e-13 * (1 + std::abs(a.value)));
+      for (int i = 0; i < 3; ++i) {
+        const Expression di(e.derivative_text(i), vars, {}, 1);
+        EXPECT_NEAR(di.value(x.data()), a.grad[i], 1e-13 * (1 + std::abs(a.grad[i]))) << e.derivative_text(i);
+        for (int j = 0; j < 3; ++j) {
+          const Expression dij(e.second_derivative_text(i, j), vars, {}, 0);
+          EXPECT_NEAR(dij.value(x.data()), a.hess(i, j), 1e-12 * (1 + std::abs(a.hess(i, j))))
+              << e.second_derivative_text(i, j);
+        }
+      }
+    }
+  }
+  // Sums and products in text order, signs as a user writes them.
+  EXPECT_EQ(Expression("y - 2*x + z*x", vars).text(), "x*z + y - 2*x");
+  EXPECT_EQ(Expression("abs(x)", vars, {}, 1).derivative_text(0), "if(x < 0, -1, 1)");
+  EXPECT_EQ(Expression("x^-2", vars).text(), "1/x^2");
+}
+
 TEST(Expression, ConcurrentEvaluation) {
   const Expression e2 = phi2(), e1 = phi1();
   const Vec x{{0.7, 2.2}};

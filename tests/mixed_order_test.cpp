@@ -143,19 +143,25 @@ TEST(MixedOrders, HolonomicAndJerkRowsGiveTheAccelerationLevelMotion) {
   EXPECT_LT(err[2], 1e-7);
 }
 
-// differentiate: true forms the same row as the hand-written derivative: the plans agree to
-// rounding, and the check prints the formed row.
-TEST(MixedOrders, DifferentiatedRowEqualsTheHandWrittenDerivative) {
-  const Plan a = plan_of(arm(Wrist::Differentiated, 0.002, 1.0));
-  // The hand-written row has no source: its q̈0 is given per joint (the consistent one of a).
-  std::string by_hand = arm(Wrist::ByHand, 0.002, 1.0);
+// max |x_a − x_b| over the plans of a scenario with a formed row (differentiate: true) and of
+// one with the hand-written row. The latter has no source: its q̈0 is given per joint (the
+// consistent one of the former).
+double formed_against_hand_written(const std::string& formed, std::string by_hand) {
+  const Plan a = plan_of(formed);
   char qdd[200];
   std::snprintf(qdd, sizeof qdd, "  qdd: {q1: %.17g, q2: %.17g, q3: %.17g}", a.qdd[0][0], a.qdd[0][1], a.qdd[0][2]);
   by_hand.replace(by_hand.find("  qdd: {consistent_with: wrist}"), 31, qdd);
   const Plan b = plan_of(by_hand);
-  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.size(), b.size());
   double d = 0;
-  for (size_t k = 0; k < a.size(); ++k) d = std::max(d, (a.x[k] - b.x[k]).cwiseAbs().maxCoeff());
+  for (size_t k = 0; k < a.size() && k < b.size(); ++k) d = std::max(d, (a.x[k] - b.x[k]).cwiseAbs().maxCoeff());
+  return d;
+}
+
+// differentiate: true forms the same row as the hand-written derivative: the plans agree to
+// rounding, and the check prints the formed row.
+TEST(MixedOrders, DifferentiatedRowEqualsTheHandWrittenDerivative) {
+  const double d = formed_against_hand_written(arm(Wrist::Differentiated, 0.002, 1.0), arm(Wrist::ByHand, 0.002, 1.0));
   std::printf("[ mixed ] differentiated vs hand-written jerk row: max |x_a - x_b| = %.2e\n", d);
   EXPECT_LT(d, 1e-10);
   // The formed text is a jerk row: linear in the jerks, with the source kept.
@@ -164,6 +170,29 @@ TEST(MixedOrders, DifferentiatedRowEqualsTheHandWrittenDerivative) {
   EXPECT_EQ(p->jerk_constraints[0]->source_text(), kWristAcceleration);
   EXPECT_NE(p->jerk_constraints[0]->text().find("jz(E)"), std::string::npos) << p->jerk_constraints[0]->text();
   EXPECT_NE(p->jerk_constraints[0]->text().find("qddd(q3)"), std::string::npos);
+}
+
+// The same with piecewise functions in the law (abs, max): their derivatives are piecewise
+// (GiNaC's sign and if() forms), which the formed row writes in refdyn's syntax (it printed
+// GiNaC's internal names, rd_sgn, rd_if_le, and the scenario failed to load).
+TEST(MixedOrders, DifferentiatedPiecewiseRowEqualsTheHandWrittenDerivative) {
+  const std::string law = "qdd(q3) + 0.4*abs(q(q2))*az(E) + 0.2*max(qd(q1), 0.1)*ay(E) - 1.2*cos(2*t)";
+  const std::string jerk = "qddd(q3) + 0.4*abs(q(q2))*jz(E) + 0.4*if(q(q2) < 0, -1, 1)*qd(q2)*az(E) + "
+                           "0.2*max(qd(q1), 0.1)*jy(E) + 0.2*if(qd(q1) >= 0.1, qdd(q1), 0)*ay(E) + 2.4*sin(2*t)";
+  auto with = [](std::string y, const std::string& from, const std::string& to) {
+    y.replace(y.find(from), from.size(), to);
+    return y;
+  };
+  const std::string formed = with(arm(Wrist::Differentiated, 0.002, 1.0), kWristAcceleration, law);
+  const double d = formed_against_hand_written(formed, with(arm(Wrist::ByHand, 0.002, 1.0), kWristJerk, jerk));
+  std::printf("[ mixed ] piecewise law: differentiated vs hand-written jerk row: max |x_a - x_b| = %.2e\n", d);
+  EXPECT_LT(d, 1e-10);
+  const auto p = io::parse_problem(formed, "mixed.yaml");
+  ASSERT_EQ(p->jerk_constraints.size(), 1u);
+  const std::string text = p->jerk_constraints[0]->text();
+  for (const char* frag : {"abs(q(q2))", "max(qd(q1), 0.1)", "if(q(q2) < 0, -1, 1)", "if(0.1 <= qd(q1), 1, 0)"})
+    EXPECT_NE(text.find(frag), std::string::npos) << frag << " in " << text;
+  EXPECT_EQ(text.find("rd_"), std::string::npos) << text;
 }
 
 // Force elements with states (LuGre) in a jerk problem: z is part of the state, its rate exact.

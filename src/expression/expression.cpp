@@ -99,11 +99,11 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
   }
 
   // Texts.
-  impl->text = to_text(s.value);
+  impl->text = source_text(s.value);
   if (derivative_order >= 1)
-    for (int i = 0; i < n; ++i) impl->grad_text.push_back(to_text(s.grad[i]));
+    for (int i = 0; i < n; ++i) impl->grad_text.push_back(source_text(s.grad[i]));
   if (derivative_order >= 2)
-    for (const GiNaC::ex& h : s.hess) impl->hess_text.push_back(to_text(h));
+    for (const GiNaC::ex& h : s.hess) impl->hess_text.push_back(source_text(h));
 
   if (options.extra_derivative_order > 0) {
     // ∂ᵏf/∂x_iᵏ over the same symbols (no new ones: see ExpressionOptions), value only.
@@ -126,7 +126,7 @@ Expression::Expression(const std::string& text, const std::vector<std::string>& 
     } catch (const BadConstant& bc) {
       fail_bad_constant(text, fe, syms, bc);
     }
-    extra->text = to_text(d.value);
+    extra->text = source_text(d.value);
     impl->extra_kernel = extra->select_kernel();
     impl->extra = std::move(extra);
   }

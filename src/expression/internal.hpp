@@ -312,7 +312,11 @@ std::string function_list();
 // Lowering to GiNaC, derivatives, constant checks (lowering.cpp)
 // ------------------------------------------------------------------------------------------
 bool has_symbol(const GiNaC::ex& e);
-std::string to_text(const GiNaC::ex& e);
+std::string to_text(const GiNaC::ex& e);  // GiNaC's printout (messages about constants)
+/// e in refdyn's expression syntax, operands of sums and products ordered by their text: the
+/// same for one expression in every process (GiNaC's own order is not), and parsed back to the
+/// same function, the piecewise ones included (source_text.cpp).
+std::string source_text(const GiNaC::ex& e);
 
 /// Thrown by the compiler for a constant that is not a finite real number; the constructor
 /// turns it into an Error with a location (fail_bad_constant).

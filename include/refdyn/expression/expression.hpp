@@ -213,10 +213,12 @@ class Expression {
   /// extra_derivative_variable. Allocates as value() does. Throws Error for an expression built
   /// without it.
   double extra_derivative(const double* x) const;
-  /// That derivative as text (GiNaC's printout; same Error).
+  /// That derivative as text (refdyn syntax, as text(); same Error).
   std::string extra_derivative_text() const;
 
-  /// Canonical GiNaC printout of the expression after parameter substitution.
+  /// The expression after parameter substitution, in refdyn's expression syntax: parsed again it
+  /// is the same function (piecewise ones included), and one expression prints the same in every
+  /// process (operands of sums and products ordered by their text; GiNaC's own order is not fixed).
   std::string text() const;
   /// ∂/∂x_i as text ("0" for unused variables). Requires derivative_order() >= 1.
   std::string derivative_text(int i) const;
