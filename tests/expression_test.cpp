@@ -1,6 +1,7 @@
 // Expression engine: values, gradients and Hessians against hand-written derivatives and central
 // finite differences, CSE, the quadratic kernel, syntax, and every error path.
 #include "refdyn/expression/expression.hpp"
+#include "refdyn/expression/formula.hpp"
 
 #include "refdyn/common/error.hpp"
 #include "test_support.hpp"
@@ -564,6 +565,64 @@ TEST(Expression, TextsParseBackToTheSameFunctions) {
   EXPECT_EQ(Expression("y - 2*x + z*x", vars).text(), "x*z + y - 2*x");
   EXPECT_EQ(Expression("abs(x)", vars, {}, 1).derivative_text(0), "if(x < 0, -1, 1)");
   EXPECT_EQ(Expression("x^-2", vars).text(), "1/x^2");
+}
+
+// Formula (formula.hpp), the scalar whose arithmetic writes the expression language (the text
+// forms of the laws): random expression trees built over Formula and over double in step; the
+// text, parsed by the engine, has the double's value (so the parentheses, signs and the
+// structural simplifications are right), and scenario texts are kept and recorded.
+TEST(Formula, TextOfRandomArithmeticParsesToItsValue) {
+  std::mt19937 rng(7);
+  const std::vector<std::string> vars{"x", "y", "z"};
+  const double xs[3] = {0.7, -1.3, 2.1};
+  struct Both {
+    Formula f;
+    double d;
+  };
+  std::function<Both(int)> make = [&](int depth) -> Both {
+    const int pick = static_cast<int>(rng() % (depth > 0 ? 14 : 3));
+    if (depth == 0 || pick < 2) {
+      const int leaf = static_cast<int>(rng() % 6);
+      if (leaf < 3) return {Formula::variable(vars[leaf]), xs[leaf]};
+      const double c[] = {0.0, 1.0, -2.5};
+      return {Formula(c[leaf - 3]), c[leaf - 3]};
+    }
+    const Both a = make(depth - 1), b = make(depth - 1);
+    switch (pick) {
+      case 2: return {a.f + b.f, a.d + b.d};
+      case 3: return {a.f - b.f, a.d - b.d};
+      case 4: return {a.f * b.f, a.d * b.d};
+      case 5: return std::abs(b.d) > 0.1 ? Both{a.f / b.f, a.d / b.d} : Both{a.f * b.f, a.d * b.d};
+      case 6: return {-a.f, -a.d};
+      case 7: return {pow(a.f, Formula("2", Formula::kAtom)), std::pow(a.d, 2.0)};  // an integer exponent
+      case 8: return {sin(a.f), std::sin(a.d)};
+      case 9: return {abs(a.f) - b.f, std::abs(a.d) - b.d};
+      case 10: return {atan2(a.f, b.f), std::atan2(a.d, b.d)};
+      case 11: return {a.f - (b.f - a.f), a.d - (b.d - a.d)};
+      case 12: return {a.f / (b.f * b.f + Formula(1.0)), a.d / (b.d * b.d + 1.0)};
+      default: return {-(a.f + b.f) * Formula(-2.5), -(a.d + b.d) * -2.5};
+    }
+  };
+  int compared = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Both e = make(4);
+    if (!std::isfinite(e.d) || std::abs(e.d) > 1e6) continue;
+    const Expression parsed(e.f.text(), vars);
+    EXPECT_NEAR(parsed.value(xs), e.d, 1e-12 * (1 + std::abs(e.d))) << e.f.text();
+    ++compared;
+  }
+  EXPECT_GT(compared, 300);
+  // Structural simplifications only.
+  const Formula x = Formula::variable("x");
+  EXPECT_EQ((x * Formula(1.0) + Formula(0.0)).text(), "x");
+  EXPECT_EQ((Formula(0.0) - x).text(), "-x");
+  EXPECT_TRUE((x * Formula(0.0)).is_zero());
+  // A scenario text is kept, parenthesised, and recorded in the scope; a plain number is not.
+  FormulaScope scope;
+  EXPECT_EQ((Formula::number(Number(0.5)) * x).text(), "0.5*x");
+  EXPECT_FALSE(scope.scenario_texts);
+  EXPECT_EQ((Formula::number(Number(2.0, "2*k")) * x).text(), "(2*k)*x");
+  EXPECT_TRUE(scope.scenario_texts);
 }
 
 TEST(Expression, ConcurrentEvaluation) {

@@ -8,8 +8,8 @@
 //  (3) force elements: apply_dual's values equal apply's, its derivative parts (q, q̇, z) and
 //      apply's ∂Q/∂q̇ equal central differences, the rate (add_rate_with_states) equals the
 //      central difference of Q along the motion (t, q, q̇, z moved by 1, q̇, q̈, ż);
-//  (4) the text forms (symbolic(): kept as texts, they carry the scenario's parameter names)
-//      evaluated by the expression engine equal the laws;
+//  (4) the text forms (symbolic(): law<Formula>, formula.hpp; they carry the scenario's
+//      parameter names) evaluated by the expression engine equal the laws;
 //  (5) capabilities are known at load: a kind without exact derivatives under method: bdf, an
 //      element without its rate in a jerk problem, and paper_literal_forces under bdf are refused
 //      when the scenario is built, with the entry's location.
@@ -343,7 +343,7 @@ TEST(SymbolicForms, EveryKindsTextEqualsItsLaw) {
   std::mt19937 rng(353);
   for (size_t k = 0; k < e.constraints.size(); ++k) {
     const Constraint& c = *e.constraints[k];
-    const std::optional<SymbolicForm> form = c.symbolic();
+    const std::optional<SymbolicForm> form = c.symbolic(m);
     ASSERT_TRUE(form) << e.kinds[k] << " has no text form";
     ConstraintSet set;
     set.add(e.constraints[k]);
@@ -395,7 +395,7 @@ TEST(SymbolicForms, EveryElementsTextEqualsItsLaw) {
   std::mt19937 rng(354);
   for (const ForceElementPtr& fp : e.problem->forces.elements()) {
     const ForceElement& f = *fp;
-    const std::optional<SymbolicForm> form = f.symbolic();
+    const std::optional<SymbolicForm> form = f.symbolic(m);
     ASSERT_TRUE(form) << f.name() << " has no text form";
     std::map<std::string, double> params = form->parameters;
     if (form->scenario_texts) params.insert(kParams.begin(), kParams.end());

@@ -248,7 +248,7 @@ forces:
 initial: {q: {j1: 0.1}}
 integrator: {method: rk4, step: 1e-3, t0: 0, t1: 0.01}
 )", "q.yaml");
-  const auto form = p->forces.elements()[0]->symbolic();
+  const auto form = p->forces.elements()[0]->symbolic(p->model);
   ASSERT_TRUE(form);
   EXPECT_TRUE(form->scenario_texts);
   EXPECT_EQ(form->rows[0], "-(2*k)*(q(j1) - " + symbolic_number(0.25) + ")");

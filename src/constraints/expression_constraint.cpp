@@ -68,6 +68,7 @@ bool mentions(const std::string& text, std::initializer_list<const char*> calls)
 
 class ExpressionConstraint final : public ConstraintLaw<ExpressionConstraint> {
  public:
+  static constexpr bool kOwnSymbolicForm = true;  // its law is the compiled tape, its text the scenario's
   ExpressionConstraint(const Model& m, const std::string& name, const std::string& text, int order,
                        const std::map<std::string, double>& params)
       : order_(order), text_(text), params_(params) {
@@ -138,7 +139,7 @@ class ExpressionConstraint final : public ConstraintLaw<ExpressionConstraint> {
   bool rheonomic() const override { return rheonomic_; }
   std::vector<int> points() const override { return points_; }
   std::string describe() const override { return text_ + " = 0"; }
-  std::optional<SymbolicForm> symbolic() const override { return symbolic_rows({text_}, params_); }
+  std::optional<SymbolicForm> symbolic(const Model&) const override { return symbolic_rows({text_}, params_); }
 
   /// Φ (or c) = f(w) of the variables w (point coordinates, velocities, accelerations, joint
   /// values and rates, t), chained through the point kinematics:

@@ -14,8 +14,8 @@ class JointCoupling final : public ConstraintLaw<JointCoupling> {
       : j_(j), l_(l), jn_(std::move(jn)), ln_(std::move(ln)), ratio_(std::move(ratio)), offset_(std::move(offset)) {}
   template <class S>
   void law(const LawInput<S>& in, LawRows<S>& out) const {
-    out.phi[0] = in.q[j_] - S(ratio_.value) * in.q[l_] - S(offset_.value);
-    out.phid[0] = in.qd[j_] - S(ratio_.value) * in.qd[l_];
+    out.phi[0] = in.q[j_] - S(param<S>(ratio_)) * in.q[l_] - S(param<S>(offset_));
+    out.phid[0] = in.qd[j_] - S(param<S>(ratio_)) * in.qd[l_];
     out.A_zero(0);
     out.A_set(0, j_, S(1.0));
     out.A_set(0, l_, S(-ratio_.value));
@@ -26,12 +26,6 @@ class JointCoupling final : public ConstraintLaw<JointCoupling> {
   bool rheonomic() const override { return false; }
   std::string describe() const override {
     return "q(" + jn_ + ") - " + fmt(ratio_) + "*q(" + ln_ + ") - " + fmt(offset_) + " = 0";
-  }
-  std::optional<SymbolicForm> symbolic() const override {
-    SymbolicForm f =
-        symbolic_rows({"q(" + jn_ + ") - " + symbolic_number(ratio_) + "*q(" + ln_ + ") - " + symbolic_number(offset_)});
-    f.scenario_texts = any_text(ratio_, offset_);
-    return f;
   }
  private:
   int j_, l_;

@@ -21,9 +21,6 @@ class JointTrajectory final : public ConstraintLaw<JointTrajectory> {
   bool first_order() const override { return false; }
   bool rheonomic() const override { return true; }
   std::string describe() const override { return "q(" + jn_ + ") - (" + f_->describe() + ") = 0"; }
-  std::optional<SymbolicForm> symbolic() const override {
-    return constraint_detail::with_function("q(" + jn_ + ") - (", *f_, ")");
-  }
   const TimeFunction* target() const override { return f_.get(); }
  private:
   int j_;

@@ -25,13 +25,4 @@ inline void need_vec(const Vec3& v, const std::string& what) {
   if (!v.allFinite() || v.norm() < 1e-12) throw Error(expected_got(what, "a finite non-zero vector", "zero or NaN"));
 }
 
-/// before + f(t) + after, with f's parameters; none if f has no symbolic form.
-inline std::optional<SymbolicForm> with_function(const std::string& before, const TimeFunction& f,
-                                                 const std::string& after) {
-  std::optional<SymbolicForm> s = f.symbolic();
-  if (!s) return std::nullopt;
-  s->rows[0] = before + s->rows[0] + after;
-  return s;
-}
-
 }  // namespace refdyn::constraint_detail

@@ -25,19 +25,6 @@ class KnifeEdge final : public ConstraintLaw<KnifeEdge> {
   bool rheonomic() const override { return false; }
   std::vector<int> points() const override { return {p_}; }
   std::string describe() const override { return "no lateral slip at " + pn_; }
-  std::optional<SymbolicForm> symbolic() const override {
-    // (R a)·v_P
-    std::string s;
-    for (int r = 0; r < 3; ++r) {
-      std::string nr;
-      for (int c = 0; c < 3; ++c)
-        if (a_[c] != 0.0)
-          nr += std::string(nr.empty() ? "" : " + ") + "R" + std::to_string(r + 1) + std::to_string(c + 1) + "(" + pn_ +
-                ")*" + symbolic_number(a_[c]);
-      if (!nr.empty()) s += std::string(s.empty() ? "" : " + ") + "(" + nr + ")*v" + "xyz"[r] + "(" + pn_ + ")";
-    }
-    return symbolic_rows({s.empty() ? "0" : s});
-  }
  private:
   int p_;
   std::string pn_;

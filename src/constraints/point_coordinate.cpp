@@ -25,9 +25,6 @@ class PointCoordinate final : public ConstraintLaw<PointCoordinate> {
   std::string describe() const override {
     return std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (" + f_->describe() + ") = 0";
   }
-  std::optional<SymbolicForm> symbolic() const override {
-    return constraint_detail::with_function(std::string("xyz").substr(k_, 1) + "(" + pn_ + ") - (", *f_, ")");
-  }
   const TimeFunction* target() const override { return f_.get(); }
  private:
   int p_, k_;

@@ -25,7 +25,6 @@ class PointOnSurface final : public ConstraintLaw<PointOnSurface> {
   bool exact_derivatives() const override { return s_->exact_derivatives(); }
   std::vector<int> points() const override { return {p_}; }
   std::string describe() const override { return "point " + pn_ + " on surface " + s_->describe() + " = 0"; }
-  std::optional<SymbolicForm> symbolic() const override { return s_->symbolic(pn_); }
   std::optional<TaskGeometry> geometry() const override {
     std::optional<TaskGeometry> g = s_->geometry();
     if (g) g->point = pn_;

@@ -26,12 +26,6 @@ class PointSpeed final : public ConstraintLaw<PointSpeed> {
   bool rheonomic() const override { return true; }
   std::vector<int> points() const override { return {p_}; }
   std::string describe() const override { return "u.v(" + pn_ + ") - (" + s_->describe() + ") = 0"; }
-  std::optional<SymbolicForm> symbolic() const override {
-    std::string s;
-    for (int k = 0; k < 3; ++k)
-      if (u_[k] != 0.0) s += std::string(s.empty() ? "" : " + ") + symbolic_number(u_[k]) + "*v" + "xyz"[k] + "(" + pn_ + ")";
-    return constraint_detail::with_function((s.empty() ? "0" : s) + " - (", *s_, ")");
-  }
   const TimeFunction* target() const override { return s_.get(); }
  private:
   int p_;

@@ -27,14 +27,6 @@ class PointsCoincide final : public ConstraintLaw<PointsCoincide> {
   bool rheonomic() const override { return false; }
   std::vector<int> points() const override { return {p1_, p2_}; }
   std::string describe() const override { return "r(" + n1_ + ") - r(" + n2_ + ") = 0"; }
-  std::optional<SymbolicForm> symbolic() const override {
-    SymbolicForm f;
-    for (int k : axes_) {
-      const std::string a(1, "xyz"[k]);
-      f.rows.push_back(a + "(" + n1_ + ") - " + a + "(" + n2_ + ")");
-    }
-    return f;
-  }
  private:
   int p1_, p2_;
   std::string n1_, n2_;

@@ -21,12 +21,13 @@ namespace {
 class EllipticCylinder final : public SurfaceLaw<EllipticCylinder> {
  public:
   EllipticCylinder(Number a, Number b, Number cx, Number cy)
-      : ia2_(1 / (a * a)), ib2_(1 / (b * b)), a_(std::move(a)), b_(std::move(b)), cx_(std::move(cx)), cy_(std::move(cy)) {}
+      : ia2_(inverse_square(a)), ib2_(inverse_square(b)), a_(std::move(a)), b_(std::move(b)), cx_(std::move(cx)),
+        cy_(std::move(cy)) {}
   template <class S>
   void law(const LawVec3<S>& r, const S&, typename LawTypes<S>::SurfaceValue& v) const {
     using namespace law_ops;
-    const S x = r[0] - S(cx_.value), y = r[1] - S(cy_.value);
-    v.f = x * x * S(ia2_) + y * y * S(ib2_) - S(1.0);
+    const S x = r[0] - S(param<S>(cx_)), y = r[1] - S(param<S>(cy_));
+    v.f = x * x * S(param<S>(ia2_)) + y * y * S(param<S>(ib2_)) - S(1.0);
     v.grad = vec3(S(2.0) * x * S(ia2_), S(2.0) * y * S(ib2_), S(0.0));
     set_entry(v.hess, 0, 0, S(2 * ia2_));
     set_entry(v.hess, 1, 1, S(2 * ib2_));
@@ -37,14 +38,13 @@ class EllipticCylinder final : public SurfaceLaw<EllipticCylinder> {
   std::optional<TaskGeometry> geometry() const override {
     return TaskGeometry{"ellipse", "", {{"cx", cx_}, {"cy", cy_}, {"a", a_}, {"b", b_}}};
   }
-  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
-    SymbolicForm f = symbolic_rows({"((x(" + P + ") - " + symbolic_number(cx_) + ")/" + symbolic_number(a_) + ")^2 + ((y(" +
-                                    P + ") - " + symbolic_number(cy_) + ")/" + symbolic_number(b_) + ")^2 - 1"});
-    f.scenario_texts = any_text(a_, b_, cx_, cy_);
-    return f;
-  }
+
  private:
-  double ia2_, ib2_;
+  /// 1/a², folded once (the paper's arithmetic), with the text 1/(a)^2 where a has one.
+  static Number inverse_square(const Number& a) {
+    return Number(1 / (a * a), a.text.empty() ? "" : "1/" + symbolic_number(a) + "^2");
+  }
+  Number ia2_, ib2_;
   Number a_, b_, cx_, cy_;  // with the scenario's texts, for the symbolic form
 };
 
@@ -55,22 +55,14 @@ class Sphere final : public SurfaceLaw<Sphere> {
   template <class S>
   void law(const LawVec3<S>& r, const S&, typename LawTypes<S>::SurfaceValue& v) const {
     using namespace law_ops;
-    const auto e = sub(r, constant3<S>(c_));
-    v.f = squared_norm(e) - S(R_.value * R_.value);
+    const auto e = sub(r, constant3<S>(c_, c_text_));
+    v.f = squared_norm(e) - S(param<S>(R_) * param<S>(R_));
     v.grad = scale(e, S(2.0));
     v.hess = scaled_identity(S(2.0));
   }
   std::string describe() const override { return "|r - c|^2 - " + fmt(R_) + "^2"; }
   std::optional<TaskGeometry> geometry() const override {
     return TaskGeometry{"sphere", "", {{"cx", c_.x()}, {"cy", c_.y()}, {"cz", c_.z()}, {"r", R_}}};
-  }
-  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
-    std::string s;
-    for (int k = 0; k < 3; ++k)
-      s += std::string(k ? " + " : "") + "(" + "xyz"[k] + "(" + P + ") - " + symbolic_number(c_text_[k]) + ")^2";
-    SymbolicForm f = symbolic_rows({s + " - " + symbolic_number(R_) + "^2"});
-    f.scenario_texts = any_text(c_text_[0], c_text_[1], c_text_[2], R_);
-    return f;
   }
  private:
   Vec3 c_;
@@ -94,14 +86,6 @@ class Plane final : public SurfaceLaw<Plane> {
   }
   bool rheonomic() const override { return true; }
   std::string describe() const override { return "n.r - (" + h_->describe() + ")"; }
-  std::optional<SymbolicForm> symbolic(const std::string& P) const override {
-    std::optional<SymbolicForm> h = h_->symbolic();
-    if (!h) return std::nullopt;
-    std::string s;
-    for (int k = 0; k < 3; ++k) s += std::string(k ? " + " : "") + symbolic_number(n_[k]) + "*" + "xyz"[k] + "(" + P + ")";
-    h->rows[0] = s + " - (" + h->rows[0] + ")";
-    return h;
-  }
  private:
   Vec3 n_;
   TimeFunctionPtr h_;

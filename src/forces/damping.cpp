@@ -14,14 +14,7 @@ class JointDamping final : public ForceLaw<JointDamping> {
   std::string name() const override { return "damping(" + n_ + ")"; }
   template <class S>
   void law(const S&, const S*, const S* qd, const S*, S* Q, S*) const {
-    Q[j_] -= b_.value * qd[j_];
-  }
-  std::optional<SymbolicForm> symbolic() const override {
-    SymbolicForm f;
-    f.rows = {"-" + symbolic_number(b_) + "*qd(" + n_ + ")"};
-    f.scenario_texts = any_text(b_);
-    f.joints = {j_};
-    return f;
+    Q[j_] -= param<S>(b_) * qd[j_];
   }
  private:
   int j_;

@@ -15,14 +15,6 @@ class JointEffort final : public ForceLaw<JointEffort> {
   void law(const S& t, const S*, const S*, const S*, S* Q, S*) const {
     Q[j_] += time_value(*f_, t).f;
   }
-  std::optional<SymbolicForm> symbolic() const override {
-    std::optional<SymbolicForm> f = f_->symbolic();
-    if (!f) return std::nullopt;
-    f->functions = {{"effort", f->rows[0]}};
-    f->rows = {"effort"};
-    f->joints = {j_};
-    return f;
-  }
  private:
   int j_;
   std::string n_;

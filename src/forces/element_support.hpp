@@ -7,7 +7,7 @@
 #include <string>
 
 /// For an element whose law<S> is defined in its .cpp (a class in a header, as FlexibleDrive):
-/// instantiates it for the scalars ForceLaw uses (double, JacobianScalar, Dual<1>).
+/// instantiates it for the scalars ForceLaw uses (double, JacobianScalar, Dual<1>, Formula).
 #define REFDYN_INSTANTIATE_FORCE_LAW(Element)                                                                      \
   template void Element::law<double>(const double&, const double*, const double*, const double*, double*, double*) \
       const;                                                                                                       \
@@ -16,7 +16,10 @@
       const ::refdyn::JacobianScalar*, ::refdyn::JacobianScalar*, ::refdyn::JacobianScalar*) const;                \
   template void Element::law<::refdyn::ad::Dual<1>>(const ::refdyn::ad::Dual<1>&, const ::refdyn::ad::Dual<1>*,   \
                                                     const ::refdyn::ad::Dual<1>*, const ::refdyn::ad::Dual<1>*,   \
-                                                    ::refdyn::ad::Dual<1>*, ::refdyn::ad::Dual<1>*) const
+                                                    ::refdyn::ad::Dual<1>*, ::refdyn::ad::Dual<1>*) const;  \
+  template void Element::law<::refdyn::Formula>(const ::refdyn::Formula&, const ::refdyn::Formula*,             \
+                                                const ::refdyn::Formula*, const ::refdyn::Formula*,             \
+                                                ::refdyn::Formula*, ::refdyn::Formula*) const
 
 namespace refdyn::force_detail {
 

@@ -19,7 +19,7 @@ FlexibleDrive::FlexibleDrive(const Model& model, const std::string& joint, Flexi
 template <class S>
 S FlexibleDrive::torque_law(const S& t, const S& qj, const S& qdj) const {
   const auto psi = time_value(*profile_, t);
-  return p_.stiffness.value * (psi.f - qj) + p_.damping.value * (psi.df - qdj);
+  return param<S>(p_.stiffness) * (psi.f - qj) + param<S>(p_.damping) * (psi.df - qdj);
 }
 
 template <class S>
@@ -41,17 +41,6 @@ void FlexibleDrive::signals(double t, const Eigen::VectorXd& q, const Eigen::Vec
                             double* out) const {
   out[0] = profile_->eval(t).f;
   out[1] = torque(t, q, qd);
-}
-
-std::optional<SymbolicForm> FlexibleDrive::symbolic() const {
-  std::optional<SymbolicForm> f = profile_->symbolic();
-  if (!f) return std::nullopt;
-  f->functions = {{"psi_dr", f->rows[0]}};
-  f->rows = {symbolic_number(p_.stiffness) + "*(psi_dr - q(" + joint_name_ + ")) + " + symbolic_number(p_.damping) +
-             "*(d_psi_dr - qd(" + joint_name_ + "))"};
-  f->scenario_texts = f->scenario_texts || any_text(p_.stiffness, p_.damping);
-  f->joints = {j_};
-  return f;
 }
 
 }  // namespace refdyn

@@ -26,27 +26,14 @@ void LuGreFriction::law(const S&, const S*, const S* qd, const S* z, S* Q, S* zd
   using std::abs;
   using std::exp;
   const S& v = qd[j_];
-  const S r = v / p_.v_stribeck.value;
+  const S r = v / param<S>(p_.v_stribeck);
   const S e = exp(-r * r);
-  const S g = p_.mu_k.value + (p_.mu_s.value - p_.mu_k.value) * e;
+  const S g = param<S>(p_.mu_k) + (param<S>(p_.mu_s) - param<S>(p_.mu_k)) * e;
   const S av = abs(v);
-  const S zd = v - p_.sigma0.value * av * z[0] / g;
+  const S zd = v - param<S>(p_.sigma0) * av * z[0] / g;
   zdot[0] = zd;
-  Q[j_] -= p_.sigma0.value * z[0] + p_.sigma1.value * zd + p_.sigma2.value * v;
+  Q[j_] -= param<S>(p_.sigma0) * z[0] + param<S>(p_.sigma1) * zd + param<S>(p_.sigma2) * v;
 }
 REFDYN_INSTANTIATE_FORCE_LAW(LuGreFriction);
-
-std::optional<SymbolicForm> LuGreFriction::symbolic() const {
-  const std::string v = "qd(" + joint_name_ + ")";
-  const std::string g = "(" + symbolic_number(p_.mu_k) + " + (" + symbolic_number(p_.mu_s) + " - " +
-                        symbolic_number(p_.mu_k) + ")*exp(-(" + v + "/" + symbolic_number(p_.v_stribeck) + ")^2))";
-  SymbolicForm f;
-  f.state_rates = {v + " - " + symbolic_number(p_.sigma0) + "*abs(" + v + ")*z(0)/" + g};
-  f.rows = {"-(" + symbolic_number(p_.sigma0) + "*z(0) + " + symbolic_number(p_.sigma1) + "*zdot(0) + " +
-            symbolic_number(p_.sigma2) + "*" + v + ")"};
-  f.scenario_texts = any_text(p_.mu_s, p_.mu_k, p_.sigma0, p_.sigma1, p_.sigma2, p_.v_stribeck);
-  f.joints = {j_};
-  return f;
-}
 
 }  // namespace refdyn

@@ -13,14 +13,7 @@ class JointSpring final : public ForceLaw<JointSpring> {
   std::string name() const override { return "spring(" + n_ + ")"; }
   template <class S>
   void law(const S&, const S* q, const S*, const S*, S* Q, S*) const {
-    Q[j_] -= k_.value * (q[j_] - r_.value);
-  }
-  std::optional<SymbolicForm> symbolic() const override {
-    SymbolicForm f;
-    f.rows = {"-" + symbolic_number(k_) + "*(q(" + n_ + ") - " + symbolic_number(r_) + ")"};
-    f.scenario_texts = any_text(k_, r_);
-    f.joints = {j_};
-    return f;
+    Q[j_] -= param<S>(k_) * (q[j_] - param<S>(r_));
   }
  private:
   int j_;

@@ -215,7 +215,7 @@ void generate_constraints(const Problem& problem, SymbolicReferenceDynamics::Imp
   for (int k = 0; k < cs.size(); ++k) {
     const Constraint& c = *cs.constraints()[k];
     const std::string where = "generate: constraint '" + c.name + "'";
-    std::optional<SymbolicForm> form = with_scenario_parameters(c.symbolic(), problem);
+    std::optional<SymbolicForm> form = with_scenario_parameters(c.symbolic(problem.model), problem);
     if (!form && c.order() == 3)
       if (const JerkConstraintPtr j = jerk_constraint_of(c)) {
         form = SymbolicForm{};
@@ -306,7 +306,7 @@ void generate_forces(const Problem& problem, SymbolicReferenceDynamics::Impl& S,
   for (size_t k = 0; k < problem.forces.elements().size(); ++k) {
     const ForceElement& e = *problem.forces.elements()[k];
     const std::string where = "generate: force element " + e.name();
-    std::optional<SymbolicForm> form = with_scenario_parameters(e.symbolic(), problem);
+    std::optional<SymbolicForm> form = with_scenario_parameters(e.symbolic(problem.model), problem);
     if (!form) throw Error(where + " has no symbolic form");
     const int off = problem.forces.state_offset(static_cast<int>(k));
     if (static_cast<int>(form->state_rates.size()) != e.num_states() || form->joints.size() != form->rows.size())

@@ -15,6 +15,7 @@
 #include "refdyn/multibody/model.hpp"
 #include "refdyn/multibody/dual.hpp"
 #include "refdyn/multibody/generic_kinematics.hpp"
+#include "refdyn/expression/formula.hpp"
 #include "refdyn/expression/time_function.hpp"
 
 #include <map>
@@ -128,9 +129,11 @@ class Constraint {
   /// The function of time the constraint prescribes, if it has one (a point coordinate, joint
   /// trajectory or speed): recorded in trajectories under `record_as` when that is set.
   virtual const TimeFunction* target() const { return nullptr; }
-  /// The rows as texts of the expression language (symbolic_form.hpp): Φ(q, t) for holonomic
-  /// rows, c(q, q̇, t) for first-order ones; none for a kind without a closed form.
-  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+  /// The rows as texts of the expression language (symbolic_form.hpp) over the model's joint
+  /// and point names: Φ(q, t) for holonomic rows, c(q, q̇, t) for first-order ones; none for a
+  /// kind without a closed form. A kind written as a law derives it from law<Formula>
+  /// (ConstraintLaw, law.hpp); an expression constraint gives its own text.
+  virtual std::optional<SymbolicForm> symbolic(const Model& /*model*/) const { return std::nullopt; }
   /// The geometry of the task, for kinds that hold a point on a known curve or surface.
   virtual std::optional<TaskGeometry> geometry() const { return std::nullopt; }
 
@@ -169,8 +172,16 @@ class ImplicitSurface {
   /// Whether eval_dual() is provided (SurfaceLaw's surfaces; see Constraint::exact_derivatives).
   virtual bool exact_derivatives() const { return false; }
   virtual std::string describe() const = 0;
-  /// f as a text in x(P), y(P), z(P) and t for the point named `point` (symbolic_form.hpp).
-  virtual std::optional<SymbolicForm> symbolic(const std::string& /*point*/) const { return std::nullopt; }
+  /// f over Formulas (formula.hpp) at r = (x(P), y(P), z(P)) and t: the text of its symbolic
+  /// form. SurfaceLaw's surfaces derive it from law<Formula>; others have none (nullopt).
+  struct ValueFormula {
+    Formula f, ft, ftt;
+    multibody::Vec3T<Formula> grad, grad_t;
+    multibody::Mat3T<Formula> hess;
+  };
+  virtual std::optional<ValueFormula> eval_formula(const multibody::Vec3T<Formula>& /*r*/, const Formula& /*t*/) const {
+    return std::nullopt;
+  }
   /// Its kind and numbers (TaskGeometry, without the point), where the kind is a known shape.
   virtual std::optional<TaskGeometry> geometry() const { return std::nullopt; }
 };

@@ -15,18 +15,34 @@
 ///                                            double results have always had, bit for bit)
 ///   evaluate_dual()  = law<JacobianScalar>  (exact derivatives along the seeds of t, q and q̇;
 ///                                            the value parts are law<double>'s to rounding)
+///   symbolic()       = law<Formula>         (the rows' texts for `refdyn generate`: formula.hpp;
+///                                            the kind's scenario numbers enter as param<S>(n),
+///                                            which keeps their names in the text)
 /// and reports exact_derivatives() = true, so build_problem accepts the kind under method: bdf
-/// and beside jerk rows. The text form (symbolic()) stays a kind's own: it keeps the scenario's
-/// texts of its numbers (parameter names) where the law folds constants the way the double
-/// path computes them; tests/law_test.cpp evaluates every kind's text against its law.
+/// and beside jerk rows. tests/law_test.cpp evaluates every kind's text against its law. A kind
+/// whose law<S> cannot run over Formulas (the expression constraint: its law is its compiled
+/// tape, its text the scenario's) declares `static constexpr bool kOwnSymbolicForm = true` and
+/// overrides symbolic().
 ///
 /// Sizes: q, q̇ have n = model.nv entries; A's row i has n entries; out.phi/phid/gamma rows().
 #include "refdyn/constraints/constraints.hpp"
 
 #include <algorithm>
+#include <limits>
+#include <optional>
 #include <type_traits>
 
 namespace refdyn {
+
+/// The generic multibody arrays (linear3.hpp: lift, zero3) over Formulas, for law<Formula>.
+template <>
+struct multibody::ScalarTraits<Formula> {
+  static Formula from_double(double v) { return Formula(v); }
+  static Formula sin(const Formula& x) { return refdyn::sin(x); }
+  static Formula cos(const Formula& x) { return refdyn::cos(x); }
+  static Formula sqrt(const Formula& x) { return refdyn::sqrt(x); }
+  static bool is_zero(const Formula& x) { return x.is_zero(); }
+};
 
 /// What law<S> reads: ConstraintInput (S = double) or ConstraintInputDual (S = JacobianScalar).
 template <class S> struct LawTypes;
@@ -45,9 +61,42 @@ template <> struct LawTypes<JacobianScalar> {
 template <class S> using LawInput = typename LawTypes<S>::Input;
 template <class S> using LawVec3 = typename LawTypes<S>::Vec;
 
+/// What law<Formula> reads (formula_law_input): t, q(j), qd(j) and the declared points' x(P),
+/// vx(P), R11(P)… as variables of the expression language.
+struct ConstraintInputFormula {
+  Formula t;
+  int n;
+  const Formula* q;
+  const Formula* qd;
+  const std::vector<PointStateT<Formula>>& points;
+  Formula* scratch = nullptr;
+};
+template <> struct LawTypes<Formula> {
+  using Input = ConstraintInputFormula;
+  using Point = PointStateT<Formula>;
+  using Vec = multibody::Vec3T<Formula>;
+  using SurfaceValue = ImplicitSurface::ValueFormula;
+};
+
 /// What law<S> writes: phi, phid, gamma by row (out.phi[i] = …) and A through the functions
 /// below, which are, for S = double, the Eigen expressions the kinds were written with.
 template <class S> struct LawRows;
+
+/// For law<Formula>: the rows' Φ (or c) texts; Φ̇, γ and A, which the generator derives from Φ
+/// itself, are written and dropped.
+template <>
+struct LawRows<Formula> {
+  std::vector<Formula> phi, phid, gamma;
+  explicit LawRows(int rows) : phi(rows), phid(rows), gamma(rows) {}
+  template <class... Args> void A_dot(Args&&...) {}
+  template <class... Args> void A_dot_diff(Args&&...) {}
+  template <class... Args> void A_axis(Args&&...) {}
+  template <class... Args> void A_axis_diff(Args&&...) {}
+  template <class... Args> void A_add_axis(Args&&...) {}
+  template <class... Args> void A_zero(Args&&...) {}
+  template <class... Args> void A_set(Args&&...) {}
+  template <class... Args> void A_add(Args&&...) {}
+};
 
 template <>
 struct LawRows<double> {
@@ -123,6 +172,7 @@ inline double squared_norm(const Vec3& a) { return a.squaredNorm(); }
 template <class S> S squared_norm(const multibody::Vec3T<S>& a) { return multibody::dot(a, a); }
 inline double norm(const Vec3& a) { return a.norm(); }
 template <int N> ad::Dual<N> norm(const multibody::Vec3T<ad::Dual<N>>& a) { return ad::sqrt(multibody::dot(a, a)); }
+inline Formula norm(const multibody::Vec3T<Formula>& a) { return sqrt(multibody::dot(a, a)); }
 
 /// A constant vector as the law's vector type: the Vec3 itself for double (no copy), its
 /// entries lifted for a dual number.
@@ -130,11 +180,18 @@ template <class S> decltype(auto) constant3(const Vec3& v) {
   if constexpr (std::is_same_v<S, double>) return (v);
   else return multibody::lift<S>(v);
 }
+/// The same with the scenario's texts of its entries (param<S>): the values for double and the
+/// dual numbers, the texts for a Formula.
+template <class S> decltype(auto) constant3(const Vec3& v, const Number3& texts) {
+  if constexpr (std::is_same_v<S, Formula>) return multibody::Vec3T<Formula>{param<S>(texts[0]), param<S>(texts[1]), param<S>(texts[2])};
+  else return constant3<S>(v);
+}
 /// (a, b, c) as the law's vector type.
 inline Vec3 vec3(double a, double b, double c) { return Vec3(a, b, c); }
 template <int N> multibody::Vec3T<ad::Dual<N>> vec3(const ad::Dual<N>& a, const ad::Dual<N>& b, const ad::Dual<N>& c) {
   return {a, b, c};
 }
+inline multibody::Vec3T<Formula> vec3(const Formula& a, const Formula& b, const Formula& c) { return {a, b, c}; }
 /// M(r, c) = v for Eigen's Mat3 and linear3.hpp's row-major Mat3T.
 inline void set_entry(Mat3& M, int r, int c, double v) { M(r, c) = v; }
 template <class S> void set_entry(multibody::Mat3T<S>& M, int r, int c, const S& v) { M[3 * r + c] = v; }
@@ -151,9 +208,19 @@ inline ImplicitSurface::ValueDual surface_value(const ImplicitSurface& f, const 
   return f.eval_dual(r, t);
 }
 
+/// The surface's text at (x(P), y(P), z(P), t) (eval_formula); throws NoSymbolicForm for a
+/// surface without one.
+inline ImplicitSurface::ValueFormula surface_value(const ImplicitSurface& f, const multibody::Vec3T<Formula>& r,
+                                                  const Formula& t) {
+  std::optional<ImplicitSurface::ValueFormula> v = f.eval_formula(r, t);
+  if (!v) throw NoSymbolicForm{"the surface " + f.describe() + " has no symbolic form"};
+  return *v;
+}
+
 /// −x; for a dual number its derivative parts are 0 − x.d (never −0), so that an unseeded time
 /// gives the bits of the constant −x.v.
 inline double neg(double x) { return -x; }
+inline Formula neg(const Formula& x) { return -x; }
 template <int N> ad::Dual<N> neg(const ad::Dual<N>& x) {
   ad::Dual<N> r(-x.v);
   for (int k = 0; k < N; ++k) r.d[k] = 0.0 - x.d[k];
@@ -162,17 +229,62 @@ template <int N> ad::Dual<N> neg(const ad::Dual<N>& x) {
 /// The value part.
 inline double value_of(double x) { return x; }
 template <int N> double value_of(const ad::Dual<N>& x) { return x.v; }
+inline double value_of(const Formula&) { return std::numeric_limits<double>::quiet_NaN(); }  // a text has no value
 /// True where a term with this factor may be skipped: a double zero adds nothing (the double
 /// path's shortcut); a dual number's zero value may carry non-zero derivative parts, so never.
 inline bool skippable(double x) { return x == 0; }
 template <int N> bool skippable(const ad::Dual<N>&) { return false; }
+inline bool skippable(const Formula& x) { return x.is_zero(); }
+/// !(x > bound): a guard against a value near a singularity (it also holds for NaN). A Formula
+/// has no value, and its text is the formula everywhere: never.
+inline bool not_above(double x, double bound) { return !(x > bound); }
+template <int N> bool not_above(const ad::Dual<N>& x, double bound) { return !(x.v > bound); }
+inline bool not_above(const Formula&, double) { return false; }
 
 }  // namespace law_ops
+
+namespace law_detail {
+/// law<Formula>'s inputs over the model's names: t, q(j), qd(j) and, for each declared point P,
+/// x(P), vx(P) and R11(P)…; the quantities the symbolic form has no variable for (drift, ω,
+/// Jacobians) are a marker that must not reach a row (formula_form checks).
+struct FormulaInputs {
+  Formula t;
+  std::vector<Formula> q, qd;
+  std::vector<PointStateT<Formula>> points;
+  ConstraintInputFormula input() const {
+    return {t, static_cast<int>(q.size()), q.data(), qd.data(), points, nullptr};
+  }
+};
+FormulaInputs formula_inputs(const Model& model, const std::vector<int>& points);
+/// The symbolic form of the rows law<Formula> wrote and of what the scope recorded; Error naming
+/// `kind` if a row used a quantity without a variable.
+SymbolicForm formula_form(const std::vector<Formula>& rows, const FormulaScope& scope, const std::string& kind);
+template <class Kind>
+constexpr bool own_symbolic_form() {
+  if constexpr (requires { Kind::kOwnSymbolicForm; }) return Kind::kOwnSymbolicForm;
+  else return false;
+}
+}  // namespace law_detail
 
 /// The evaluations of a kind written as law<S> (see the header comment).
 template <class Kind>
 class ConstraintLaw : public Constraint {
  public:
+  std::optional<SymbolicForm> symbolic(const Model& model) const override {
+    if constexpr (law_detail::own_symbolic_form<Kind>()) {
+      return std::nullopt;
+    } else {
+      const law_detail::FormulaInputs in = law_detail::formula_inputs(model, this->points());
+      FormulaScope scope;
+      LawRows<Formula> out(this->rows());
+      try {
+        static_cast<const Kind&>(*this).template law<Formula>(in.input(), out);
+      } catch (const NoSymbolicForm&) {
+        return std::nullopt;
+      }
+      return law_detail::formula_form(out.phi, scope, "constraint '" + this->name + "' (" + this->describe() + ")");
+    }
+  }
   void evaluate(const ConstraintInput& in, Eigen::Ref<Eigen::VectorXd> phi, Eigen::Ref<Eigen::VectorXd> phid,
                 Eigen::Ref<Eigen::MatrixXd> A, Eigen::Ref<Eigen::VectorXd> gamma) const final {
     LawRows<double> out{phi, phid, gamma, A};
@@ -203,6 +315,13 @@ class SurfaceLaw : public ImplicitSurface {
     v.grad = v.grad_t = multibody::zero3<JacobianScalar>();
     v.hess = multibody::zero33<JacobianScalar>();
     static_cast<const Surface&>(*this).template law<JacobianScalar>(r, t, v);
+    return v;
+  }
+  std::optional<ValueFormula> eval_formula(const multibody::Vec3T<Formula>& r, const Formula& t) const final {
+    ValueFormula v;
+    v.grad = v.grad_t = multibody::zero3<Formula>();
+    v.hess = multibody::zero33<Formula>();
+    static_cast<const Surface&>(*this).template law<Formula>(r, t, v);
     return v;
   }
   bool exact_derivatives() const final { return true; }

@@ -6,6 +6,7 @@
 
 #include "refdyn/multibody/dual.hpp"
 #include "refdyn/multibody/model.hpp"
+#include "refdyn/expression/formula.hpp"
 #include "refdyn/expression/time_function.hpp"
 
 #include <algorithm>
@@ -66,9 +67,10 @@ class ForceElement {
   virtual void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                        double* out) const {}
 
-  /// Q as texts of the expression language (symbolic_form.hpp): `rows` with their `joints`, the
-  /// states' `state_rates`; none for an element without a closed form.
-  virtual std::optional<SymbolicForm> symbolic() const { return std::nullopt; }
+  /// Q as texts of the expression language (symbolic_form.hpp) over the model's joint names:
+  /// `rows` with their `joints`, the states' `state_rates`; none for an element without a closed
+  /// form. ForceLaw derives it from law<Formula>.
+  virtual std::optional<SymbolicForm> symbolic(const Model& /*model*/) const { return std::nullopt; }
   /// Optional label from the scenario (`name:`); suffixes signal names ("psi_dr_<label>").
   std::string label;
 };
@@ -89,10 +91,12 @@ class ForceElement {
 ///                           q̈, z with ż): Q̇ = ∂Q/∂t + ∂Q/∂q q̇ + ∂Q/∂q̇ q̈ + ∂Q/∂z ż
 ///   add_rate()              the same for an element without states (false for one with them:
 ///                           their rates are needed)
+///   symbolic()              law<Formula> (formula.hpp): Q's rows and the states' rates as
+///                           texts, the element's scenario numbers as param<S>(n) keeping their
+///                           names, its functions of time as the generator's NAME / d_NAME
 /// and reports exact_derivatives() and has_rate() true. The scratch of the dual sweeps is per
 /// thread and grows once (no allocation after the first call with a given n on a thread).
-/// The text form (symbolic()) stays the element's own (see law.hpp; tests/law_test.cpp checks it
-/// against the law).
+/// tests/law_test.cpp evaluates every element's text against its law.
 template <class Element>
 class ForceLaw : public ForceElement {
  public:
@@ -127,6 +131,29 @@ class ForceLaw : public ForceElement {
   }
   bool exact_derivatives() const final { return true; }
   bool has_rate() const final { return true; }
+  std::optional<SymbolicForm> symbolic(const Model& model) const final {
+    const int n = model.nq, nz = this->num_states();
+    std::vector<Formula> q, qd, z, Q(n), zdot(std::max(1, nz));
+    for (int i = 0; i < n; ++i) {
+      q.push_back(Formula::variable("q(" + model.joint_name[i] + ")"));
+      qd.push_back(Formula::variable("qd(" + model.joint_name[i] + ")"));
+    }
+    for (int k = 0; k < std::max(1, nz); ++k) z.push_back(Formula::variable("z(" + std::to_string(k) + ")"));
+    FormulaScope scope;
+    try {
+      self().template law<Formula>(Formula::variable("t"), q.data(), qd.data(), z.data(), Q.data(), zdot.data());
+    } catch (const NoSymbolicForm&) {
+      return std::nullopt;
+    }
+    SymbolicForm form;
+    for (int i = 0; i < n; ++i)
+      if (!Q[i].is_zero()) form.rows.push_back(Q[i].text()), form.joints.push_back(i);
+    for (int k = 0; k < nz; ++k) form.state_rates.push_back(zdot[k].text());
+    form.parameters = scope.parameters;
+    form.functions = scope.functions;
+    form.scenario_texts = scope.scenario_texts;
+    return form;
+  }
 
  private:
   const Element& self() const { return static_cast<const Element&>(*this); }
@@ -196,7 +223,6 @@ class FlexibleDrive final : public ForceLaw<FlexibleDrive> {
   std::vector<std::string> signal_names() const override;
   void signals(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const double* z,
                double* out) const override;
-  std::optional<SymbolicForm> symbolic() const override;
   const TimeFunction& profile() const { return *profile_; }
   int joint() const { return j_; }
  private:
@@ -225,7 +251,6 @@ class LuGreFriction final : public ForceLaw<LuGreFriction> {
   /// ż and τ above, in the joint.
   template <class S>
   void law(const S& t, const S* q, const S* qd, const S* z, S* Q, S* zdot) const;
-  std::optional<SymbolicForm> symbolic() const override;
   const LuGreParams& params() const { return p_; }
   int joint() const { return j_; }
  private:

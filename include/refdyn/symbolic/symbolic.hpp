@@ -11,7 +11,8 @@
 /// in the symbols t, q_i, q̇_i, z_k and the scenario parameters the constraints and forces
 /// name (kept symbolic; their values are the defaults of the generated code). Each constraint,
 /// force element and function of time supplies its formula as a SymbolicForm
-/// (symbolic_form.hpp); kinds without one are reported by name.
+/// (symbolic_form.hpp; a constraint kind's or force element's is its law over Formula,
+/// formula.hpp); kinds without one are reported by name.
 ///
 /// Writers:
 ///   c_header(), c_source()  C99, only <math.h>: the blocks above with common-subexpression

@@ -31,7 +31,7 @@ class Distance final : public ConstraintLaw<Distance> {
     const auto& Q = in.points[b_];
     const auto delta = sub(P.r, Q.r), delta_dot = sub(P.v, Q.v);
     const S rho = norm(delta);
-    if (!(value_of(rho) > 1e-12)) {
+    if (not_above(rho, 1e-12)) {
       const double t = value_of(in.t);
       throw NumericalFailure(t, "at t = " + fmt(t) + " s the points '" + an_ + "' and '" + bn_ +
                                     "' of distance constraint '" + name + "' coincide: the distance has no direction there");
@@ -51,13 +51,6 @@ class Distance final : public ConstraintLaw<Distance> {
   const TimeFunction* target() const override { return d_.get(); }
   std::string describe() const override {
     return "|r(" + an_ + ") - r(" + bn_ + ")| - (" + d_->describe() + ") = 0";
-  }
-  std::optional<SymbolicForm> symbolic() const override {
-    std::optional<SymbolicForm> d = d_->symbolic();
-    if (!d) return std::nullopt;
-    d->rows[0] = "sqrt((x(" + an_ + ") - x(" + bn_ + "))^2 + (y(" + an_ + ") - y(" + bn_ + "))^2 + (z(" + an_ + ") - z(" +
-                 bn_ + "))^2) - (" + d->rows[0] + ")";
-    return d;
   }
 
  private:
