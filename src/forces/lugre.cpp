@@ -21,6 +21,8 @@ LuGreFriction::LuGreFriction(const Model& model, const std::string& joint, LuGre
   need(std::isfinite(p.v_stribeck.value) && p.v_stribeck > 0, w + "Stribeck velocity", "a finite value > 0", p.v_stribeck);
 }
 
+std::string LuGreFriction::name() const { return "lugre(" + joint_name_ + ")"; }
+
 template <class S>
 void LuGreFriction::law(const S&, const S*, const S* qd, const S* z, S* Q, S* zdot) const {
   using std::abs;

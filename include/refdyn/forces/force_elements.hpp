@@ -245,7 +245,9 @@ struct LuGreParams {
 class LuGreFriction final : public ForceLaw<LuGreFriction> {
  public:
   LuGreFriction(const Model& model, const std::string& joint, LuGreParams p);
-  std::string name() const override { return "lugre(" + joint_name_ + ")"; }
+  /// Defined in lugre.cpp: the key function, so the vtable and ForceLaw's apply (which inlines
+  /// law<double>, defined there) are emitted in that file only.
+  std::string name() const override;
   int num_states() const override { return 1; }
   std::vector<std::string> state_names() const override { return {"z_" + joint_name_}; }
   /// ż and τ above, in the joint.
