@@ -61,7 +61,7 @@ template <> struct LawTypes<JacobianScalar> {
 template <class S> using LawInput = typename LawTypes<S>::Input;
 template <class S> using LawVec3 = typename LawTypes<S>::Vec;
 
-/// What law<Formula> reads (formula_law_input): t, q(j), qd(j) and the declared points' x(P),
+/// What law<Formula> reads (law_detail::formula_inputs): t, q(j), qd(j) and the declared points' x(P),
 /// vx(P), R11(P)… as variables of the expression language.
 struct ConstraintInputFormula {
   Formula t;

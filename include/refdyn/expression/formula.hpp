@@ -55,7 +55,7 @@ class Formula {
  private:
   std::string text_;
   Binding binding_ = kAtom;
-  double value_ = 0.0;  ///< the constant's value where the text is a plain constant 0 or 1, else NaN
+  double value_ = 0.0;  ///< the value of a Formula made from a double; NaN for any other text
 };
 
 /// The text of f, parenthesised when it binds weaker than `context`.
