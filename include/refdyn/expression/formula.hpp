@@ -20,6 +20,7 @@
 #include "refdyn/expression/symbolic_form.hpp"
 #include "refdyn/expression/time_function.hpp"
 
+#include <initializer_list>
 #include <map>
 #include <string>
 #include <type_traits>
