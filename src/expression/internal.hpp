@@ -313,9 +313,9 @@ std::string function_list();
 // ------------------------------------------------------------------------------------------
 bool has_symbol(const GiNaC::ex& e);
 std::string to_text(const GiNaC::ex& e);  // GiNaC's printout (messages about constants)
-/// e in refdyn's expression syntax, operands of sums and products ordered by their text: the
-/// same for one expression in every process (GiNaC's own order is not), and parsed back to the
-/// same function, the piecewise ones included (source_text.cpp).
+/// e in refdyn's expression syntax, parsed back to the same function (the piecewise ones
+/// included), with GiNaC's per-process choices of operand order and of a sum factor's sign
+/// undone (source_text.cpp; what stays: Expression::text()).
 std::string source_text(const GiNaC::ex& e);
 
 /// Thrown by the compiler for a constant that is not a finite real number; the constructor

@@ -217,8 +217,11 @@ class Expression {
   std::string extra_derivative_text() const;
 
   /// The expression after parameter substitution, in refdyn's expression syntax: parsed again it
-  /// is the same function (piecewise ones included), and one expression prints the same in every
-  /// process (operands of sums and products ordered by their text; GiNaC's own order is not fixed).
+  /// is the same function (piecewise ones included). GiNaC's per-process choices are undone where
+  /// printing can: operands of sums and products in text order, a sum factor in one orientation
+  /// ((a − b) rather than −(b − a)). Where GiNaC itself forms different but equal expressions in
+  /// two runs (mixing floating-point and exact numbers, e.g. 6*(u)/(c − 9.0*x) or
+  /// u/(c/6 − 1.5*x)) the texts differ too; the compiled numbers never do.
   std::string text() const;
   /// ∂/∂x_i as text ("0" for unused variables). Requires derivative_order() >= 1.
   std::string derivative_text(int i) const;

@@ -35,8 +35,8 @@ class Formula {
   /// n as its scenario text where it has one (recorded in the FormulaScope), else its value.
   static Formula number(const Number& n);
   const std::string& text() const { return text_; }
-  bool is_zero() const { return value_ == 0.0 && text_ == "0"; }
-  bool is_one() const { return value_ == 1.0 && text_ == "1"; }
+  bool is_zero() const { return value_ == 0.0; }
+  bool is_one() const { return value_ == 1.0; }
 
   friend Formula operator+(const Formula& a, const Formula& b);
   friend Formula operator-(const Formula& a, const Formula& b);
