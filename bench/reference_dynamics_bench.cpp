@@ -4,6 +4,8 @@
 // section "reference_dynamics_bench".
 //
 //   rd_eval/{projection,lagrange,projection_expr}  one ReferenceDynamics::derivative
+//   rd_eval/pinned_{projection,lagrange}            the same with E held instead (3 rows on the 3
+//                                                   coordinates: no null space, q̈ = A⁻¹ rhs)
 //   kdl/vereshchagin                                one ChainHdSolver_Vereshchagin::CartToJnt
 //   constraints/{hand,expr}                         evaluate_constraints (kinematics + rows)
 //   constraints/kinematics                          FK + compute_point_states alone
@@ -63,12 +65,14 @@ constexpr double kGravity = 9.81;     // the paper model's gravity is (0, 0, −
 struct Bench {
   std::unique_ptr<refdyn::models::PaperExample> ex, ex_expr;
   std::unique_ptr<refdyn::ReferenceDynamics> rd_proj, rd_lag, rd_expr;
+  refdyn::ConstraintSet pinned;  // E's x, y, z held where the plan has it at the first state
+  std::unique_ptr<refdyn::ReferenceDynamics> rd_pin_proj, rd_pin_lag;
   refdyn::Plan plan;  // the planned motion (projection, hand-written constraints)
   VectorXd x0;
   // The 8 sampled states.
   std::vector<double> t;
   std::vector<VectorXd> x, q, qd;
-  VectorXd xdot_proj, xdot_lag, xdot_expr;
+  VectorXd xdot_proj, xdot_lag, xdot_expr, xdot_pin_proj, xdot_pin_lag;
   // Constraint evaluation workspaces.
   std::unique_ptr<refdyn::Data> data_hand, data_expr, data_kin;
   std::unique_ptr<refdyn::ConstraintEval> ev_hand, ev_expr, ev_kin;
@@ -117,6 +121,19 @@ void build(Bench& b) {
     b.qd.push_back(b.plan.x[i].segment(n, n));
   }
   b.xdot_proj = b.xdot_lag = b.xdot_expr = VectorXd::Zero(b.rd_proj->state_size());
+  {  // E pinned: 3 rows on 3 coordinates, the paper's forces
+    Data data(b.ex->model);
+    forward_kinematics(b.ex->model, data, b.q[0]);
+    const Vec3 e = point_position(b.ex->model, data, b.ex->model.point_index("E"));
+    for (int axis = 0; axis < 3; ++axis) b.pinned.add(point_coordinate(b.ex->model, "E", axis, constant(e[axis])));
+    ReferenceDynamicsOptions po = b.ex->options();
+    po.independent.clear();  // every coordinate is dependent
+    po.solver = ReferenceSolver::Projection;
+    b.rd_pin_proj = std::make_unique<ReferenceDynamics>(b.ex->model, b.ex->forces, b.pinned, po);
+    po.solver = ReferenceSolver::Lagrange;
+    b.rd_pin_lag = std::make_unique<ReferenceDynamics>(b.ex->model, b.ex->forces, b.pinned, po);
+    b.xdot_pin_proj = b.xdot_pin_lag = b.xdot_proj;
+  }
 
   b.data_hand = std::make_unique<Data>(b.ex->model);
   b.data_expr = std::make_unique<Data>(b.ex_expr->model);
@@ -196,6 +213,16 @@ void check_all(Bench& b) {
   std::printf("check refdyn: projection, lagrange and projection_expr derivatives agree "
               "(worst relative difference %.1e)\n", worst_routes);
   if (!(worst_routes < 1e-9)) fatal("refdyn's projection, Lagrange and expression routes disagree");
+  double worst_pinned = 0;  // E pinned: projection (q̈ = K_dc⁻¹ rhs) and Lagrange
+  for (int k = 0; k < kStates; ++k) {
+    b.rd_pin_proj->derivative(b.t[k], b.x[k], b.xdot_pin_proj);
+    b.rd_pin_lag->derivative(b.t[k], b.x[k], b.xdot_pin_lag);
+    worst_pinned = std::max(worst_pinned, (b.xdot_pin_proj - b.xdot_pin_lag).cwiseAbs().maxCoeff() /
+                                              (1.0 + b.xdot_pin_proj.cwiseAbs().maxCoeff()));
+  }
+  std::printf("check refdyn: E pinned, projection and lagrange derivatives agree (worst relative difference %.1e)\n",
+              worst_pinned);
+  if (!(worst_pinned < 1e-9)) fatal("refdyn's projection and Lagrange routes disagree with E pinned");
 
   // 2. Vereshchagin with the timed inputs: its own constraints hold, and the equations of motion.
   load_kdl_timing_inputs(b);
@@ -366,6 +393,14 @@ void register_all(Bench* b) {
     b->rd_expr->derivative(b->t[k], b->x[k], b->xdot_expr);
     benchmark::DoNotOptimize(b->xdot_expr.data());
   });
+  reg_states("rd_eval/pinned_projection", [b](int k) {
+    b->rd_pin_proj->derivative(b->t[k], b->x[k], b->xdot_pin_proj);
+    benchmark::DoNotOptimize(b->xdot_pin_proj.data());
+  });
+  reg_states("rd_eval/pinned_lagrange", [b](int k) {
+    b->rd_pin_lag->derivative(b->t[k], b->x[k], b->xdot_pin_lag);
+    benchmark::DoNotOptimize(b->xdot_pin_lag.data());
+  });
   // 2. The peer.
   reg_states("kdl/vereshchagin", [b](int k) { benchmark::DoNotOptimize(b->kdl->vereshchagin(k)); });
   // 3. Constraints.
@@ -442,6 +477,8 @@ void print_tables(const Reporter& rep) {
       {"rd_eval/projection", "kdl/vereshchagin / this >= 4"},
       {"rd_eval/lagrange", ""},
       {"rd_eval/projection_expr", ""},
+      {"rd_eval/pinned_projection", "(E pinned: 3 rows, q̈ = A⁻¹ rhs)"},
+      {"rd_eval/pinned_lagrange", ""},
       {"kdl/vereshchagin", "(peer)"},
       {"constraints/hand", ""},
       {"constraints/expr", "this / constraints/hand <= 2"},

@@ -1033,8 +1033,8 @@ TEST(Sensitivity, UnknownParameterOrAFamilyIsRejectedBeforeAnythingIsWritten) {
 // ---------------------------------------------------------------------------------------------
 // The partition and its condition number at t0 (issue 33, item 4): the same, real κ = cond(K_dc)
 // in check's text, summary.json and the report whatever the solver. Under the Lagrange solver
-// (the default from 7 coordinates) the KKT solve uses no partition; what is shown is the one the
-// projection solver takes, and says so.
+// (the default from kLagrangeFrom = 16 coordinates) the KKT solve uses no partition; what is shown
+// is the one the projection solver takes, and says so.
 
 namespace {
 
@@ -1071,9 +1071,9 @@ std::string sig6(double v) {
 
 TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
   Scratch s;
-  const fs::path automatic = arm_line_scenario(s, "auto.yaml", ""),
+  const fs::path lagrange = arm_line_scenario(s, "lagrange.yaml", "\nsolver: lagrange\n"),
                  projection = arm_line_scenario(s, "projection.yaml", "\nsolver: projection\n");
-  const Result ca = run(s, "check " + quote(automatic)), cp = run(s, "check " + quote(projection));
+  const Result ca = run(s, "check " + quote(lagrange)), cp = run(s, "check " + quote(projection));
   ASSERT_EQ(ca.code, 0) << describe(ca);
   ASSERT_EQ(cp.code, 0) << describe(cp);
   const std::string ka = printed_condition(ca.out), kp = printed_condition(cp.out);
@@ -1092,7 +1092,7 @@ TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
 
   // summary.json and the report record the same numbers as check printed.
   std::map<std::string, JsonValue> recorded;
-  for (const auto& [name, file] : {std::pair<std::string, fs::path>{"auto", automatic}, {"projection", projection}}) {
+  for (const auto& [name, file] : {std::pair<std::string, fs::path>{"lagrange", lagrange}, {"projection", projection}}) {
     const fs::path dir = s.root() / ("out_" + name);
     const Result r = run(s, "plan " + quote(file) + " -q -o " + quote(dir) + " --report");
     ASSERT_EQ(r.code, 0) << describe(r);
@@ -1112,9 +1112,9 @@ TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
     recorded[name] = part;
   }
   // Bit for bit: the Lagrange plan records the projection solver's partition at t0.
-  EXPECT_EQ(recorded["auto"]["condition"], recorded["projection"]["condition"]);
-  EXPECT_EQ(recorded["auto"]["independent"], recorded["projection"]["independent"]);
-  EXPECT_EQ(recorded["auto"]["dependent"], recorded["projection"]["dependent"]);
+  EXPECT_EQ(recorded["lagrange"]["condition"], recorded["projection"]["condition"]);
+  EXPECT_EQ(recorded["lagrange"]["independent"], recorded["projection"]["independent"]);
+  EXPECT_EQ(recorded["lagrange"]["dependent"], recorded["projection"]["dependent"]);
 }
 
 // "(chosen automatically)" (the partition at t0, partition.independent: auto) and the solver

@@ -217,8 +217,10 @@ TEST(ReferenceDynamics, ProjectionAndLagrangeAgreeOnRandomChainsAndConstraintMix
   int compared = 0, skipped = 0;
   std::vector<int> kind_count(8, 0);  // compared sets containing each kind
   double worst_qdd = 0, worst_lambda = 0, worst_balance = 0, worst_rows = 0, worst_cond = 0;
-  // From 2 DOF: every (n, m) the projection kernels specialise (n ≤ 4) and the generic kernel.
-  for (int dof = 2; dof <= 12; ++dof) {
+  // From 2 DOF: every (n, m) the projection kernels specialise (n ≤ 4) and the orthonormal solve
+  // at each column length it is compiled for (8, 12, 16, and 24 at run time: 17 DOF), with both of
+  // its ways of forming ZᵀMZ (the random row counts fall on either side of explicit_null_basis).
+  for (int dof = 2; dof <= 17; ++dof) {
     int accepted = 0;
     for (int rep = 0; rep < 40 && accepted < 5; ++rep) {
       test::RandomChainOptions opt;
@@ -499,8 +501,9 @@ TEST(ReferenceDynamics, ProjectionIsAsAccurateAsLagrangeOnLargeChains) {
   }
 }
 
-// The orthonormal route's edge cases: as many rows as coordinates (no null space, q̈ = A⁻¹ rhs)
-// and a single row on a model outside the fixed-size kernels; projection = Lagrange.
+// The orthonormal route's edge cases: as many rows as coordinates (no null space, q̈ = A⁻¹ rhs by
+// the partition's K_dc⁻¹: 2 rows on 2 coordinates, 5 on 5, where K_dc⁻¹ comes from an LU) and a
+// single row on a model outside the fixed-size kernels; projection = Lagrange.
 TEST(ReferenceDynamics, OrthonormalRouteWithFullAndSingleRowSets) {
   std::mt19937 rng(2106);
   const Model arm2 = build_model(planar_arm(2));
@@ -510,10 +513,16 @@ TEST(ReferenceDynamics, OrthonormalRouteWithFullAndSingleRowSets) {
   const Model chain6 = build_model(test::random_chain(rng, {.dof = 6}));
   ConstraintSet single;
   single.add(point_coordinate(chain6, "tip", 2, constant(0.2)));
-  ForceSet forces2, forces6;
+  const Model chain5 = build_model(test::random_chain(rng, {.dof = 5}));
+  ConstraintSet full5;  // four couplings and the tip's height: 5 rows on 5 coordinates
+  for (int j = 1; j < 5; ++j) full5.add(joint_coupling(chain5, chain5.joint_name[j], chain5.joint_name[j - 1], 0.5 + 0.1 * j));
+  full5.add(point_coordinate(chain5, "tip", 2, sinusoid(0.05, 1.0, 0.0, 0.1)));
+  ForceSet forces2, forces6, forces5;
   forces2.add(joint_damping(arm2, "q1", 0.4));
   forces6.add(joint_damping(chain6, chain6.joint_name[2], 0.4));
-  for (auto [model, set, forces] : {std::tuple{&arm2, &full, &forces2}, std::tuple{&chain6, &single, &forces6}}) {
+  forces5.add(joint_damping(chain5, chain5.joint_name[3], 0.4));
+  for (auto [model, set, forces] : {std::tuple{&arm2, &full, &forces2}, std::tuple{&chain6, &single, &forces6},
+                                    std::tuple{&chain5, &full5, &forces5}}) {
     const int n = model->nq;
     ReferenceDynamicsOptions po, lo;
     po.solver = ReferenceSolver::Projection;

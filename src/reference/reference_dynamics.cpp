@@ -333,115 +333,23 @@ void ReferenceDynamics::solve_projection(double t) {
 }
 
 void ReferenceDynamics::solve_projection_orthonormal(double t) {
-  const int n = n_, m = m_, k = n - m;
-  projected_force(opt_.paper_literal_forces, dQ_, qd_, F_, tmp_n_);  // f, projected below by Zᵀ
-  // Aᵀ = Q [R; 0] by Householder reflectors, Q = H_0 ⋯ H_{m−1}, H_j = I − τ_j v_j v_jᵀ (v_j zero
-  // above j, 1 at j). Z = the last k columns of Q is an orthonormal basis of the null space of
-  // A, the space N spans. With y = Qᵀ q̈ = [y1; y2] and W = Qᵀ M Q:
-  //   A q̈ = rhs           ⇔  Rᵀ y1 = rhs
-  //   Zᵀ(M q̈ − f) = 0     ⇔  W22 y2 = (Qᵀ f)_2 − W21 y1,   W22 = ZᵀMZ (SPD, cond ≤ cond(M)),
-  // so no K_dc⁻¹ enters: the rounding error is that of a Cholesky solve with M, as in the KKT
-  // route. Plain loops over column-major storage, like the kernels above (no temporaries).
-  double* __restrict V = qrA_.data();  // n × m: Aᵀ, then R (upper) and the reflectors (below)
-  double* __restrict tau = tau_.data();
-  double* __restrict W = W_.data();  // n × n
-  double* __restrict p = ws_.data();
-  double* __restrict f = tmp_n_.data();
-  const double* __restrict A = ev_.A.data();  // m × n
-  for (int c = 0; c < m; ++c)
-    for (int i = 0; i < n; ++i) V[static_cast<size_t>(c) * n + i] = A[static_cast<size_t>(i) * m + c];
-  for (int j = 0; j < m; ++j) {  // reflector j from column j, rows j..n−1, applied to columns j+1..m−1
-    double* __restrict x = V + static_cast<size_t>(j) * n;
-    double tail = 0;
-    for (int i = j + 1; i < n; ++i) tail += x[i] * x[i];
-    const double alpha = x[j];
-    if (!(tail > 0)) {  // already of the form β e_j: H_j = I
-      tau[j] = 0;
-      continue;
+  if (m_ == n_) {
+    // No null space: q̈ = A⁻¹ rhs, i.e. q̈_dc = K_dc⁻¹ rhs with the partition's inverse (no basis
+    // enters, so its error is cond(A)·ε like any solve with A), and f plays no part.
+    const int m = m_;
+    const double* __restrict Ki = Kinv_.data();
+    const double* __restrict rhs = rhs_.data();
+    double* __restrict qdd = qdd_.data();
+    for (int r = 0; r < m; ++r) {
+      double sum = 0;
+      for (int j = 0; j < m; ++j) sum += Ki[j * m + r] * rhs[j];
+      qdd[dep_[r]] = sum;
     }
-    const double beta = alpha >= 0 ? -std::sqrt(alpha * alpha + tail) : std::sqrt(alpha * alpha + tail);
-    tau[j] = (beta - alpha) / beta;
-    const double s = 1.0 / (alpha - beta);
-    for (int i = j + 1; i < n; ++i) x[i] *= s;
-    x[j] = beta;
-    for (int c = j + 1; c < m; ++c) {  // column c −= τ v (vᵀ column c)
-      double* __restrict y = V + static_cast<size_t>(c) * n;
-      double d = y[j];
-      for (int i = j + 1; i < n; ++i) d += x[i] * y[i];
-      d *= tau[j];
-      y[j] -= d;
-      for (int i = j + 1; i < n; ++i) y[i] -= d * x[i];
-    }
+    return;
   }
-  // W = Qᵀ M Q: W ← H_j W H_j for j = 0 … m−1, as the symmetric rank-2 update
-  //   p = τ W v,  w = p − (τ vᵀp / 2) v,  W ← W − v wᵀ − w vᵀ;
-  // and Qᵀ f = H_{m−1} ⋯ H_0 f.
-  const double* __restrict Mp = data_.M.data();
-  for (size_t i = 0; i < static_cast<size_t>(n) * n; ++i) W[i] = Mp[i];
-  for (int j = 0; j < m; ++j) {
-    if (tau[j] == 0) continue;
-    const double* __restrict v = V + static_cast<size_t>(j) * n;  // v[j] = 1 (stored: R(j, j))
-    const double tj = tau[j];
-    for (int i = 0; i < n; ++i) p[i] = W[static_cast<size_t>(j) * n + i];
-    for (int c = j + 1; c < n; ++c) {
-      const double vc = v[c];
-      const double* __restrict col = W + static_cast<size_t>(c) * n;
-      for (int i = 0; i < n; ++i) p[i] += vc * col[i];
-    }
-    double vp = p[j];
-    for (int i = j + 1; i < n; ++i) vp += v[i] * p[i];
-    const double half = 0.5 * tj * tj * vp;
-    for (int i = 0; i < n; ++i) p[i] *= tj;  // p = τ W v
-    p[j] -= half;                            // w = p − (τ vᵀp / 2) v   (vᵀp with p = τWv: τ²/2 vᵀWv)
-    for (int i = j + 1; i < n; ++i) p[i] -= half * v[i];
-    // W −= v wᵀ + w vᵀ: column c gets −v·w[c] (rows j..) and −w·v[c] (c ≥ j).
-    for (int c = 0; c < n; ++c) {
-      double* __restrict col = W + static_cast<size_t>(c) * n;
-      const double wc = p[c];
-      col[j] -= wc;
-      for (int i = j + 1; i < n; ++i) col[i] -= v[i] * wc;
-      if (c >= j) {
-        const double vc = c == j ? 1.0 : v[c];
-        for (int i = 0; i < n; ++i) col[i] -= p[i] * vc;
-      }
-    }
-    double d = f[j];  // f ← H_j f
-    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
-    d *= tj;
-    f[j] -= d;
-    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
-  }
-  double* __restrict y1 = tmp_m_.data();  // Rᵀ y1 = rhs (forward substitution)
-  const double* __restrict rhs = rhs_.data();
-  for (int r = 0; r < m; ++r) {
-    double sum = rhs[r];
-    for (int c = 0; c < r; ++c) sum -= V[static_cast<size_t>(r) * n + c] * y1[c];  // R(c, r)
-    y1[r] = sum / V[static_cast<size_t>(r) * n + r];
-  }
-  if (k > 0) {
-    double* rk = rk_.data();  // y2; rk_ and NMN_ also reach the LLT through the members: no restrict
-    double* NMN = NMN_.data();
-    for (int c = 0; c < k; ++c) {
-      double v = f[m + c];
-      for (int r = 0; r < m; ++r) v -= W[static_cast<size_t>(r) * n + m + c] * y1[r];  // W21(c, r)
-      rk[c] = v;
-      for (int c2 = 0; c2 < k; ++c2) NMN[c2 * k + c] = W[static_cast<size_t>(m + c2) * n + m + c];
-    }
-    solve_reduced_mass(t, k);
-    for (int c = 0; c < k; ++c) f[m + c] = rk[c];
-  }
-  for (int r = 0; r < m; ++r) f[r] = y1[r];
-  for (int j = m - 1; j >= 0; --j) {  // q̈ = Q y = H_0 ⋯ H_{m−1} y
-    if (tau[j] == 0) continue;
-    const double* __restrict v = V + static_cast<size_t>(j) * n;
-    double d = f[j];
-    for (int i = j + 1; i < n; ++i) d += v[i] * f[i];
-    d *= tau[j];
-    f[j] -= d;
-    for (int i = j + 1; i < n; ++i) f[i] -= d * v[i];
-  }
-  double* __restrict qdd = qdd_.data();
-  for (int i = 0; i < n; ++i) qdd[i] = f[i];
+  projected_force(opt_.paper_literal_forces, dQ_, qd_, F_, tmp_n_);  // f, projected by Zᵀ
+  if (!orth_.solve(ev_.A.data(), data_.M.data(), tmp_n_.data(), rhs_.data(), qdd_.data()))
+    throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Zᵀ M Z is not positive definite");
 }
 
 template <int N, int Mr>

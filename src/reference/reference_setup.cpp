@@ -70,10 +70,7 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   NMN_.setZero(n_ - m_, n_ - m_);
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
-  W_.setZero(n_, n_);
-  ws_.setZero(std::max(n_, 1));
-  qrA_.setZero(n_, m_);
-  tau_.setZero(std::max(m_, 1));
+  orth_ = OrthonormalNullSpaceSolve(n_, m_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
   // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
   // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.

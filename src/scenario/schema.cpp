@@ -40,7 +40,7 @@ Section root_section() {
        "projection that does not converge stops the run (exit 4, the time, residual and rows in summary.json). The "
        "counts `projections` and `max_projection_correction` are in the plan summary (docs/implicit.md)", {}},
       {"solver", "word", "", "auto", "",
-       "`projection` (the paper's reduced form), `lagrange` (KKT) or `auto` (default): `lagrange` from 7 coordinates "
+       "`projection` (the paper's reduced form), `lagrange` (KKT) or `auto` (default): `lagrange` from 16 coordinates "
        "on, else `projection` (the measured crossover, `kLagrangeFrom` in common/crossovers.hpp; bench/README.md). "
        "Both give the same q̈ to rounding (cond(M)·ε); with `projection` the partition (`independent`) is still "
        "checked and reported, but the solve of models above 4 coordinates does not depend on its conditioning",

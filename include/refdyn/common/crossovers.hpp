@@ -23,13 +23,14 @@ inline constexpr int kWorldCrbaFrom = 7;
 /// Models with at least this many coordinates take the Lagrange (KKT) solver under
 /// ReferenceSolver::Automatic (the default); smaller ones the projection. Measured with
 /// `dynamics_bench --benchmark_filter=CFD` (bench/README.md, "Forward dynamics"; one evaluation
-/// with 4 constraint rows, CPU-time medians of projection over Lagrange with its ABA
-/// factorization, two runs 2026-11-26, after the projection took the orthonormal basis):
-/// 0.81/0.83 at 5, 0.99/0.96 at 6, 1.12/1.00 at 7, 1.18/1.19 at 10, 1.23/1.27 at 15, 1.36/1.26
-/// at 20, 1.35/1.31 at 24, 1.37/1.43 at 30, 2.04/2.24 at 60 DOF: they tie at 6, so Lagrange from
-/// 7 (was 16 with the partitioned basis, which tied at 15). The paper's 3-DOF example keeps the
-/// projection (fixed-size kernels).
-inline constexpr int kLagrangeFrom = 7;
+/// with 4 constraint rows (CFD) or 3 (CFDtip), CPU-time medians of projection over Lagrange with
+/// its ABA factorization, two runs 2026-11-30, after the orthonormal solve took padded vector
+/// kernels, reference/null_space_solve.hpp): 0.75/0.75 at 5, 0.76/0.76 at 6, 0.80/0.79 at 7
+/// (CFDtip 0.84/0.83), 0.85/0.86 at 10, 0.96/0.97 at 15 (CFDtip 1.04/1.03), 1.23/1.22 at 20,
+/// 1.22/1.22 at 24, 1.32/1.34 at 30, 2.10/2.12 at 60 DOF: they tie at 15, so Lagrange from 16
+/// (it was 7 while the orthonormal solve ran plain loops, which tied at 6; 16 before that with
+/// the partitioned basis).
+inline constexpr int kLagrangeFrom = 16;
 
 /// From this many coordinates the Lagrange (KKT) solver factors M by the articulated-body
 /// algorithm instead of forming it: u = M⁻¹F by ABA, M⁻¹Aᵀ by its O(n) solves
@@ -40,5 +41,14 @@ inline constexpr int kLagrangeFrom = 7;
 /// at 30, 19.9 → 10.3/10.5 µs at 60 DOF: faster at every size measured (from 7; the CFD
 /// benchmark has 4 rows), so from 7 on; below, the fixed-size dense kernels stay.
 inline constexpr int kAbaLagrangeFrom = 7;
+
+/// The orthonormal null-space solve (reference/null_space_solve.hpp) forms ZᵀMZ from an explicit
+/// basis Z (2n²k + 4nmk flops, k = n − m) when that is fewer flops than the two-sided reflector
+/// update of M (≈ 6n²m), i.e. when k (n + 2m) < 3 n m: few independent coordinates next to the
+/// rows. Measured (a standalone loop over the two kernels, each built alone, random SPD M, median
+/// of 31 runs, 2026-11-30; explicit / two-sided ns): 329/400 at (n, m) = (6, 4), 377/440 at
+/// (7, 4), 362/381 at (7, 3), 573/605 at (10, 4), all on the explicit side of the rule;
+/// 1275/1080 at (15, 4) and 1433/951 at (15, 3), on the two-sided side.
+constexpr bool explicit_null_basis(int n, int m) { return (n - m) * (n + 2 * m) < 3 * n * m; }
 
 }  // namespace refdyn

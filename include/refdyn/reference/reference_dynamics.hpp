@@ -25,7 +25,11 @@
 ///    Aᵀ = Q [R; 0] (Z = the last n − m columns of Q): with y = Qᵀ q̈ = [y1; y2],
 ///    Rᵀ y1 = rhs and (ZᵀMZ) y2 = Zᵀ F − ZᵀMQ₁ y1, so no K_dc⁻¹ enters and the error is
 ///    cond(M)·ε like the KKT solve's, whatever the partition (equal to Lagrange to 1e-10 relative
-///    to |q̈|∞ on random 30- and 60-DOF chains, also with partitions of κ ≈ 1e4).
+///    to |q̈|∞ on random 30- and 60-DOF chains, also with partitions of κ ≈ 1e4). The kernel is
+///    OrthonormalNullSpaceSolve (null_space_solve.hpp: vector operations over zero-padded
+///    columns, ZᵀMZ from an explicit basis or a two-sided update of M, whichever has fewer
+///    flops). With as many rows as coordinates there is no null space and no basis: q̈ = K_dc⁻¹
+///    rhs with the partition's inverse (error cond(A)·ε, as any solve with A).
 ///    Chosen over one step of iterative refinement of the partitioned solve (measured too:
 ///    about as accurate for κ ≤ 1e4 and 15–20 % faster at 7–10 DOF, but 10 % slower at 60 DOF,
 ///    and its first solve, hence its convergence, still degrades with cond(K_dc)²).
@@ -53,6 +57,7 @@
 #include "refdyn/common/error.hpp"
 #include "refdyn/forces/force_elements.hpp"
 #include "refdyn/multibody/model.hpp"
+#include "refdyn/reference/null_space_solve.hpp"
 
 #include <Eigen/LU>
 #include <memory>
@@ -226,7 +231,7 @@ class ReferenceDynamics {
   bool factor_partition_sized();  // N = 0: sizes at run time
   template <int N, int Mr>
   void solve_projection_sized(double t);  // the partitioned basis N, fixed small sizes only
-  void solve_projection_orthonormal(double t);  // the orthonormal basis from a QR of Aᵀ (other sizes)
+  void solve_projection_orthonormal(double t);  // the orthonormal basis from a QR of Aᵀ (other sizes); m = n: K_dc⁻¹ rhs
   template <int N, int Mr>
   void solve_lagrange_sized(double t);
   std::string partition_message(double t) const;
@@ -255,8 +260,7 @@ class ReferenceDynamics {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_m_;
   Eigen::LLT<Eigen::MatrixXd> llt_m_, llt_k_;
   Eigen::VectorXd rk_;
-  Eigen::MatrixXd W_, qrA_;  // orthonormal route: Qᵀ M Q; Aᵀ = Q R (R and the reflectors)
-  Eigen::VectorXd ws_, tau_;  // orthonormal route: workspace; the reflectors' τ
+  OrthonormalNullSpaceSolve orth_;  // the orthonormal route's solve and its storage
   double cond_ = 1.0;
   struct JacobianWork;  // src/reference/reference_jacobian.cpp; made at the first jacobian() call
   std::shared_ptr<JacobianWork> jac_;
