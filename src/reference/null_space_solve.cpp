@@ -30,7 +30,7 @@ template <int L>
 void reflect(double* y, double tau, const double* v, int len) {
   axpy<L>(y, -tau * dot<L>(v, y, len), v, len);
 }
-constexpr int kWrittenCholeskyMax = 16;  // larger ZᵀMZ: Eigen's LLT
+constexpr int kWrittenFactorMax = 16;  // larger ZᵀMZ: Eigen's LLT
 }  // namespace
 
 int OrthonormalNullSpaceSolve::padded_rows(int n) { return n <= 8 ? 8 : n <= 12 ? 12 : n <= 16 ? 16 : (n + 7) / 8 * 8; }
@@ -51,7 +51,7 @@ OrthonormalNullSpaceSolve::OrthonormalNullSpaceSolve(int n, int m)
   p_.setZero(L);
   S_.setZero(static_cast<Eigen::Index>(k) * k);
   u_.setZero(k);
-  if (k > kWrittenCholeskyMax) {  // sized once: compute() then only copies
+  if (k > kWrittenFactorMax) {  // sized once: compute() then only copies
     big_.setZero(k, k);
     llt_.compute(Eigen::MatrixXd::Identity(k, k));
   }
@@ -101,7 +101,8 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
     for (int i = 0; i < j; ++i) R[static_cast<size_t>(j) * m + i] = x[i];  // column j of R above the diagonal
     const double alpha = x[j];
     const auto col = ConstCol<Lc>(x, L).array();
-    const double tail = (row > double(j)).select(col, 0.0).matrix().squaredNorm();
+    const auto below = (row > double(j)).select(col, 0.0).matrix();  // rows j+1 … of column j
+    const double tail = below.squaredNorm();
     if (!(tail > 0)) {  // already α e_j below the diagonal: H_j = I
       tau[j] = 0;
       R[static_cast<size_t>(j) * m + j] = alpha;
@@ -169,7 +170,7 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
       u[r] = v;
     }
   }
-  if (k > 0 && !cholesky_solve()) return false;
+  if (k > 0 && !spd_solve()) return false;
   if (explicit_) {  // q̈ = q̈_p + Z y2
     const double* __restrict B = work;
     Col<Lc>(fq, L) = ConstCol<Lc>(B, L);
@@ -184,8 +185,8 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
   return true;
 }
 
-// S u = u for the SPD S_ (k × k, lower triangle row by row: S(r, c) = S[r k + c], c ≤ r).
-bool OrthonormalNullSpaceSolve::cholesky_solve() {
+// S y2 = u in place for the SPD S_ (k × k, lower triangle row by row: S(r, c) = S[r k + c], c ≤ r).
+bool OrthonormalNullSpaceSolve::spd_solve() {
   const int k = k_;
   double* __restrict S = S_.data();
   double* __restrict u = u_.data();
@@ -194,7 +195,7 @@ bool OrthonormalNullSpaceSolve::cholesky_solve() {
     u[0] /= S[0];
     return true;
   }
-  if (k > kWrittenCholeskyMax) {
+  if (k > kWrittenFactorMax) {
     for (int r = 0; r < k; ++r)
       for (int c = 0; c <= r; ++c) big_(r, c) = S[static_cast<size_t>(r) * k + c];
     llt_.compute(big_);  // reads the lower triangle
@@ -202,31 +203,36 @@ bool OrthonormalNullSpaceSolve::cholesky_solve() {
     llt_.solveInPlace(u_);
     return true;
   }
-  // S = 𝓛 𝓛ᵀ row by row (𝓛 in place), with the reciprocals of its diagonal: one division per
-  // row, off the chain of dependent operations, instead of one per element.
-  double inv[kWrittenCholeskyMax];
+  // S = 𝓛 D 𝓛ᵀ row by row (𝓛 unit lower, in place below the diagonal; D's reciprocals kept): no
+  // square roots and one division per row, off the chain of dependent operations. 𝓛 is stored
+  // scaled, S(r, c) ← 𝓛(r, c) D(c) while row r is formed, then divided by D(c) once.
+  double dinv[kWrittenFactorMax];
   for (int r = 0; r < k; ++r) {
     double* __restrict Sr = S + static_cast<size_t>(r) * k;
-    for (int c = 0; c < r; ++c) {
+    for (int c = 0; c < r; ++c) {  // Sr[c] = 𝓛(r, c) D(c) = S(r, c) − Σ_j 𝓛(r, j) D(j) 𝓛(c, j)
       const double* __restrict Sc = S + static_cast<size_t>(c) * k;
       double s = Sr[c];
       for (int j = 0; j < c; ++j) s -= Sr[j] * Sc[j];
-      Sr[c] = s * inv[c];
+      Sr[c] = s;
     }
     double d = Sr[r];
-    for (int j = 0; j < r; ++j) d -= Sr[j] * Sr[j];
+    for (int c = 0; c < r; ++c) {  // D(r) = S(r, r) − Σ_c 𝓛(r, c)² D(c); then 𝓛(r, c) = Sr[c] / D(c)
+      const double l = Sr[c] * dinv[c];
+      d -= l * Sr[c];
+      Sr[c] = l;
+    }
     if (!(d > 0)) return false;
-    inv[r] = 1.0 / std::sqrt(d);
+    dinv[r] = 1.0 / d;
   }
   for (int r = 0; r < k; ++r) {  // 𝓛 w = u
     double s = u[r];
     for (int j = 0; j < r; ++j) s -= S[static_cast<size_t>(r) * k + j] * u[j];
-    u[r] = s * inv[r];
+    u[r] = s;
   }
-  for (int r = k - 1; r >= 0; --r) {  // 𝓛ᵀ y2 = w
-    double s = u[r];
+  for (int r = k - 1; r >= 0; --r) {  // 𝓛ᵀ y2 = D⁻¹ w
+    double s = u[r] * dinv[r];
     for (int j = r + 1; j < k; ++j) s -= S[static_cast<size_t>(j) * k + r] * u[j];
-    u[r] = s * inv[r];
+    u[r] = s;
   }
   return true;
 }

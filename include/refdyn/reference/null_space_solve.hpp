@@ -9,7 +9,7 @@
 ///
 /// Method. Householder QR Aᵀ = Q [R; 0], Q = H_0 ⋯ H_{m−1}, Z = the last k = n − m columns of Q;
 /// with y = Qᵀ q̈ = [y1; y2]: Rᵀ y1 = rhs (so q̈_p = Q [y1; 0] satisfies the rows) and
-/// (ZᵀMZ) y2 = Zᵀ (f − M q̈_p), an SPD solve by Cholesky. ZᵀMZ is formed by one of two routes,
+/// (ZᵀMZ) y2 = Zᵀ (f − M q̈_p), an SPD solve. ZᵀMZ is formed by one of two routes,
 /// the one with fewer flops for the sizes (common/crossovers.hpp, explicit_null_basis):
 ///   explicit basis — [q̈_p, Z] = Q [[y1, 0]; [0, I_k]] by the reflectors, then M [q̈_p, Z]
 ///                    (2n²k flops): cheaper when k is small next to m;
@@ -18,9 +18,9 @@
 /// Speed. Every vector operation runs over whole columns padded with zeros to L rows (L = 8, 12,
 /// 16, or n rounded up to a multiple of 8), on fixed-size Eigen maps for the first three: no
 /// loop depends on the reflector's index, so each column operation is a few SIMD instructions.
-/// All storage is sized by the constructor; solve() does not allocate. The Cholesky factorization
-/// of ZᵀMZ is written out for k ≤ 16 (Eigen's LLT costs more than its flops at those sizes) and
-/// Eigen's LLT above.
+/// All storage is sized by the constructor; solve() does not allocate. ZᵀMZ is factored as LDLᵀ
+/// written out for k ≤ 16 (no square roots, one division per row: Eigen's dynamic LLT costs more
+/// than its flops at those sizes), a single division for k = 1, Eigen's LLT above 16.
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
@@ -46,7 +46,7 @@ class OrthonormalNullSpaceSolve {
  private:
   template <int L>
   bool solve_padded(const double* A, const double* M, const double* f, const double* rhs, double* qdd);
-  bool cholesky_solve();  // S y2 = u in place (S_: k × k, lower triangle row by row)
+  bool spd_solve();  // S y2 = u in place (S_: k × k, lower triangle row by row); false unless S is PD
 
   int n_ = 0, m_ = 0, k_ = 0, L_ = 8;
   bool explicit_ = false;
