@@ -12,7 +12,8 @@ namespace refdyn {
 
 namespace {
 // Column operations over L rows: fixed-size maps for L = 8, 12, 16 (L = 0: the length at run
-// time). Columns hold zeros below row n, so running over all L rows changes nothing else.
+// time). Columns hold zeros below row n (solve() writes them), so running over all L rows
+// changes nothing else.
 template <int L>
 using Col = Eigen::Map<Eigen::Matrix<double, L == 0 ? Eigen::Dynamic : L, 1>>;
 template <int L>
@@ -46,7 +47,7 @@ OrthonormalNullSpaceSolve::OrthonormalNullSpaceSolve(int n, int m)
   tau_.setZero(m);
   y1_.setZero(L);  // read as a whole column (rows ≥ m masked)
   rows_ = Eigen::VectorXd::LinSpaced(L, 0, L - 1);
-  work_.setZero(static_cast<Eigen::Index>(L) * (explicit_ ? 2 * (k + 1) + n : n));  // padding rows stay zero
+  work_.setZero(static_cast<Eigen::Index>(L) * (explicit_ ? 2 * (k + 1) + n : n));
   f_.setZero(L);
   p_.setZero(L);
   S_.setZero(static_cast<Eigen::Index>(k) * k);
@@ -82,15 +83,22 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
   // M into W (two-sided) or after the explicit route's two blocks of k + 1 columns.
   double* __restrict work = work_.data();
   {
+    // Every padded column is written whole, its padding rows with zeros: an earlier call with a
+    // NaN or Inf in its input would otherwise have left NaN there (NaN · 0 is NaN) for every
+    // later call.
     double* __restrict Mp = explicit_ ? work + static_cast<size_t>(2 * (k + 1)) * L : work;
-    for (int c = 0; c < n; ++c)
+    for (int c = 0; c < n; ++c) {
       for (int i = 0; i < n; ++i) Mp[static_cast<size_t>(c) * L + i] = M[static_cast<size_t>(c) * n + i];
+      for (int i = n; i < L; ++i) Mp[static_cast<size_t>(c) * L + i] = 0;
+    }
     for (int i = 0; i < n; ++i) fq[i] = f[i];
+    for (int i = n; i < L; ++i) fq[i] = 0;
   }
   // Aᵀ = Q [R; 0]: column j of Aᵀ gives reflector j, which then acts on columns j+1 … m−1.
   for (int c = 0; c < m; ++c) {
     double* __restrict x = V + static_cast<size_t>(c) * L;
     for (int i = 0; i < n; ++i) x[i] = A[static_cast<size_t>(i) * m + c];
+    for (int i = n; i < L; ++i) x[i] = 0;
   }
   // Whole columns are written with one vector store and masked in registers (select on the row
   // index) rather than element by element: a vector load right after scalar stores into the

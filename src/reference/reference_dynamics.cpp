@@ -298,7 +298,8 @@ double ReferenceDynamics::residual(double t, const Eigen::VectorXd& x) {
 }
 
 // (Nᵀ M N) u = r in place (NMN_, rk_; k independent coordinates): a scalar division for k = 1
-// (the paper's case), else a Cholesky factorization. Both projection routes end with it.
+// (the paper's case), else a Cholesky factorization. The partitioned route ends with it (the
+// orthonormal one factors Zᵀ M Z in OrthonormalNullSpaceSolve).
 void ReferenceDynamics::solve_reduced_mass(double t, int k) {
   double* NMN = NMN_.data();
   double* rk = rk_.data();
