@@ -12,8 +12,8 @@ namespace refdyn {
 
 namespace {
 // Column operations over L rows: fixed-size maps for L = 8, 12, 16 (L = 0: the length at run
-// time). Columns hold zeros below row n (solve() writes them), so running over all L rows
-// changes nothing else.
+// time). Columns hold zeros below row n (see solve()), so running over all L rows changes
+// nothing else.
 template <int L>
 using Col = Eigen::Map<Eigen::Matrix<double, L == 0 ? Eigen::Dynamic : L, 1>>;
 template <int L>
@@ -83,22 +83,15 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
   // M into W (two-sided) or after the explicit route's two blocks of k + 1 columns.
   double* __restrict work = work_.data();
   {
-    // Every padded column is written whole, its padding rows with zeros: an earlier call with a
-    // NaN or Inf in its input would otherwise have left NaN there (NaN · 0 is NaN) for every
-    // later call.
     double* __restrict Mp = explicit_ ? work + static_cast<size_t>(2 * (k + 1)) * L : work;
-    for (int c = 0; c < n; ++c) {
+    for (int c = 0; c < n; ++c)
       for (int i = 0; i < n; ++i) Mp[static_cast<size_t>(c) * L + i] = M[static_cast<size_t>(c) * n + i];
-      for (int i = n; i < L; ++i) Mp[static_cast<size_t>(c) * L + i] = 0;
-    }
     for (int i = 0; i < n; ++i) fq[i] = f[i];
-    for (int i = n; i < L; ++i) fq[i] = 0;
   }
   // Aᵀ = Q [R; 0]: column j of Aᵀ gives reflector j, which then acts on columns j+1 … m−1.
   for (int c = 0; c < m; ++c) {
     double* __restrict x = V + static_cast<size_t>(c) * L;
     for (int i = 0; i < n; ++i) x[i] = A[static_cast<size_t>(i) * m + c];
-    for (int i = n; i < L; ++i) x[i] = 0;
   }
   // Whole columns are written with one vector store and masked in registers (select on the row
   // index) rather than element by element: a vector load right after scalar stores into the
@@ -178,7 +171,21 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
       u[r] = v;
     }
   }
-  if (k > 0 && !spd_solve()) return false;
+  // The padding rows (below row n) are zero from the constructor and stay zero while the numbers
+  // are finite (they only ever get x · 0). A NaN or Inf in the input leaves NaN there (NaN · 0),
+  // which would poison every later call; it also makes ZᵀMZ fail or reaches q̈ (and its padding),
+  // so after such a call the storage is cleared. (Writing the padding on every call instead costs
+  // ~35 ns at 7 DOF: the vector loads that follow wait for those scalar stores.)
+  const auto clear = [this] {
+    V_.setZero();
+    work_.setZero();
+    f_.setZero();
+    p_.setZero();
+  };
+  if (k > 0 && !spd_solve()) {
+    clear();
+    return false;
+  }
   if (explicit_) {  // q̈ = q̈_p + Z y2
     const double* __restrict B = work;
     Col<Lc>(fq, L) = ConstCol<Lc>(B, L);
@@ -190,6 +197,7 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
       if (tau[j] != 0) reflect<Lc>(fq, tau[j], V + static_cast<size_t>(j) * L, L);
   }
   for (int i = 0; i < n; ++i) qdd[i] = fq[i];
+  if (!ConstCol<Lc>(fq, L).allFinite()) clear();
   return true;
 }
 
