@@ -380,27 +380,18 @@ benchmark::internal::Benchmark* reg_run(const std::string& name, F f) {
 
 void register_all(Bench* b) {
   using namespace refdyn;
-  // 1. One reference-dynamics evaluation.
-  reg_states("rd_eval/projection", [b](int k) {
-    b->rd_proj->derivative(b->t[k], b->x[k], b->xdot_proj);
-    benchmark::DoNotOptimize(b->xdot_proj.data());
-  });
-  reg_states("rd_eval/lagrange", [b](int k) {
-    b->rd_lag->derivative(b->t[k], b->x[k], b->xdot_lag);
-    benchmark::DoNotOptimize(b->xdot_lag.data());
-  });
-  reg_states("rd_eval/projection_expr", [b](int k) {
-    b->rd_expr->derivative(b->t[k], b->x[k], b->xdot_expr);
-    benchmark::DoNotOptimize(b->xdot_expr.data());
-  });
-  reg_states("rd_eval/pinned_projection", [b](int k) {
-    b->rd_pin_proj->derivative(b->t[k], b->x[k], b->xdot_pin_proj);
-    benchmark::DoNotOptimize(b->xdot_pin_proj.data());
-  });
-  reg_states("rd_eval/pinned_lagrange", [b](int k) {
-    b->rd_pin_lag->derivative(b->t[k], b->x[k], b->xdot_pin_lag);
-    benchmark::DoNotOptimize(b->xdot_pin_lag.data());
-  });
+  // 1. One reference-dynamics evaluation, per route (the unique_ptr members are set by build()).
+  const std::pair<const char*, std::pair<ReferenceDynamics*, VectorXd*>> routes[] = {
+      {"rd_eval/projection", {b->rd_proj.get(), &b->xdot_proj}},
+      {"rd_eval/lagrange", {b->rd_lag.get(), &b->xdot_lag}},
+      {"rd_eval/projection_expr", {b->rd_expr.get(), &b->xdot_expr}},
+      {"rd_eval/pinned_projection", {b->rd_pin_proj.get(), &b->xdot_pin_proj}},
+      {"rd_eval/pinned_lagrange", {b->rd_pin_lag.get(), &b->xdot_pin_lag}}};
+  for (const auto& [name, route] : routes)
+    reg_states(name, [b, rd = route.first, xdot = route.second](int k) {
+      rd->derivative(b->t[k], b->x[k], *xdot);
+      benchmark::DoNotOptimize(xdot->data());
+    });
   // 2. The peer.
   reg_states("kdl/vereshchagin", [b](int k) { benchmark::DoNotOptimize(b->kdl->vereshchagin(k)); });
   // 3. Constraints.
