@@ -65,8 +65,13 @@ REFDYN_INLINE void joint_sincos(const Model& m, const double* q, int b, double* 
   if (b + kBlock <= m.nq) {
     x = ld4(q + b) + ld4(m.offset.data() + b);
   } else {
-    x = v4{0.0, 0.0, 0.0, 0.0};
-    for (int k = 0; b + k < m.nq; ++k) x[k] = q[b + k] + m.offset[b + k];
+    // The last 1–3 angles, lanes past the end zero, built in registers with fixed lanes. Writing
+    // x[k] for a variable k goes through the stack, and the vector load after those scalar
+    // stores cannot be forwarded from them: a stall on every call when nq is not a multiple of 4.
+    const int r = m.nq - b;
+    const double* a = q + b;
+    const double* o = m.offset.data() + b;
+    x = v4{a[0] + o[0], r > 1 ? a[1] + o[1] : 0.0, r > 2 ? a[2] + o[2] : 0.0, 0.0};
   }
   sincos4(x, s, c);
 }
