@@ -939,6 +939,7 @@ TEST(Report, ShowsRecordedPartitionOrdersAndGeometry) {
   EXPECT_EQ(part["independent"], JsonValue::parse(R"(["psi1"])"));
   EXPECT_EQ(part["dependent"], JsonValue::parse(R"(["psi2", "z3"])"));
   EXPECT_GT(part["condition"].get<double>(), 1.0);
+  EXPECT_EQ(part["used_by_solver"], true) << "3 coordinates, 2 rows: the partitioned basis";
   JsonValue data = report_data(dir / "report.html");
   ASSERT_TRUE(data.is_object());
   const JsonValue& sc = data["scenario"];
@@ -1033,8 +1034,9 @@ TEST(Sensitivity, UnknownParameterOrAFamilyIsRejectedBeforeAnythingIsWritten) {
 // ---------------------------------------------------------------------------------------------
 // The partition and its condition number at t0 (issue 33, item 4): the same, real κ = cond(K_dc)
 // in check's text, summary.json and the report whatever the solver. Under the Lagrange solver
-// (the default from kLagrangeFrom = 16 coordinates) the KKT solve uses no partition; what is shown
-// is the one the projection solver takes, and says so.
+// (the default from kLagrangeFrom = 16 coordinates) the KKT solve uses no partition, and neither
+// does the projection's orthonormal basis (this 7-coordinate arm); what is shown is the one the
+// projection solver takes, and each says so.
 
 namespace {
 
@@ -1088,7 +1090,8 @@ TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
   EXPECT_EQ(partition_line(ca.out), partition_line(cp.out));
   EXPECT_FALSE(contains(partition_line(ca.out), "independent [], dependent []")) << describe(ca);
   EXPECT_TRUE(contains(ca.out, "(solver lagrange: the KKT solve uses no partition")) << describe(ca);
-  EXPECT_FALSE(contains(cp.out, "uses no partition")) << describe(cp);
+  EXPECT_TRUE(contains(cp.out, "(solver projection: at this size its orthonormal null-space solve uses no partition"))
+      << describe(cp);
 
   // summary.json and the report record the same numbers as check printed.
   std::map<std::string, JsonValue> recorded;
@@ -1100,7 +1103,7 @@ TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
     const JsonValue& part = summary["plan"]["partition_t0"];
     ASSERT_TRUE(part.is_object()) << name << ": " << json_text(summary["plan"]);
     EXPECT_EQ(sig6(part["condition"].get<double>()), ka) << name;
-    EXPECT_EQ(part["used_by_solver"], name == "projection") << name;
+    EXPECT_EQ(part["used_by_solver"], false) << name << ": neither solve uses it at 7 coordinates";
     EXPECT_EQ(part["automatic"], true) << name;
     const JsonValue data = report_data(dir / "report.html");
     ASSERT_TRUE(data.is_object()) << name;

@@ -1,6 +1,6 @@
 // The orthonormal null-space solve (refdyn/reference/null_space_solve.hpp) against an independent
 // route: the KKT system [[M, Aᵀ], [A, 0]] [q̈; λ] = [f; rhs] solved in long double by a fully
-// pivoted LU. Every column length the kernel is compiled for (L = 8, 12, 16, and run-time sizes),
+// pivoted LU (q̈, and λ for multipliers()). Every column length the kernel is compiled for (L = 8, 12, 16, and run-time sizes),
 // both ways of forming ZᵀMZ (explicit basis and two-sided update), m = 0 and m = n.
 #include <gtest/gtest.h>
 
@@ -10,7 +10,9 @@
 
 #include <Eigen/Dense>
 #include <Eigen/LU>
+#include <Eigen/SVD>
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <random>
 #include <set>
@@ -44,7 +46,7 @@ VecL kkt_reference(const Eigen::MatrixXd& M, const Eigen::MatrixXd& A, const Eig
   K.bottomLeftCorner(m, n) = A.cast<LD>();
   VecL b(n + m);
   b << f.cast<LD>(), rhs.cast<LD>();
-  return K.fullPivLu().solve(b).head(n);
+  return K.fullPivLu().solve(b);  // [q̈; λ]
 }
 
 }  // namespace
@@ -73,7 +75,7 @@ TEST(OrthonormalNullSpaceSolve, EqualsTheKktSolutionForEverySizeAndRoute) {
         seen.insert({solve.padded_rows(), solve.explicit_basis()});
         Eigen::VectorXd qdd = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
         ASSERT_TRUE(solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd.data()));
-        const VecL ref = kkt_reference(M, A, f, rhs);
+        const VecL ref = kkt_reference(M, A, f, rhs).head(n);
         const double scale = std::max(1.0, double(ref.cwiseAbs().maxCoeff()));
         const double err = double((qdd.cast<LD>() - ref).cwiseAbs().maxCoeff()) / scale;
         const double units = err / (cond * std::numeric_limits<double>::epsilon());
@@ -101,6 +103,85 @@ TEST(OrthonormalNullSpaceSolve, EqualsTheKktSolutionForEverySizeAndRoute) {
   for (int L : {8, 12, 16})
     for (bool ex : {false, true}) EXPECT_TRUE(seen.count({L, ex})) << "L " << L << (ex ? " explicit" : " two-sided");
   EXPECT_TRUE(seen.count({24, false}) && seen.count({24, true}) && seen.count({40, false}));
+}
+
+// λ of solve(…, lambda) and multipliers(f − M q̈), both from the solve's own QR, against the KKT
+// λ, on both routes. Measured in force space, |Aᵀ(λ − λ_KKT)|∞ relative to |f|∞ + |M|∞|q̈|∞,
+// which does not depend on how the rows are scaled (row 0 is 1e3 times the others). Bound:
+// 8·n·cond(M)·ε; worst printed. Asking for λ leaves q̈ unchanged, bit for bit.
+TEST(OrthonormalNullSpaceSolve, MultipliersEqualTheKktMultipliers) {
+  std::mt19937 rng(3013);
+  std::normal_distribution<double> nd;
+  double worst = 0;
+  int cases = 0;
+  std::set<bool> seen;  // routes exercised
+  for (int n : {1, 2, 5, 7, 9, 13, 16, 17, 30}) {
+    for (int m : {1, 2, 4, 6, n - 1, n}) {
+      if (m < 1 || m > n) continue;
+      for (double cond : {1e1, 1e5}) {
+        const Eigen::MatrixXd M = spd(rng, n, cond);
+        Eigen::MatrixXd A = Eigen::MatrixXd::NullaryExpr(m, n, [&] { return nd(rng); });
+        if (m > 1) A.row(0) *= 1e3;
+        const Eigen::VectorXd f = Eigen::VectorXd::NullaryExpr(n, [&] { return nd(rng); });
+        const Eigen::VectorXd rhs = Eigen::VectorXd::NullaryExpr(m, [&] { return nd(rng); });
+        OrthonormalNullSpaceSolve solve(n, m);
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        Eigen::VectorXd qdd(n), qdd_alone(n), lambda = Eigen::VectorXd::Constant(m, nan),
+                        lambda_after = Eigen::VectorXd::Constant(m, nan);
+        ASSERT_TRUE(solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd_alone.data()));
+        ASSERT_TRUE(solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd.data(), lambda.data()));
+        const std::string where = "n " + std::to_string(n) + " m " + std::to_string(m) + " cond " +
+                                  std::to_string(cond) + (solve.explicit_basis() ? " explicit" : " two-sided");
+        EXPECT_EQ(qdd, qdd_alone) << where;
+        const Eigen::VectorXd g = f - M * qdd;
+        solve.multipliers(g.data(), lambda_after.data());
+        const VecL ref = kkt_reference(M, A, f, rhs).tail(m);
+        const double scale = f.cwiseAbs().maxCoeff() + M.cwiseAbs().rowwise().sum().maxCoeff() * qdd.cwiseAbs().maxCoeff();
+        for (const Eigen::VectorXd* l : {&lambda, &lambda_after}) {
+          const double err = double((A.transpose().cast<LD>() * (l->cast<LD>() - ref)).cwiseAbs().maxCoeff()) / scale;
+          const double units = err / (cond * std::numeric_limits<double>::epsilon());
+          EXPECT_LE(units, 8.0 * n) << where << (l == &lambda ? " solve" : " multipliers");
+          worst = std::max(worst, units);
+        }
+        seen.insert(solve.explicit_basis());
+        ++cases;
+      }
+    }
+  }
+  std::cout << "[ orthonormal null-space solve ] multipliers of " << cases << " systems; worst force error " << worst
+            << " cond(M)·eps\n";
+  EXPECT_EQ(seen.size(), 2u) << "both routes";
+}
+
+// row_condition(): 1 without rows, finite for independent rows, infinite or huge for dependent
+// ones (a row repeated, a zero row); q̈ of dependent rows is then not to be used.
+TEST(OrthonormalNullSpaceSolve, RowConditionFlagsDependentRows) {
+  std::mt19937 rng(3014);
+  std::normal_distribution<double> nd;
+  for (auto [n, m] : {std::pair{7, 3}, std::pair{7, 6}, std::pair{12, 4}, std::pair{30, 5}}) {
+    const Eigen::MatrixXd M = spd(rng, n, 10.0);
+    Eigen::MatrixXd A = Eigen::MatrixXd::NullaryExpr(m, n, [&] { return nd(rng); });
+    const Eigen::VectorXd f = Eigen::VectorXd::Ones(n), rhs = Eigen::VectorXd::Ones(m);
+    Eigen::VectorXd qdd(n);
+    OrthonormalNullSpaceSolve solve(n, m);
+    solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd.data());
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A);
+    const double cond2 = svd.singularValues()(0) / svd.singularValues()(m - 1);
+    EXPECT_GE(solve.row_condition(), 1.0);
+    EXPECT_LE(solve.row_condition(), cond2 * (1 + 1e-12)) << "a lower bound of cond2(A)";
+    A.row(m - 1) = 2.0 * A.row(0);  // dependent
+    solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd.data());
+    EXPECT_GT(solve.row_condition(), 1e12) << n << " " << m;
+    A.row(m - 1).setZero();
+    solve.solve(A.data(), M.data(), f.data(), rhs.data(), qdd.data());
+    EXPECT_EQ(solve.row_condition(), std::numeric_limits<double>::infinity()) << n << " " << m;
+  }
+  OrthonormalNullSpaceSolve none(4, 0);
+  const Eigen::MatrixXd M = Eigen::MatrixXd::Identity(4, 4);
+  const Eigen::VectorXd f = Eigen::VectorXd::Ones(4);
+  Eigen::VectorXd qdd(4);
+  ASSERT_TRUE(none.solve(nullptr, M.data(), f.data(), nullptr, qdd.data()));
+  EXPECT_EQ(none.row_condition(), 1.0);
 }
 
 // Sizes: m ≤ n, and the column length the kernels run over.

@@ -359,7 +359,7 @@ TEST(ReferenceDynamics, AutomaticSolverPicksBySizeAndIsExactlyTheChosenSolver) {
       other.derivative(0.4, x, xo);
       // Both solvers are backward stable: their q̈ differ by cond(M)·ε relative (as ABA and
       // CRBA + Cholesky do), where the partition is sound.
-      const ReferenceDynamics& proj = chosen == ReferenceSolver::Projection ? automatic : other;
+      ReferenceDynamics& proj = chosen == ReferenceSolver::Projection ? automatic : other;
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(mass_matrix(model, data, q), Eigen::EigenvaluesOnly);
       const double cond_M = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
       if (proj.partition_condition() < 1e3) {
@@ -615,6 +615,79 @@ TEST(ReferenceDynamics, AnyValidPartitionGivesTheSameAcceleration) {
         ++tried;
       }
   EXPECT_GE(tried, 10);
+}
+
+// The orthonormal route (6 coordinates, 4 rows) does not use the partition: every choice of
+// dependent coordinates, singular K_dc included, gives the same q̈ and λ bit for bit, and
+// partition_condition() still reports κ = ‖A‖₁‖K_dc⁻¹‖₁ of the chosen partition (computed when
+// asked). Dependent rows are what stops it: a repeated row is a NumericalFailure naming the rows.
+TEST(Partition, TheOrthonormalRouteDoesNotDependOnThePartition) {
+  std::mt19937 rng(42);
+  ModelDescription d = test::random_chain(rng, {.dof = 6});
+  d.add_point("mid", d.links[3].name, Vec3(0.1, -0.2, 0.15));
+  const Model model = build_model(d);
+  ConstraintSet set;
+  set.add(points_coincide(model, "tip", "mid", {0, 2}));
+  set.add(knife_edge(model, "tip", Vec3(0, 1, 0)));
+  set.add(joint_trajectory(model, "q3", polynomial({0.2, 0.5})));  // a row e_3: K_dc singular unless q3 is dependent
+  ForceSet forces;
+  forces.add(joint_damping(model, "q2", 0.5));
+  ReferenceDynamicsOptions po;
+  po.solver = ReferenceSolver::Projection;
+  ReferenceDynamics rd(model, forces, set, po);
+  ReferenceDynamicsOptions lo;
+  lo.solver = ReferenceSolver::Lagrange;
+  ReferenceDynamics lag(model, forces, set, lo);
+  const Eigen::VectorXd q = test::random_vector(rng, 6, 2.0), qd = test::random_vector(rng, 6, 1.0);
+  Eigen::VectorXd x = rd.make_state(q, qd), xdot(x.size()), xl(x.size());
+  rd.choose_partition(0.3, q, qd);
+  rd.derivative(0.3, x, xdot);
+  lag.derivative(0.3, x, xl);
+  const Eigen::VectorXd ref = rd.qdd(), ref_lambda = rd.lambda();
+  EXPECT_TRUE(near(ref, lag.qdd(), 1e-10, 1e-12));
+  EXPECT_TRUE(near(ref_lambda, lag.lambda(), 1e-10, 1e-12));
+  const Eigen::MatrixXd A = rd.constraints().A;
+  int singular = 0, sets = 0;
+  for (int a = 0; a < 6; ++a)  // every pair of independent coordinates
+    for (int b = a + 1; b < 6; ++b) {
+      const std::string label = "independent " + std::to_string(a) + std::to_string(b);
+      rd.set_independent({a, b});
+      ASSERT_NO_THROW(rd.derivative(0.3, x, xdot)) << label;
+      EXPECT_EQ(rd.qdd(), ref) << label;
+      EXPECT_EQ(rd.lambda(), ref_lambda) << label;
+      Eigen::Matrix4d K;
+      for (int c = 0; c < 4; ++c) K.col(c) = A.col(rd.dependent()[c]);
+      const Eigen::FullPivLU<Eigen::Matrix4d> lu(K);
+      const double kappa = lu.isInvertible() ? A.cwiseAbs().colwise().sum().maxCoeff() *
+                                                   lu.inverse().cwiseAbs().colwise().sum().maxCoeff()
+                                             : std::numeric_limits<double>::infinity();
+      const double reported = rd.partition_condition();
+      if (a == 2 || b == 2) {  // q3 independent: its row has no dependent entry
+        EXPECT_GT(reported, 1e12) << label;
+        ++singular;
+      } else {
+        EXPECT_NEAR(reported, kappa, 1e-8 * kappa) << label;
+      }
+      ++sets;
+    }
+  EXPECT_EQ(sets, 15);
+  EXPECT_EQ(singular, 5);
+  std::cout << "[ partition ] orthonormal route: " << sets << " partitions (" << singular
+            << " with kappa > 1e8) give the same bits\n";
+
+  auto again = points_coincide(model, "tip", "mid", {0});  // the first row once more (5 rows)
+  again->name = "again";
+  set.add(again);
+  ReferenceDynamics dep(model, forces, set, po);
+  Eigen::VectorXd x4 = dep.make_state(q, qd), xdot4(x4.size());
+  try {
+    dep.derivative(0.3, x4, xdot4);
+    ADD_FAILURE() << "expected NumericalFailure for a repeated row";
+  } catch (const NumericalFailure& e) {
+    const std::string msg = e.what();
+    for (const char* needle : {"t = 0.3", "dependent", "again", "max_condition"})
+      EXPECT_NE(msg.find(needle), std::string::npos) << "'" << needle << "' not in: " << msg;
+  }
 }
 
 // ================================================================ (b) Baumgarte decay

@@ -5,8 +5,11 @@
 #include "refdyn/common/crossovers.hpp"
 #include "refdyn/common/error.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
+#include <type_traits>
 
 namespace refdyn {
 
@@ -47,7 +50,7 @@ OrthonormalNullSpaceSolve::OrthonormalNullSpaceSolve(int n, int m)
   tau_.setZero(m);
   y1_.setZero(L);  // read as a whole column (rows ≥ m masked)
   rows_ = Eigen::VectorXd::LinSpaced(L, 0, L - 1);
-  work_.setZero(static_cast<Eigen::Index>(L) * (explicit_ ? 2 * (k + 1) + n : n));
+  work_.setZero(static_cast<Eigen::Index>(L) * (explicit_ ? 2 * (k + 1) + n + m : n));
   f_.setZero(L);
   p_.setZero(L);
   S_.setZero(static_cast<Eigen::Index>(k) * k);
@@ -59,18 +62,18 @@ OrthonormalNullSpaceSolve::OrthonormalNullSpaceSolve(int n, int m)
 }
 
 bool OrthonormalNullSpaceSolve::solve(const double* A, const double* M, const double* f, const double* rhs,
-                                      double* qdd) {
+                                      double* qdd, double* lambda) {
   switch (L_) {
-    case 8: return solve_padded<8>(A, M, f, rhs, qdd);
-    case 12: return solve_padded<12>(A, M, f, rhs, qdd);
-    case 16: return solve_padded<16>(A, M, f, rhs, qdd);
-    default: return solve_padded<0>(A, M, f, rhs, qdd);
+    case 8: return solve_padded<8>(A, M, f, rhs, qdd, lambda);
+    case 12: return solve_padded<12>(A, M, f, rhs, qdd, lambda);
+    case 16: return solve_padded<16>(A, M, f, rhs, qdd, lambda);
+    default: return solve_padded<0>(A, M, f, rhs, qdd, lambda);
   }
 }
 
 template <int Lc>
 bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, const double* f,
-                                             const double* rhs, double* qdd) {
+                                             const double* rhs, double* qdd, double* lambda) {
   const int n = n_, m = m_, k = k_, L = Lc > 0 ? Lc : L_;
   double* __restrict V = V_.data();
   double* __restrict R = R_.data();
@@ -123,15 +126,22 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
     y1[r] = sum / R[static_cast<size_t>(r) * m + r];
   }
   if (explicit_) {
-    // B = [q̈_p, Z] = Q [[y1, 0]; [0, I_k]], MB = M B, then ZᵀMZ = Zᵀ (MZ), Zᵀ (f − M q̈_p).
+    // B = [q̈_p, Z] = Q [[y1, 0]; [0, I_k]], MB = M B, then ZᵀMZ = Zᵀ (MZ), Zᵀ (f − M q̈_p); for λ
+    // also Q₁ = Q [I_m; 0] (H_j leaves e_i alone for i < j: v_j is zero above row j).
     double* __restrict B = work;
     double* __restrict MB = B + static_cast<size_t>(k + 1) * L;
     double* __restrict Mp = MB + static_cast<size_t>(k + 1) * L;
+    double* __restrict Q1 = Mp + static_cast<size_t>(n) * L;
     Col<Lc>(B, L) = (row < double(m)).select(ConstCol<Lc>(y1, L).array(), 0.0).matrix();  // [y1; 0]
     for (int c = 0; c < k; ++c) Col<Lc>(B + static_cast<size_t>(c + 1) * L, L) = (row == double(m + c)).select(1.0, 0.0 * row).matrix();
+    if (lambda)
+      for (int i = 0; i < m; ++i) Col<Lc>(Q1 + static_cast<size_t>(i) * L, L) = (row == double(i)).select(1.0, 0.0 * row).matrix();
     for (int j = m - 1; j >= 0; --j) {
       if (tau[j] == 0) continue;
-      for (int c = 0; c <= k; ++c) reflect<Lc>(B + static_cast<size_t>(c) * L, tau[j], V + static_cast<size_t>(j) * L, L);
+      const double* __restrict v = V + static_cast<size_t>(j) * L;
+      for (int c = 0; c <= k; ++c) reflect<Lc>(B + static_cast<size_t>(c) * L, tau[j], v, L);
+      if (lambda)
+        for (int i = j; i < m; ++i) reflect<Lc>(Q1 + static_cast<size_t>(i) * L, tau[j], v, L);
     }
     for (int c = 0; c <= k; ++c) {
       double* __restrict out = MB + static_cast<size_t>(c) * L;
@@ -186,6 +196,24 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
     clear();
     return false;
   }
+  // λ: R λ = (Qᵀ(f − M q̈))₁, with g in p_ (scratch on both routes by now).
+  if (lambda) {
+    double* __restrict g = p_.data();
+    if (explicit_) {  // g = (f − M q̈_p) − MZ y2; (Qᵀg)₁ = Q₁ᵀ g
+      const double* __restrict MB = work + static_cast<size_t>(k + 1) * L;
+      const double* __restrict Q1 = MB + static_cast<size_t>(k + 1 + n) * L;
+      Col<Lc>(g, L) = ConstCol<Lc>(fq, L);
+      for (int c = 0; c < k; ++c) axpy<Lc>(g, -u[c], MB + static_cast<size_t>(c + 1) * L, L);
+      for (int i = 0; i < m; ++i) lambda[i] = dot<Lc>(Q1 + static_cast<size_t>(i) * L, g, L);
+    } else {  // (Qᵀf)₁ − (W y)₁, y = [y1; y2]
+      const double* __restrict W = work;
+      Col<Lc>(g, L) = ConstCol<Lc>(fq, L);
+      for (int c = 0; c < m; ++c) axpy<Lc>(g, -y1[c], W + static_cast<size_t>(c) * L, L);
+      for (int c = 0; c < k; ++c) axpy<Lc>(g, -u[c], W + static_cast<size_t>(m + c) * L, L);
+      for (int i = 0; i < m; ++i) lambda[i] = g[i];
+    }
+    back_substitute(lambda, lambda);
+  }
   if (explicit_) {  // q̈ = q̈_p + Z y2
     const double* __restrict B = work;
     Col<Lc>(fq, L) = ConstCol<Lc>(B, L);
@@ -199,6 +227,64 @@ bool OrthonormalNullSpaceSolve::solve_padded(const double* A, const double* M, c
   for (int i = 0; i < n; ++i) qdd[i] = fq[i];
   if (!ConstCol<Lc>(fq, L).allFinite()) clear();
   return true;
+}
+
+double OrthonormalNullSpaceSolve::row_condition() const {
+  const int m = m_;
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  for (int j = 0; j < m; ++j) {
+    const double a = std::abs(R_[static_cast<Eigen::Index>(j) * m + j]);
+    if (!(a > 0) || !std::isfinite(a)) return std::numeric_limits<double>::infinity();
+    lo = std::min(lo, a);
+    hi = std::max(hi, a);
+  }
+  return m ? hi / lo : 1.0;
+}
+
+void OrthonormalNullSpaceSolve::multipliers(const double* g, double* lambda) {
+  switch (L_) {
+    case 8: return multipliers_padded<8>(g, lambda);
+    case 12: return multipliers_padded<12>(g, lambda);
+    case 16: return multipliers_padded<16>(g, lambda);
+    default: return multipliers_padded<0>(g, lambda);
+  }
+}
+
+template <int Lc>
+void OrthonormalNullSpaceSolve::multipliers_padded(const double* g, double* lambda) {
+  const int n = n_, m = m_, L = Lc > 0 ? Lc : L_;
+  const double* __restrict V = V_.data();
+  // w = Qᵀ g = H_{m−1} ⋯ H_0 g, in registers for the fixed column lengths (a column in memory
+  // would be stored and reloaded by every reflection, in series); in p_ (scratch here) above 16.
+  using W = std::conditional_t<Lc == 0, Eigen::Map<Eigen::VectorXd>, Eigen::Matrix<double, Lc, 1>>;
+  W w = [&] {
+    if constexpr (Lc == 0) return W(p_.data(), L);
+    else return W();
+  }();
+  w.setZero();
+  for (int i = 0; i < n; ++i) w[i] = g[i];
+  for (int j = 0; j < m; ++j)
+    if (tau_[j] != 0) {
+      const auto v = ConstCol<Lc>(V + static_cast<size_t>(j) * L, L);
+      w -= (tau_[j] * v.dot(w)) * v;
+    }
+  back_substitute(w.data(), lambda);
+}
+
+// R λ = t (t may be λ itself). The reciprocals of R's diagonal do not depend on t, so up to 16
+// rows they are taken first and only multiplications stay on the chain from one λ_r to the next.
+void OrthonormalNullSpaceSolve::back_substitute(const double* t, double* lambda) const {
+  const int m = m_;
+  const double* __restrict R = R_.data();
+  double inv[kWrittenFactorMax];
+  const bool reciprocals = m <= kWrittenFactorMax;
+  if (reciprocals)
+    for (int r = 0; r < m; ++r) inv[r] = 1.0 / R[static_cast<size_t>(r) * m + r];
+  for (int r = m - 1; r >= 0; --r) {
+    double sum = t[r];
+    for (int c = r + 1; c < m; ++c) sum -= R[static_cast<size_t>(c) * m + r] * lambda[c];
+    lambda[r] = reciprocals ? sum * inv[r] : sum / R[static_cast<size_t>(r) * m + r];
+  }
 }
 
 // S y2 = u in place for the SPD S_ (k × k, lower triangle row by row: S(r, c) = S[r k + c], c ≤ r).

@@ -48,7 +48,15 @@ void projected_force(bool paper_literal, const Eigen::MatrixXd& dQ, const Eigen:
 
 #include "sized_dispatch.hpp"  // REFDYN_FIXED_DISPATCH, REFDYN_SIZED_DISPATCH (why: there)
 
-bool ReferenceDynamics::factor_partition() { REFDYN_SIZED_DISPATCH(factor_partition_sized, ()) }
+bool ReferenceDynamics::factor_partition() {
+  cond_current_ = true;  // every return of factor_partition_sized sets cond_
+  REFDYN_SIZED_DISPATCH(factor_partition_sized, ())
+}
+
+double ReferenceDynamics::partition_condition() {
+  if (!cond_current_ && partition_set_ && m_ > 0) factor_partition();  // the orthonormal route did not
+  return cond_;
+}
 
 template <int N, int Mr>
 bool ReferenceDynamics::factor_partition_sized() {
@@ -120,6 +128,7 @@ bool ReferenceDynamics::factor_partition_sized() {
 void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
   read_state(t, x, xdot);
   factored_ = false;
+  cond_current_ = false;
   const double* z = forces_.num_states() ? x.data() + 2 * n_ : nullptr;
   if (aba_) {  // no constraint rows, a large model: q̈ = M⁻¹(Q − c − g) by the articulated-body algorithm
     unconstrained_aba(t, z);
@@ -133,6 +142,7 @@ void ReferenceDynamics::derivative(double t, const Eigen::VectorXd& x, Eigen::Ve
 void ReferenceDynamics::prepare_derivative(double t, const Eigen::VectorXd& x, Eigen::VectorXd& xdot) {
   read_state(t, x, xdot);
   factored_ = false;
+  cond_current_ = false;
   if (aba_) return;
   bias_and_constraints(t);
   if (opt_.solver == ReferenceSolver::Projection && m_ > 0) {  // a function of A alone: done here, shared
@@ -226,8 +236,8 @@ void ReferenceDynamics::stabilized_rhs() {
   }
 }
 
-// Q_c = M q̈ − F (or −Aᵀλ where M is not formed); projection: λ from the dependent rows,
-// K_dcᵀ λ = (F − M q̈)_dc = −Q_c,dc.
+// Q_c = M q̈ − F (or −Aᵀλ where M is not formed); projection with the partition: λ from the
+// dependent rows, K_dcᵀλ = −Q_c,dc (the orthonormal solve gives λ with q̈, from its QR).
 void ReferenceDynamics::constraint_forces() {
   const int n = n_, m = m_;
   const double* __restrict qdd = qdd_.data();
@@ -250,7 +260,7 @@ void ReferenceDynamics::constraint_forces() {
       for (int i = 0; i < n; ++i) Qc[i] += a * col[i];
     }
   }
-  if (opt_.solver == ReferenceSolver::Projection && m > 0) {
+  if (opt_.solver == ReferenceSolver::Projection && m > 0 && !orthonormal_) {  // (the orthonormal solve gave λ)
     const double* __restrict Ki = Kinv_.data();
     const int* __restrict dep = dep_.data();
     double* __restrict lambda = lambda_.data();
@@ -325,10 +335,17 @@ void ReferenceDynamics::factor_for_projection(double t) {
 }
 
 void ReferenceDynamics::solve_projection(double t) {
+  // The small fixed sizes (the paper's example among them) keep the partitioned basis N, and
+  // m = n solves with K_dc⁻¹: both factor the partition. Every other size takes the orthonormal
+  // basis, which does not use the partition (see the header comment); it is only chosen, once.
+  if (orthonormal_) {
+    if (!partition_set_) choose_partition(t, q_, qd_), evaluate_constraints(model_, data_, constraints_, ev_, t, q_, qd_);
+    factored_ = false;
+    solve_projection_orthonormal(t);
+    return;
+  }
   if (!factored_) factor_for_projection(t);
   factored_ = false;
-  // The small fixed sizes (the paper's example among them) keep the partitioned basis N; every
-  // other size takes the orthonormal basis (see the header comment).
   REFDYN_FIXED_DISPATCH(solve_projection_sized, (t))
   solve_projection_orthonormal(t);
 }
@@ -349,8 +366,16 @@ void ReferenceDynamics::solve_projection_orthonormal(double t) {
     return;
   }
   projected_force(opt_.paper_literal_forces, dQ_, qd_, F_, tmp_n_);  // f, projected by Zᵀ
-  if (!orth_.solve(ev_.A.data(), data_.M.data(), tmp_n_.data(), rhs_.data(), qdd_.data()))
+  // q̈ and λ (Aᵀλ = f − M q̈) from one factorization.
+  const bool spd = orth_.solve(ev_.A.data(), data_.M.data(), tmp_n_.data(), rhs_.data(), qdd_.data(), lambda_.data());
+  if (!(orth_.row_condition() <= opt_.max_condition)) throw NumericalFailure(t, dependent_rows_message(t));
+  if (!spd)
     throw NumericalFailure(t, "at t = " + fmt(t) + " s the reduced mass matrix Zᵀ M Z is not positive definite");
+  if (opt_.paper_literal_forces && m_ > 0) {  // λ belongs to F − M q̈ = (f − M q̈) − (∂Q/∂q̇)ᵀq̇
+    tmp_n_.noalias() = dQ_.transpose() * qd_;
+    orth_.multipliers(tmp_n_.data(), tmp_m_.data());
+    lambda_ -= tmp_m_;
+  }
 }
 
 template <int N, int Mr>

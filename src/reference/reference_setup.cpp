@@ -71,6 +71,7 @@ ReferenceDynamics::ReferenceDynamics(const Model& model, const ForceSet& forces,
   rk_.setZero(n_ - m_);
   Smm_.setZero(m_, m_);
   orth_ = OrthonormalNullSpaceSolve(n_, m_);
+  orthonormal_ = !projection_uses_partition(n_, m_);
   lu_m_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m_);
   // Storage sized once (no allocation later) by factoring identities: Eigen's LLT(Index)
   // constructor leaves its info flag uninitialised, which UBSan reports on the move-assignment.
@@ -126,6 +127,17 @@ std::string ReferenceDynamics::partition_message(double t) const {
   return os.str();
 }
 
+std::string ReferenceDynamics::dependent_rows_message(double t) const {
+  std::ostringstream os;
+  const double c = orth_.row_condition();
+  os << "at t = " << t << " s the constraint rows [";
+  for (int r = 0; r < m_; ++r) os << (r ? ", " : "") << constraints_.row_name(r);
+  os << "] are dependent or nearly so: the triangular factor of their Jacobian has condition estimate "
+     << (std::isfinite(c) ? fmt(c) : std::string("inf")) << " > max_condition " << fmt(opt_.max_condition)
+     << " (hint: remove redundant constraints or start away from this configuration)";
+  return os.str();
+}
+
 double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
   model_.check_q(q);
   check_vector("qd", qd, n_);
@@ -135,6 +147,7 @@ double ReferenceDynamics::choose_partition(double t, const Eigen::VectorXd& q, c
     std::iota(all.begin(), all.end(), 0);
     set_independent(all);
     cond_ = 1.0;
+    cond_current_ = true;
     return cond_;
   }
   // Count candidate sets C(n, m).

@@ -13,6 +13,8 @@
 // partitioned solve (solve_projection_sized) exists only for those fixed pairs; every other size
 // takes solve_projection_orthonormal (header comment: why). The KKT route (solve_lagrange) is
 // dispatched the same way onto fixed- or dynamic-size Eigen objects.
+// The (n, m) pairs below are those refdyn::projection_uses_partition names (reference_dynamics.hpp,
+// with m = n): keep the two in step.
 #define REFDYN_FIXED_DISPATCH(call, args)                     \
   if (n_ == 2 && m_ == 1) return call<2, 1> args;             \
   if (n_ == 3 && m_ == 1) return call<3, 1> args;             \

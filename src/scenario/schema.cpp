@@ -25,9 +25,10 @@ Section root_section() {
       {"constraints", "list", "", "", "", "list of constraints (below); none = an unconstrained forward simulation", {}},
       {"partition", "mapping or `auto`", "", "auto", "",
        "which coordinates are independent (`partition:` below; default: best-conditioned at t0). `refdyn check`, "
-       "summary.json (`plan.partition_t0`) and the report show the partition and κ at t0 under either solver: under "
-       "`lagrange`, which uses no partition, they are the ones `projection` takes (and the initial projection's "
-       "dependent coordinates)", {}},
+       "summary.json (`plan.partition_t0`) and the report show the partition and κ at t0 under either solver. The "
+       "solve uses it under `projection` with 2–4 coordinates or as many rows as coordinates; `lagrange` and the "
+       "projection's orthonormal basis (every other size) use none, and what is shown is the partition `projection` "
+       "takes (and the initial projection's dependent coordinates)", {}},
       {"forces", "list", "", "", "", "force elements acting during planning (below)", {}},
       {"baumgarte", "mapping", "", "", "",
        "the constraint stabilization gains (`baumgarte:` below): Φ̈ + 2αΦ̇ + β²Φ = 0, ċ + β₁c = 0; `kappa` (jerk problems "
@@ -80,11 +81,14 @@ std::vector<Section> solver_sections() {
       {"partition", "`{independent: …}` (or the word `auto`)", {
           {"independent", "list of joints or `auto`", "yes", "", "",
            "the n − m independent coordinates, or `auto`: the best-conditioned at t0", {}},
-          {"automatic_switch", "true | false", "", "false", "", "re-choose the partition when K_dc becomes ill-conditioned", {}},
+          {"automatic_switch", "true | false", "", "false", "",
+           "re-choose the partition when K_dc becomes ill-conditioned (where the solve uses the partition)", {}},
           {"max_condition", "number > 1", "", "1e8", "",
            "the largest condition number κ(K_dc) = ‖A‖₁ ‖K_dc⁻¹‖₁ (1-norm: largest column sum; A the whole m × n "
            "constraint Jacobian, so a small K_dc beside a large K_ic counts as ill-conditioned even for m = 1; this is "
-           "not the 2-norm κ₂ = σ_max/σ_min)", {}},
+           "not the 2-norm κ₂ = σ_max/σ_min), where the solve uses the partition; where the projection solves with "
+           "its orthonormal basis it bounds the rows' own conditioning instead, max|R_jj| / min|R_jj| of the QR of Aᵀ "
+           "(dependent rows stop the run)", {}},
       }},
       {"baumgarte", "Φ̈ + 2αΦ̇ + β²Φ = 0, ċ + β₁c = 0", {
           {"alpha", "number", "", "100", "1/s", "α, the damping of the position rows", {}},

@@ -167,9 +167,12 @@ std::optional<PlannerPartition> partition_at_t0(const Problem& problem);
 
 /// The solver the problem's reference dynamics use (Automatic resolved): projection or lagrange.
 ReferenceSolver resolved_solver(const Problem& problem);
-/// Whether that solver uses the partition (the projection solver; not the Lagrange solver).
+/// Whether that solver's solve uses the partition: the projection solver where it solves with the
+/// partitioned basis or K_dc⁻¹ (projection_uses_partition: 2–4 coordinates, or as many rows as
+/// coordinates); not its orthonormal basis (every other size), not the Lagrange solver.
 inline bool solver_uses_partition(const Problem& problem) {
-  return resolved_solver(problem) == ReferenceSolver::Projection;
+  return resolved_solver(problem) == ReferenceSolver::Projection &&
+         projection_uses_partition(problem.model.nq, problem.constraints.rows());
 }
 
 /// One table for any Trajectory: the columns of the series it has, in a fixed order

@@ -32,10 +32,23 @@ class OrthonormalNullSpaceSolve {
   /// Storage for n coordinates and m rows, 0 ≤ m ≤ n (Error otherwise).
   OrthonormalNullSpaceSolve(int n, int m);
 
-  /// q̈ (n) from A (m × n), M (n × n), both column-major, f (n) and rhs (m); A must have full row
-  /// rank (the caller's partition factorization checks that). Returns false, leaving q̈
-  /// unspecified, when ZᵀMZ is not positive definite (M is not).
-  bool solve(const double* A, const double* M, const double* f, const double* rhs, double* qdd);
+  /// q̈ (n) from A (m × n), M (n × n), both column-major, f (n) and rhs (m), and, when `lambda` is
+  /// given, the KKT system's multipliers λ (m): Aᵀλ = f − M q̈, from the same factorization (the
+  /// two-sided route has (Qᵀ(f − M q̈))₁ = (Qᵀf)₁ − (QᵀMQ y)₁ at hand; the explicit one forms
+  /// Q₁ = Q [I_m; 0] beside Z, m more columns through the same reflections). A must have full
+  /// row rank: check row_condition() after the call (a zero R_jj makes q̈ not finite). Returns
+  /// false, leaving q̈ and λ unspecified, when ZᵀMZ is not positive definite (M is not).
+  bool solve(const double* A, const double* M, const double* f, const double* rhs, double* qdd,
+             double* lambda = nullptr);
+
+  /// max_j |R_jj| / min_j |R_jj| of the last solve's R (1 without rows; infinite when an R_jj is 0
+  /// or not finite): a lower bound of cond₂(A), infinite or huge when the rows are dependent.
+  double row_condition() const;
+
+  /// After a solve() that returned true: λ (m) with Aᵀλ = g in the least-squares sense,
+  /// λ = R⁻¹ (Qᵀ g)₁, from that solve's factorization of A (no second one). For a g that lies in
+  /// the range of Aᵀ (up to rounding), such as a part of f − M q̈.
+  void multipliers(const double* g, double* lambda);
 
   int rows() const { return m_; }
   int coordinates() const { return n_; }
@@ -45,7 +58,11 @@ class OrthonormalNullSpaceSolve {
 
  private:
   template <int L>
-  bool solve_padded(const double* A, const double* M, const double* f, const double* rhs, double* qdd);
+  bool solve_padded(const double* A, const double* M, const double* f, const double* rhs, double* qdd,
+                    double* lambda);
+  void back_substitute(const double* t, double* lambda) const;  // R λ = t (m)
+  template <int L>
+  void multipliers_padded(const double* g, double* lambda);
   bool spd_solve();  // S y2 = u in place (S_: k × k, lower triangle row by row); false unless S is PD
 
   int n_ = 0, m_ = 0, k_ = 0, L_ = 8;
@@ -55,8 +72,8 @@ class OrthonormalNullSpaceSolve {
   Eigen::VectorXd tau_;    // m: H_j = I − τ_j v_j v_jᵀ
   Eigen::VectorXd y1_;     // L: Rᵀ y1 = rhs in rows 0 … m−1
   Eigen::VectorXd rows_;   // L: 0, 1, …, L − 1 (the row index the column operations mask with)
-  Eigen::VectorXd work_;   // explicit: [q̈_p, Z], M [q̈_p, Z], M (L × (k+1), L × (k+1), L × n); else W (L × n)
-  Eigen::VectorXd f_, p_;  // L: f (or Qᵀf, then y); the rank-2 update's vector
+  Eigen::VectorXd work_;   // explicit: [q̈_p, Z], M [q̈_p, Z], M, Q₁ (L × (k+1), L × (k+1), L × n, L × m); else W (L × n)
+  Eigen::VectorXd f_, p_;  // L: f (or Qᵀf, then y); the rank-2 update's vector (multipliers(): Qᵀg)
   Eigen::VectorXd S_, u_;  // k × k (lower, row by row): ZᵀMZ and its factor; k: Zᵀ(f − M q̈_p), y2
   Eigen::MatrixXd big_;    // k × k for Eigen's LLT when k > 16
   Eigen::LLT<Eigen::MatrixXd> llt_;

@@ -33,9 +33,16 @@
 ///    Chosen over one step of iterative refinement of the partitioned solve (measured too:
 ///    about as accurate for κ ≤ 1e4 and 15–20 % faster at 7–10 DOF, but 10 % slower at 60 DOF,
 ///    and its first solve, hence its convergence, still degrades with cond(K_dc)²).
-/// The partition keeps its meaning either way: the independent coordinates q̇_ic (chosen or
-/// given by `independent`), κ = partition_condition() and its max_condition check (a singular
-/// or ill-conditioned K_dc is still reported), λ from K_dcᵀλ = −Q_c,dc, make_consistent.
+/// The partition keeps its meaning on both routes: the independent coordinates q̇_ic (chosen or
+/// given by `independent`), κ = partition_condition(), make_consistent, and the closed loop's
+/// actuation (prepare_derivative factors it). Where it enters the solve (the partitioned basis,
+/// and q̈ = K_dc⁻¹ rhs when m = n) λ comes from K_dcᵀλ = −Q_c,dc and a singular or
+/// ill-conditioned K_dc (κ > max_condition) stops the run or, with automatic_partition, makes it
+/// choose another partition. The orthonormal route does not use the partition at all: derivative()
+/// does not factor it (κ is computed when asked for), λ comes from the same QR as q̈
+/// (R λ = (Qᵀ(F − M q̈))₁: one factorization for q̈ and λ), and what is checked against max_condition
+/// is the rows' own conditioning, max|R_jj| / min|R_jj| (dependent rows stop the run whatever
+/// the partition; an ill-conditioned K_dc with well-conditioned rows does not).
 /// Lagrange (KKT) form, the independent check: [[M, Aᵀ],[A, 0]] [q̈; λ] = [F; rhs], i.e.
 ///     M q̈ = F − Aᵀ λ,
 /// and Q_c = −Aᵀλ = M q̈ − F is the generalized force the joints must add to realize the
@@ -78,6 +85,15 @@ enum class ReferenceSolver { Projection, Lagrange, Automatic };
 /// keeps the projection).
 constexpr ReferenceSolver automatic_reference_solver(int nq, int /*rows*/) {
   return nq >= kLagrangeFrom ? ReferenceSolver::Lagrange : ReferenceSolver::Projection;
+}
+
+/// Whether the projection solver's solve uses the velocity partition with nq coordinates and
+/// `rows` constraint rows: the partitioned basis of the fixed-size kernels (2 ≤ nq ≤ 4,
+/// 1 ≤ rows < nq: the pairs REFDYN_FIXED_DISPATCH instantiates, src/reference/sized_dispatch.hpp)
+/// and q̈ = K_dc⁻¹ rhs when rows = nq. Every other size solves with the orthonormal basis, which
+/// uses none (see "Null-space basis" above).
+constexpr bool projection_uses_partition(int nq, int rows) {
+  return rows > 0 && (rows == nq || (nq >= 2 && nq <= 4 && rows < nq));
 }
 
 /// How the constraints are kept from drifting (docs/implicit.md, "Drift"):
@@ -161,8 +177,10 @@ class ReferenceDynamics {
   const Eigen::MatrixXd& mass() const { return data_.M; }          ///< M (see derivative())
   const ConstraintEval& constraints() const { return ev_; }
   /// κ = ‖A‖₁ ‖K_dc⁻¹‖₁ at the last evaluation: K_dc's conditioning measured against the whole
-  /// constraint Jacobian (so a tiny K_dc next to a large K_ic counts as ill-conditioned).
-  double partition_condition() const { return cond_; }
+  /// constraint Jacobian (so a tiny K_dc next to a large K_ic counts as ill-conditioned). On the
+  /// orthonormal route, which does not factor the partition, it is factored here, at the last
+  /// evaluation's A (the same κ, bit for bit, as factoring it during the evaluation).
+  double partition_condition();
   const std::vector<int>& independent() const { return ind_; }
   const std::vector<int>& dependent() const { return dep_; }
   Data& data() { return data_; }
@@ -226,7 +244,7 @@ class ReferenceDynamics {
   void solve_reduced_mass(double t, int k);  // (Nᵀ M N) u = r in NMN_, rk_
   void solve_lagrange(double t);
   void solve_lagrange_aba(double t);  // the KKT solve with ABA's factorization (kAbaLagrangeFrom)
-  bool factor_partition();  // fills K_dc LU, G, cond_; returns false if ill-conditioned
+  bool factor_partition();  // fills K_dc⁻¹, G, cond_; returns false if ill-conditioned
   template <int N, int Mr>
   bool factor_partition_sized();  // N = 0: sizes at run time
   template <int N, int Mr>
@@ -253,6 +271,9 @@ class ReferenceDynamics {
   Eigen::VectorXd xdot_;          // residual(): derivative workspace when there are acceleration rows
   bool partition_set_ = false;
   bool factored_ = false;  ///< the partition is factored at the state of prepare_derivative
+  bool cond_current_ = true;  ///< cond_ belongs to the last evaluation's A (or nothing was evaluated)
+  bool orthonormal_ = false;   ///< the projection solves with the orthonormal basis (m < n, not a fixed size)
+  std::string dependent_rows_message(double t) const;  // the orthonormal route's rank failure
   void factor_for_projection(double t);  // the partition's factorization (re-chosen when allowed)
   // workspaces
   Eigen::VectorXd q_, qd_, Q_, F_, rhs_, qdd_, lambda_, Qc_, zdot_, tmp_n_, tmp_m_;
