@@ -11,8 +11,10 @@
 
 #if defined(__GNUC__) || defined(__clang__)
 #define REFDYN_INLINE inline __attribute__((always_inline))
+#define REFDYN_ALIGNED_64 __attribute__((aligned(64)))  // a function's first byte on a 64-byte boundary
 #else
 #define REFDYN_INLINE inline
+#define REFDYN_ALIGNED_64
 #endif
 
 // With AVX (the default build uses -march=native) a 4-lane vector is one register and one
