@@ -73,7 +73,7 @@ class OrthonormalNullSpaceSolve {
   Eigen::VectorXd y1_;     // L: Rᵀ y1 = rhs in rows 0 … m−1
   Eigen::VectorXd rows_;   // L: 0, 1, …, L − 1 (the row index the column operations mask with)
   Eigen::VectorXd work_;   // explicit: [q̈_p, Z], M [q̈_p, Z], M, Q₁ (L × (k+1), L × (k+1), L × n, L × m); else W (L × n)
-  Eigen::VectorXd f_, p_;  // L: f (or Qᵀf, then y); the rank-2 update's vector (multipliers(): Qᵀg)
+  Eigen::VectorXd f_, p_;  // L: f (or Qᵀf, then y); the rank-2 update's vector, then f − M q̈ for λ (multipliers(): Qᵀg)
   Eigen::VectorXd S_, u_;  // k × k (lower, row by row): ZᵀMZ and its factor; k: Zᵀ(f − M q̈_p), y2
   Eigen::MatrixXd big_;    // k × k for Eigen's LLT when k > 16
   Eigen::LLT<Eigen::MatrixXd> llt_;
