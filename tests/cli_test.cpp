@@ -1071,6 +1071,22 @@ std::string sig6(double v) {
 
 }  // namespace
 
+// Without constraint rows there is nothing to partition: check says so, and summary.json
+// records used_by_solver false.
+TEST(Partition, NoRowsNothingToPartition) {
+  Scratch s;
+  const fs::path file = kGoodDir / "free_one_dof.yaml";
+  const Result c = run(s, "check " + quote(file));
+  ASSERT_EQ(c.code, 0) << describe(c);
+  EXPECT_TRUE(contains(c.out, "(no constraint rows: nothing to partition)")) << describe(c);
+  EXPECT_FALSE(contains(c.out, "uses no partition")) << describe(c);
+  const fs::path dir = s.root() / "out";
+  const Result r = run(s, "plan " + quote(file) + " -q -o " + quote(dir));
+  ASSERT_EQ(r.code, 0) << describe(r);
+  const JsonValue summary = parse_json(read_text(dir / "summary.json"), "summary.json");
+  EXPECT_EQ(summary["plan"]["partition_t0"]["used_by_solver"], false);
+}
+
 TEST(Partition, LagrangeAndProjectionReportTheSameRealConditionNumber) {
   Scratch s;
   const fs::path lagrange = arm_line_scenario(s, "lagrange.yaml", "\nsolver: lagrange\n"),

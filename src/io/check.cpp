@@ -159,7 +159,9 @@ std::string check_text(const CheckReport& r) {
     o << "partition: independent [" << list(p->independent) << "], dependent [" << list(p->dependent) << "]"
       << (p->automatic ? " (chosen automatically)" : "") << "; cond(K_dc) = " << p->condition
       << " at t0 (1-norm: ||A||_1 ||K_dc^-1||_1, A the whole constraint Jacobian)\n";
-    if (!p->used_by_solver && r.solver == "lagrange")
+    if (!p->used_by_solver && r.rows.total == 0)
+      o << "  (no constraint rows: nothing to partition)\n";
+    else if (!p->used_by_solver && r.solver == "lagrange")
       o << "  (solver lagrange: the KKT solve uses no partition; this is the one solver: projection takes, and "
            "the initial projection's dependent coordinates)\n";
     else if (!p->used_by_solver)
