@@ -579,16 +579,27 @@ TEST(ReferenceDynamics, UnconstrainedLargeModelsUseTheArticulatedBodyAlgorithm) 
   }
 }
 
-TEST(ReferenceDynamics, AnyValidPartitionGivesTheSameAcceleration) {
-  std::mt19937 rng(42);
+namespace {
+// The partition tests' mechanism: a random 6-DOF chain with a point "mid" on link 3, the tip held
+// to it in x and z and guided as a knife edge along y (3 rows), damping on q2.
+Model chain_with_mid(std::mt19937& rng) {
   ModelDescription d = test::random_chain(rng, {.dof = 6});
   d.add_point("mid", d.links[3].name, Vec3(0.1, -0.2, 0.15));
-  const Model model = build_model(d);
-  ConstraintSet set;
+  return build_model(d);
+}
+void add_tip_to_mid(const Model& model, ConstraintSet& set, ForceSet& forces) {
   set.add(points_coincide(model, "tip", "mid", {0, 2}));
   set.add(knife_edge(model, "tip", Vec3(0, 1, 0)));
-  ForceSet forces;
   forces.add(joint_damping(model, "q2", 0.5));
+}
+}  // namespace
+
+TEST(ReferenceDynamics, AnyValidPartitionGivesTheSameAcceleration) {
+  std::mt19937 rng(42);
+  const Model model = chain_with_mid(rng);
+  ConstraintSet set;
+  ForceSet forces;
+  add_tip_to_mid(model, set, forces);
   ReferenceDynamics rd(model, forces, set);
   const Eigen::VectorXd q = test::random_vector(rng, 6, 2.0), qd = test::random_vector(rng, 6, 1.0);
   Eigen::VectorXd x = rd.make_state(q, qd), xdot(x.size());
@@ -623,15 +634,11 @@ TEST(ReferenceDynamics, AnyValidPartitionGivesTheSameAcceleration) {
 // asked). Dependent rows are what stops it: a repeated row is a NumericalFailure naming the rows.
 TEST(Partition, TheOrthonormalRouteDoesNotDependOnThePartition) {
   std::mt19937 rng(42);
-  ModelDescription d = test::random_chain(rng, {.dof = 6});
-  d.add_point("mid", d.links[3].name, Vec3(0.1, -0.2, 0.15));
-  const Model model = build_model(d);
+  const Model model = chain_with_mid(rng);
   ConstraintSet set;
-  set.add(points_coincide(model, "tip", "mid", {0, 2}));
-  set.add(knife_edge(model, "tip", Vec3(0, 1, 0)));
-  set.add(joint_trajectory(model, "q3", polynomial({0.2, 0.5})));  // a row e_3: K_dc singular unless q3 is dependent
   ForceSet forces;
-  forces.add(joint_damping(model, "q2", 0.5));
+  add_tip_to_mid(model, set, forces);
+  set.add(joint_trajectory(model, "q3", polynomial({0.2, 0.5})));  // a row e_3: K_dc singular unless q3 is dependent
   ReferenceDynamicsOptions po;
   po.solver = ReferenceSolver::Projection;
   ReferenceDynamics rd(model, forces, set, po);

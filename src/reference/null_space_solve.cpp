@@ -35,6 +35,16 @@ void reflect(double* y, double tau, const double* v, int len) {
   axpy<L>(y, -tau * dot<L>(v, y, len), v, len);
 }
 constexpr int kWrittenFactorMax = 16;  // larger ZᵀMZ: Eigen's LLT
+// f(std::integral_constant<int, L>) for the column length L compiled with fixed sizes, else L = 0.
+template <class F>
+decltype(auto) with_length(int L, F&& f) {
+  switch (L) {
+    case 8: return f(std::integral_constant<int, 8>{});
+    case 12: return f(std::integral_constant<int, 12>{});
+    case 16: return f(std::integral_constant<int, 16>{});
+    default: return f(std::integral_constant<int, 0>{});
+  }
+}
 }  // namespace
 
 int OrthonormalNullSpaceSolve::padded_rows(int n) { return n <= 8 ? 8 : n <= 12 ? 12 : n <= 16 ? 16 : (n + 7) / 8 * 8; }
@@ -63,12 +73,7 @@ OrthonormalNullSpaceSolve::OrthonormalNullSpaceSolve(int n, int m)
 
 bool OrthonormalNullSpaceSolve::solve(const double* A, const double* M, const double* f, const double* rhs,
                                       double* qdd, double* lambda) {
-  switch (L_) {
-    case 8: return solve_padded<8>(A, M, f, rhs, qdd, lambda);
-    case 12: return solve_padded<12>(A, M, f, rhs, qdd, lambda);
-    case 16: return solve_padded<16>(A, M, f, rhs, qdd, lambda);
-    default: return solve_padded<0>(A, M, f, rhs, qdd, lambda);
-  }
+  return with_length(L_, [&](auto L) { return solve_padded<L()>(A, M, f, rhs, qdd, lambda); });
 }
 
 template <int Lc>
@@ -242,12 +247,7 @@ double OrthonormalNullSpaceSolve::row_condition() const {
 }
 
 void OrthonormalNullSpaceSolve::multipliers(const double* g, double* lambda) {
-  switch (L_) {
-    case 8: return multipliers_padded<8>(g, lambda);
-    case 12: return multipliers_padded<12>(g, lambda);
-    case 16: return multipliers_padded<16>(g, lambda);
-    default: return multipliers_padded<0>(g, lambda);
-  }
+  with_length(L_, [&](auto L) { multipliers_padded<L()>(g, lambda); });
 }
 
 template <int Lc>
