@@ -1,10 +1,12 @@
-// Side-by-side timing of refdyn's recursive route, refdyn's trace route and Orocos KDL on the
-// same models: the paper manipulator and random 7-, 15-, 30- and 60-DOF chains built from the
-// same seeded standard-DH tables on both sides (dh_tables.hpp). See bench/README.md.
+// Side-by-side timing of refdyn's recursive route, refdyn's trace route, Orocos KDL and MuJoCo
+// on the same models: the paper manipulator and random 7-, 15-, 30- and 60-DOF chains built from
+// the same seeded standard-DH tables on both sides (dh_tables.hpp; MuJoCo gets an MJCF written
+// from refdyn's model, mujoco_peer.hpp). See bench/README.md.
 //
 // Before timing, every model is checked once: M, g, c + g and τ from refdyn's recursive route,
-// refdyn's trace route and KDL must agree to 1e-10 (relative to the largest entry); the
-// program aborts loudly otherwise. At the end it prints the table of ratios KDL / refdyn.
+// refdyn's trace route, KDL and MuJoCo (M, c + g, τ, q̈) must agree to 1e-10 (relative to the
+// largest entry); the program aborts loudly otherwise. At the end it prints the table of ratios
+// peer / refdyn.
 //
 // Forward dynamics (FD: CRBA + Cholesky, the articulated-body algorithm, the automatic choice,
 // KDL's ChainFdSolver_RNE) and constrained forward dynamics are timed in the same run; their own
@@ -19,6 +21,7 @@
 #include "dh_models.hpp"
 #include "dh_tables.hpp"
 #include "kdl_peer.hpp"
+#include "mujoco_peer.hpp"
 
 #include "refdyn/constraints/constraints.hpp"
 #include "refdyn/forces/force_elements.hpp"
@@ -47,6 +50,7 @@ namespace {
 
 using refdyn_bench::DHTable;
 using refdyn_bench::KdlPeer;
+using refdyn_bench::MujocoPeer;
 
 constexpr int kStates = 8;  // states cycled through by every timed loop (same for all sides)
 
@@ -63,6 +67,7 @@ struct Case {
   refdyn::Model model;
   std::unique_ptr<refdyn::Data> data;
   std::unique_ptr<KdlPeer> kdl;
+  std::unique_ptr<MujocoPeer> mujoco;
   std::vector<Eigen::VectorXd> q, qd, qdd, tau;
   // Constrained FD (models with a "tip" point and at least 5 DOF): 4 rows, no applied forces.
   refdyn::ForceSet forces;
@@ -195,6 +200,8 @@ std::unique_ptr<Case> make_case(const DHTable& table, refdyn::Model model, std::
     c->qdd.push_back(Eigen::Map<const Eigen::VectorXd>(qdd.data() + k * n, n));
     c->tau.push_back(Eigen::Map<const Eigen::VectorXd>(tau.data() + k * n, n));
   }
+  c->mujoco = std::make_unique<MujocoPeer>(c->model);
+  c->mujoco->load_states(c->q, c->qd, c->qdd, c->tau);
   if (n >= 5 && !c->model.point_name.empty()) setup_constrained(*c);  // 4 rows: n ≥ 5
   if (tip && c->constrained) setup_tip(*c, table);
   return c;
@@ -243,6 +250,8 @@ bool check_forward_dynamics(Case& c) {
     expect("FD: ABA vs CRBA + Cholesky", k, aba, crba, tol, worst);
     expect("FD: automatic vs its choice", k, automatic, refdyn::forward_dynamics_uses_aba(n) ? aba : crba, 0.0, worst);
     expect("FD: refdyn vs KDL ChainFdSolver_RNE", k, automatic, kq, tol, worst);
+    c.mujoco->time_forward_dynamics(k);
+    expect("FD: refdyn vs MuJoCo CRB + factorM + RNE + solveM", k, automatic, c.mujoco->last_qdd(), tol, worst);
     if (!c.constrained) continue;
     Eigen::VectorXd xp = c.xdot, xl = c.xdot, xa = c.xdot;
     c.rd_proj->derivative(0.0, c.x[k], xp);
@@ -280,7 +289,7 @@ bool check_forward_dynamics(Case& c) {
     expect("CFDtip: refdyn point ee vs KDL's tip position", k, ee, Eigen::Vector3d(pos[0], pos[1], pos[2]), 1e-12,
            worst_c);
   }
-  std::printf("check %-8s %2d DOF: FD routes and KDL agree (worst %.1e, cond(M) up to %.1e)", c.name.c_str(), n,
+  std::printf("check %-8s %2d DOF: FD routes, KDL and MuJoCo agree (worst %.1e, cond(M) up to %.1e)", c.name.c_str(), n,
               worst, worst_cond);
   if (c.constrained)
     std::printf("; CFD%s routes and KDL peers%s agree (worst %.1e)", c.tip ? " and CFDtip" : "",
@@ -328,8 +337,15 @@ bool check_case(Case& c, double tol) {
     const Eigen::VectorXd tau = refdyn::inverse_dynamics(c.model, data, c.q[k], c.qd[k], c.qdd[k]);
     expect("tau: refdyn RNEA vs KDL ChainIdSolver_RNE", k, tau, tk);
     expect("tau: refdyn RNEA vs M qdd + c + g", k, tau, M * c.qdd[k] + cg);
+    // MuJoCo through the timed calls themselves (stored state k).
+    c.mujoco->time_mass_matrix(k);
+    expect("M: refdyn recursive vs MuJoCo mj_crb + mj_fullM", k, M, c.mujoco->last_mass_matrix());
+    c.mujoco->time_bias_forces(k);
+    expect("c+g: refdyn recursive vs MuJoCo mj_rne (qacc = 0)", k, cg, c.mujoco->last_bias_forces());
+    c.mujoco->time_inverse_dynamics(k);
+    expect("tau: refdyn RNEA vs MuJoCo mj_rne", k, tau, c.mujoco->last_tau());
   }
-  std::printf("check %-8s %2d DOF: recursive, trace and KDL agree (worst relative difference %.1e)\n",
+  std::printf("check %-8s %2d DOF: recursive, trace, KDL and MuJoCo agree (worst relative difference %.1e)\n",
               c.name.c_str(), n, worst);
   return check_forward_dynamics(c) && ok;
 }
@@ -347,7 +363,6 @@ void timed(benchmark::State& st, F&& f) {
 }
 
 const std::vector<std::string> kQuantities = {"M", "c+g", "g", "ID"};
-const std::vector<std::string> kRoutes = {"recursive", "trace", "kdl"};
 
 /// FD and CFD benchmarks of one case (`reg` registers one timed loop).
 template <typename Reg>
@@ -372,6 +387,8 @@ void register_forward_dynamics(Case* c, Reg reg) {
     benchmark::DoNotOptimize(refdyn::forward_dynamics(*m, *d, c->q[k], c->qd[k], c->tau[k]).data());
   });
   reg(p + "FD/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->forward_dynamics(k)); });
+  MujocoPeer* mj = c->mujoco.get();
+  reg(p + "FD/mujoco", [=](int k) { mj->time_forward_dynamics(k); });
   if (!c->constrained) return;
   // Constrained forward dynamics: one reference-dynamics evaluation.
   reg(p + "CFD/projection", [=](int k) {
@@ -424,6 +441,8 @@ void register_case(Case* c) {
   reg(p + "M/recursive", [=](int k) { benchmark::DoNotOptimize(refdyn::mass_matrix(*m, *d, c->q[k]).data()); });
   reg(p + "M/trace", [=](int k) { benchmark::DoNotOptimize(refdyn::trace_mass_matrix(*m, *d, c->q[k]).data()); });
   reg(p + "M/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->mass_matrix(k)); });
+  MujocoPeer* mj = c->mujoco.get();
+  reg(p + "M/mujoco", [=](int k) { mj->time_mass_matrix(k); });
   // Bias forces c + g.
   reg(p + "c+g/recursive", [=](int k) {
     benchmark::DoNotOptimize(refdyn::bias_forces(*m, *d, c->q[k], c->qd[k]).data());
@@ -436,7 +455,8 @@ void register_case(Case* c) {
     benchmark::DoNotOptimize(kdl->coriolis(k));
     benchmark::DoNotOptimize(kdl->gravity(k));
   });
-  // Gravity alone.
+  reg(p + "c+g/mujoco", [=](int k) { mj->time_bias_forces(k); });
+  // Gravity alone (MuJoCo has no routine for it).
   reg(p + "g/recursive", [=](int k) { benchmark::DoNotOptimize(refdyn::gravity_forces(*m, *d, c->q[k]).data()); });
   reg(p + "g/trace", [=](int k) { benchmark::DoNotOptimize(refdyn::trace_gravity(*m, *d, c->q[k]).data()); });
   reg(p + "g/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->gravity(k)); });
@@ -445,6 +465,7 @@ void register_case(Case* c) {
     benchmark::DoNotOptimize(refdyn::inverse_dynamics(*m, *d, c->q[k], c->qd[k], c->qdd[k]).data());
   });
   reg(p + "ID/kdl", [=](int k) { benchmark::DoNotOptimize(kdl->inverse_dynamics(k)); });
+  reg(p + "ID/mujoco", [=](int k) { mj->time_inverse_dynamics(k); });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -472,24 +493,28 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
       {"CFDtip/kdl_vereshchagin", "ChainHdSolver_Vereshchagin::CartToJnt (KDL's constrained solver)"},
       {"CFDtip/kdl_kkt", "JntToMass + JntToCoriolis + JntToGravity + Eigen KKT written for this bench"},
   };
-  std::printf("\nRatios KDL / refdyn recursive and trace / recursive (> 1: refdyn's recursive route is faster).\n");
+  std::printf("\nRatios KDL / refdyn recursive, MuJoCo / recursive and trace / recursive (> 1: refdyn's recursive route\n");
+  std::printf("is faster).\n");
   std::printf("Times are CPU time per call; 'med' = median over repetitions, 'min' = fastest repetition;\n");
   std::printf("ratios are med/med and min/min.\n\n");
-  std::printf("| model | DOF | quantity | KDL routine | recursive med | recursive min | KDL med | KDL min | KDL/rec med | KDL/rec min | trace med | trace/rec med |\n");
-  std::printf("|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("| model | DOF | quantity | KDL routine | recursive med | recursive min | KDL med | KDL min | KDL/rec med | KDL/rec min | MuJoCo med | MuJoCo/rec med | MuJoCo/rec min | trace med | trace/rec med |\n");
+  std::printf("|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const auto& c : cases)
     for (const auto& qty : kQuantities) {
       const std::string p = c->name + "/" + qty + "/";
       const Stats* r = get(p + "recursive");
       const Stats* k = get(p + "kdl");
       const Stats* t = get(p + "trace");
+      const Stats* mj = get(p + "mujoco");
       if (!r && !k && !t) continue;
       const double rm = r ? r->median() : NAN, rn = r ? r->min() : NAN;
       const double km = k ? k->median() : NAN, kn = k ? k->min() : NAN;
+      const double mm = mj ? mj->median() : NAN, mn = mj ? mj->min() : NAN;
       const double tm = t ? t->median() : NAN;
-      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
-                  qty.c_str(), kdl_routine.at(qty).c_str(), fmt_ns(rm).c_str(), fmt_ns(rn).c_str(), fmt_ns(km).c_str(),
-                  fmt_ns(kn).c_str(), fmt_ratio(km / rm).c_str(), fmt_ratio(kn / rn).c_str(), fmt_ns(tm).c_str(),
+      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(),
+                  c->model.nq, qty.c_str(), kdl_routine.at(qty).c_str(), fmt_ns(rm).c_str(), fmt_ns(rn).c_str(),
+                  fmt_ns(km).c_str(), fmt_ns(kn).c_str(), fmt_ratio(km / rm).c_str(), fmt_ratio(kn / rn).c_str(),
+                  fmt_ns(mm).c_str(), fmt_ratio(mm / rm).c_str(), fmt_ratio(mn / rn).c_str(), fmt_ns(tm).c_str(),
                   fmt_ratio(tm / rm).c_str());
     }
   std::printf("\nM = mass matrix (refdyn mass_matrix [CRBA] | trace_mass_matrix | KDL ChainDynParam::JntToMass)\n");
@@ -497,6 +522,9 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
   std::printf("      JntToCoriolis + JntToGravity)\n");
   std::printf("g = gravity (gravity_forces | trace_gravity | JntToGravity)\n");
   std::printf("ID = inverse dynamics (inverse_dynamics [RNEA] | - | ChainIdSolver_RNE::CartToJnt)\n");
+  std::printf("MuJoCo (every call starts from qpos, qvel: mj_kinematics + mj_comPos, then) M: mj_crb + mj_fullM;\n");
+  std::printf("c+g: mj_comVel + mj_rne(flg_acc = 0); ID: mj_comVel + mj_rne(flg_acc = 1); FD: mj_crb + mj_factorM +\n");
+  std::printf("mj_comVel + mj_rne(0) + mj_solveM. MuJoCo has no gravity-only routine.\n");
 
   std::printf("\nForward dynamics (FD) and constrained forward dynamics (CFD: tip x, y, z + a joint coupling, 4 rows;\n");
   std::printf("CFDtip: the tip frame's origin held, 3 rows). FD: crba = forward_dynamics_crba (CRBA + RNEA + Cholesky),\n");
@@ -504,8 +532,8 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
   std::printf("auto = ReferenceSolver::Automatic. The KDL column names the routine it times (one row per peer).\n");
   std::printf("Medians; ratios med/med, the last min/min.\n\n");
   std::printf("fused = unchecked::mass_matrix_and_bias + solve_mass_matrix (the closed-loop plant's CRBA route).\n\n");
-  std::printf("| model | DOF | quantity | crba/projection | fused | aba/lagrange | auto | KDL routine | KDL | crba÷aba (proj÷lag) | fused÷aba | KDL÷auto | KDL min÷auto min |\n");
-  std::printf("|---|---:|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n");
+  std::printf("| model | DOF | quantity | crba/projection | fused | aba/lagrange | auto | KDL routine | KDL | crba÷aba (proj÷lag) | fused÷aba | KDL÷auto | KDL min÷auto min | MuJoCo | MuJoCo÷auto |\n");
+  std::printf("|---|---:|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
   const std::vector<std::pair<std::string, std::string>> rows = {
       {"FD", "kdl"}, {"CFD", "kdl_kkt"}, {"CFDtip", "kdl_vereshchagin"}, {"CFDtip", "kdl_kkt"}};
   for (const auto& c : cases)
@@ -516,13 +544,16 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
       const Stats* au = get(p + "auto");
       const Stats* k = get(p + peer);
       const Stats* fu = get(p + "fused");
+      const Stats* mj = qty == "FD" && peer == "kdl" ? get(p + "mujoco") : nullptr;
       if (!a || !b || !au || !k) continue;
       const double fm = fu ? fu->median() : NAN;
-      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
+      const double mm = mj ? mj->median() : NAN;
+      std::printf("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", c->name.c_str(), c->model.nq,
                   qty.c_str(), fmt_ns(a->median()).c_str(), fmt_ns(fm).c_str(), fmt_ns(b->median()).c_str(),
                   fmt_ns(au->median()).c_str(), kdl_routine.at(qty + "/" + peer).c_str(), fmt_ns(k->median()).c_str(),
                   fmt_ratio(a->median() / b->median()).c_str(), fmt_ratio(fm / b->median()).c_str(),
-                  fmt_ratio(k->median() / au->median()).c_str(), fmt_ratio(k->min() / au->min()).c_str());
+                  fmt_ratio(k->median() / au->median()).c_str(), fmt_ratio(k->min() / au->min()).c_str(),
+                  fmt_ns(mm).c_str(), fmt_ratio(mm / au->median()).c_str());
     }
 }
 

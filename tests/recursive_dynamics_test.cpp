@@ -26,26 +26,11 @@ struct Case {
 
 const std::vector<int> kSizes = {1, 2, 3, 5, 8, 13, 21, 30};
 
-/// Replaces every joint axis by a random unit vector, except that some are set exactly to
-/// −z, +x or −y (the recursive kernels have special cases for ±z and a general path).
-void randomize_axes(std::mt19937& rng, ModelDescription& d) {
-  std::normal_distribution<double> nd(0, 1);
-  std::uniform_int_distribution<int> pick(0, 4);
-  for (LinkSpec& l : d.links) {
-    switch (pick(rng)) {
-      case 0: l.axis = -Vec3::UnitZ(); break;
-      case 1: l.axis = Vec3::UnitX(); break;
-      case 2: l.axis = -Vec3::UnitY(); break;
-      default: l.axis = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
-    }
-  }
-}
-
 /// For each size: a standard-DH chain, a modified-DH chain with fixed links, a tree, and a
 /// tree with general joint axes (not only the DH z axis).
 std::vector<Case> random_models(std::mt19937& rng, const std::vector<int>& sizes = kSizes) {
   std::vector<Case> out;
-  for (auto& c : test::random_model_family(rng, sizes, randomize_axes, "tree, general axes +fixed"))
+  for (auto& c : test::random_model_family(rng, sizes, test::randomize_axes, "tree, general axes +fixed"))
     out.push_back({c.label, build_model(c.desc), c.desc});
   return out;
 }

@@ -210,6 +210,19 @@ ConstraintPtr renamed(NewConstraint c, const std::string& name) {
   return c;
 }
 
+void randomize_axes(std::mt19937& rng, ModelDescription& d) {
+  std::normal_distribution<double> nd(0, 1);
+  std::uniform_int_distribution<int> pick(0, 4);
+  for (LinkSpec& l : d.links) {
+    switch (pick(rng)) {
+      case 0: l.axis = -Vec3::UnitZ(); break;
+      case 1: l.axis = Vec3::UnitX(); break;
+      case 2: l.axis = -Vec3::UnitY(); break;
+      default: l.axis = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
+    }
+  }
+}
+
 Vec3 random_unit(std::mt19937& rng) {
   Vec3 v = test::random_vector(rng, 3);
   while (v.norm() < 0.1) v = test::random_vector(rng, 3);

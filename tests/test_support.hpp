@@ -97,6 +97,9 @@ std::vector<RandomModelCase> model_zoo(std::mt19937& rng, int dof, const ZooOpti
 
 /// A constraint from a factory, named.
 ConstraintPtr renamed(NewConstraint c, const std::string& name);
+/// Replaces every joint axis by a random unit vector, except that some are set exactly to
+/// −z, +x or −y (the recursive kernels have special cases for ±z and a general path).
+void randomize_axes(std::mt19937& rng, ModelDescription& d);
 /// A random unit vector (never from a nearly zero draw).
 Vec3 random_unit(std::mt19937& rng);
 /// Every ready-made kind of constraints.hpp on a model with points "tip", "mid" and "anchor"
