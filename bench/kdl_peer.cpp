@@ -18,10 +18,15 @@
 #include <kdl/rigidbodyinertia.hpp>
 #include <kdl/rotationalinertia.hpp>
 #include <kdl/segment.hpp>
+#include <kdl/tree.hpp>
+#include <kdl/treeidsolver_recursive_newton_euler.hpp>
+#include <kdl_parser/kdl_parser.hpp>
 
 #include <Eigen/Cholesky>
 
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace refdyn_bench {
@@ -260,6 +265,46 @@ int KdlPeer::tip_kinematics(int k, const double* qdd, double* pos3, double* twis
     acc6[r] = a;
   }
   return 0;
+}
+
+// ---- a URDF through kdl_parser ----
+
+struct KdlUrdfPeer::Impl {
+  KDL::Tree tree;
+  std::unique_ptr<KDL::TreeIdSolver_RNE> id;
+  std::vector<std::string> names;
+  KDL::JntArray q, qd, qdd, tau;
+};
+
+KdlUrdfPeer::KdlUrdfPeer(const std::string& urdf_path, const double* gravity) : impl_(std::make_unique<Impl>()) {
+  if (!kdl_parser::treeFromFile(urdf_path, impl_->tree))
+    throw std::runtime_error("kdl_parser could not read '" + urdf_path + "'");
+  const unsigned n = impl_->tree.getNrOfJoints();
+  impl_->names.assign(n, "");
+  for (const auto& [segment_name, element] : impl_->tree.getSegments()) {
+    const KDL::Joint& j = GetTreeElementSegment(element).getJoint();
+    if (j.getType() != KDL::Joint::None) impl_->names.at(GetTreeElementQNr(element)) = j.getName();
+  }
+  impl_->id = std::make_unique<KDL::TreeIdSolver_RNE>(impl_->tree, KDL::Vector(gravity[0], gravity[1], gravity[2]));
+  for (auto* a : {&impl_->q, &impl_->qd, &impl_->qdd, &impl_->tau}) a->resize(n);
+}
+
+KdlUrdfPeer::~KdlUrdfPeer() = default;
+
+int KdlUrdfPeer::dof() const { return static_cast<int>(impl_->names.size()); }
+
+std::string KdlUrdfPeer::joint_name(int i) const { return impl_->names.at(i); }
+
+int KdlUrdfPeer::inverse_dynamics(const double* q, const double* qd, const double* qdd, double* tau) {
+  const int n = dof();
+  for (int i = 0; i < n; ++i) {
+    impl_->q(i) = q[i];
+    impl_->qd(i) = qd[i];
+    impl_->qdd(i) = qdd[i];
+  }
+  const int rc = impl_->id->CartToJnt(impl_->q, impl_->qd, impl_->qdd, KDL::WrenchMap(), impl_->tau);
+  for (int i = 0; i < n; ++i) tau[i] = impl_->tau(i);
+  return rc;
 }
 
 }  // namespace refdyn_bench

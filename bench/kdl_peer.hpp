@@ -11,6 +11,7 @@
 #include "dh_tables.hpp"
 
 #include <memory>
+#include <string>
 
 #if defined(__GNUC__)
 #define REFDYN_KDL_PEER_API __attribute__((visibility("default")))
@@ -91,6 +92,31 @@ class REFDYN_KDL_PEER_API KdlPeer {
   /// ChainJntToJacDotSolver (hybrid representation) give acc6 = J q̈ + J̇ q̇, the classical
   /// acceleration [r̈_tip; ω̇]. Returns 0 on success.
   int tip_kinematics(int k, const double* qdd, double* pos3, double* twist6, double* acc6);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// A URDF file loaded by KDL's own parser (kdl_parser::treeFromFile, Debian libkdl-parser-dev)
+/// into a KDL::Tree, and its inverse dynamics by KDL::TreeIdSolver_RNE: an independent reading of
+/// the same file as refdyn's loader (io/urdf.hpp), for the start-up check of dynamics_bench.
+/// KDL reads a <mimic> joint as an ordinary joint, as refdyn's model does (refdyn adds the
+/// coupling as a constraint).
+class REFDYN_KDL_PEER_API KdlUrdfPeer {
+ public:
+  /// Throws std::runtime_error if kdl_parser cannot read the file. gravity: 3 doubles.
+  KdlUrdfPeer(const std::string& urdf_path, const double* gravity);
+  ~KdlUrdfPeer();
+  KdlUrdfPeer(const KdlUrdfPeer&) = delete;
+  KdlUrdfPeer& operator=(const KdlUrdfPeer&) = delete;
+
+  int dof() const;
+  /// The URDF joint name of KDL's coordinate i (KDL numbers the moving joints itself).
+  std::string joint_name(int i) const;
+  /// τ = M(q) q̈ + c(q, q̇) + g(q) by TreeIdSolver_RNE::CartToJnt, no external wrenches; all in
+  /// KDL's coordinate order. Returns KDL's error code (0 on success).
+  int inverse_dynamics(const double* q, const double* qd, const double* qdd, double* tau);
 
  private:
   struct Impl;

@@ -6,6 +6,7 @@
 # libjs-three + libjs-dygraphs: the JavaScript libraries inlined into report.html at build time;
 # chromium + python3-pil: the report's browser test, tests/report_browser_test.py;
 # nlohmann-json3-dev: JSON values, reading and writing (common/json.hpp);
+# libkdl-parser-dev: KDL's URDF reader, the URDF cross-check of bench/dynamics_bench.cpp;
 # libnlopt-cxx-dev: NLopt, the optimizers of `refdyn optimize` (optimize/optimize.hpp);
 # libsundials-dev: CVODES, the implicit BDF integrator for stiff problems (simulate/bdf.hpp);
 # libopenmpi-dev + openmpi-bin: `refdyn track --mpi` and its test, tests/mpi_test.sh).
@@ -16,7 +17,7 @@ PACKAGES=(
   libeigen3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libginac-dev nlohmann-json3-dev libsundials-dev
-  liburdfdom-dev liborocos-kdl-dev libmujoco-dev libnlopt-cxx-dev
+  liburdfdom-dev liborocos-kdl-dev libkdl-parser-dev libmujoco-dev libnlopt-cxx-dev
   python3 python3-matplotlib
   clang-14 libclang-rt-14-dev llvm-14
   pybind11-dev python3-dev python3-numpy python3-pytest python3-yaml
