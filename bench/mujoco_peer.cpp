@@ -30,7 +30,7 @@ void write_body(std::ostringstream& s, const refdyn::Model& model, const std::ve
   // refdyn's inertia is about the body origin (m, h = m c, I_O); MJCF takes the centre of mass
   // and the inertia about it, I_C = I_O − m (|c|² 1 − c cᵀ), here in principal axes (Eigen's
   // iterative symmetric eigensolver, accurate to rounding). Given a full inertia, MuJoCo's
-  // compiler diagonalises it itself, to about 1e-8 relative only: the dynamics would then differ
+  // compiler diagonalises it itself, to about 1e-7 relative only: the dynamics would then differ
   // from refdyn's by that much (measured; inertia_error() checks what MuJoCo holds).
   const refdyn::Inertia& I = model.inertia[i];
   const refdyn::Vec3 c = I.m > 0 ? refdyn::Vec3(I.h / I.m) : refdyn::Vec3::Zero();
@@ -83,9 +83,12 @@ MujocoPeer::MujocoPeer(const refdyn::Model& model) : n_(model.nq), offset_(model
   m_ = mj_loadXML("refdyn.xml", vfs.get(), error, sizeof error);
   mj_deleteVFS(vfs.get());
   if (!m_) throw std::runtime_error(std::string("MuJoCo rejected the model '") + model.name + "': " + error);
+  if (m_->nv != n_) {
+    const int nv = m_->nv;
+    mj_deleteModel(m_);  // a throwing constructor runs no destructor
+    throw std::runtime_error("MuJoCo peer: MuJoCo has " + std::to_string(nv) + " dofs, refdyn " + std::to_string(n_));
+  }
   d_ = mj_makeData(m_);
-  if (m_->nv != n_) throw std::runtime_error("MuJoCo peer: MuJoCo has " + std::to_string(m_->nv) + " dofs, refdyn " +
-                                             std::to_string(n_));
   dof_.resize(n_);
   armature_.assign(n_, 0.0);
   for (int i = 0; i < n_; ++i) {

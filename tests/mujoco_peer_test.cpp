@@ -45,8 +45,9 @@ std::vector<Case> cases() {
   }
   out.push_back({"paper arm", models::paper_manipulator()});
   const std::filesystem::path src(REFDYN_SOURCE_DIR);
-  // The mimic finger of arm7_hand is a constraint (a joint coupling), not part of M: both
-  // fingers are coordinates here.
+  // arm7_hand's mimic finger is a constraint (a joint coupling) in refdyn, which the dynamics
+  // checked here do not include: both fingers are coordinates, as in MuJoCo's model. Its Drake
+  // rotor tags give armature.
   std::vector<io::UrdfMimic> mimics;
   for (const auto& urdf : {src / "examples" / "urdf" / "arm7.urdf",
                            src / "tests" / "data" / "urdf" / "refdyn_test_arm" / "urdf" / "arm6.urdf",
