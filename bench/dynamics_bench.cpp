@@ -397,8 +397,9 @@ bool check_urdf(const std::string& path, double tol) {
     for (int i = 0; i < n; ++i) t[index[i]] = kt[i];
     return t;
   };
-  const auto Q = refdyn_bench::random_states(n, kStates, 3.0, 7000 + n), QD = refdyn_bench::random_states(n, kStates, 2.0, 7001 + n),
-             QDD = refdyn_bench::random_states(n, kStates, 5.0, 7002 + n);
+  const auto Q = refdyn_bench::random_states(n, kStates, 3.0, 7000 + n);
+  const auto QD = refdyn_bench::random_states(n, kStates, 2.0, 7001 + n);
+  const auto QDD = refdyn_bench::random_states(n, kStates, 5.0, 7002 + n);
   Agreement agree{file, tol};
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
   for (int k = 0; k < kStates; ++k) {
@@ -411,9 +412,9 @@ bool check_urdf(const std::string& path, double tol) {
     agree.expect("M: refdyn vs KDL (kdl_parser, TreeIdSolver_RNE)", k, refdyn::mass_matrix(m, data, q), M);
     agree.expect("g: refdyn vs KDL (kdl_parser, TreeIdSolver_RNE)", k, refdyn::gravity_forces(m, data, q), g);
     agree.expect("c+g: refdyn vs KDL (kdl_parser, TreeIdSolver_RNE)", k, refdyn::bias_forces(m, data, q, qd),
-           kdl_tau(q, qd, zero));
-    agree.expect("tau: refdyn vs KDL (kdl_parser, TreeIdSolver_RNE)", k, refdyn::inverse_dynamics(m, data, q, qd, qdd),
-           kdl_tau(q, qd, qdd));
+                 kdl_tau(q, qd, zero));
+    agree.expect("tau: refdyn vs KDL (kdl_parser, TreeIdSolver_RNE)", k,
+                 refdyn::inverse_dynamics(m, data, q, qd, qdd), kdl_tau(q, qd, qdd));
   }
   std::printf("check %-14s %2d DOF: refdyn's URDF loader and KDL's kdl_parser + TreeIdSolver_RNE agree (worst %.1e)\n",
               file.c_str(), n, agree.worst);
@@ -627,9 +628,7 @@ void print_ratio_table(const std::vector<std::unique_ptr<Case>>& cases, const Re
     }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   // Defaults (overridable on the command line, later flags win): interleaved repetitions.
   // --check-only: the start-up agreement check alone (CTest dynamics_bench_check).
   bool check_only = false;
@@ -690,4 +689,17 @@ int main(int argc, char** argv) {
   print_ratio_table(cases, reporter);
   benchmark::Shutdown();
   return 0;
+}
+
+}  // namespace
+
+// A model a peer cannot load (a URDF file missing, MuJoCo refusing an MJCF) ends the run with
+// its message and exit code 2, not std::terminate.
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "FATAL: %s\n", e.what());
+    return 2;
+  }
 }
