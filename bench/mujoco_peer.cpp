@@ -129,6 +129,12 @@ void MujocoPeer::from_mj(const double* x, Eigen::VectorXd& out) const {
   for (int i = 0; i < n_; ++i) out[i] = x[dof_[i]];
 }
 
+void MujocoPeer::to_mj_state(const Eigen::VectorXd& q, const Eigen::VectorXd* qd, const Eigen::VectorXd* qdd) {
+  to_mj(q, d_->qpos, true);
+  if (qd) to_mj(*qd, d_->qvel, false);
+  if (qdd) to_mj(*qdd, d_->qacc, false);
+}
+
 void MujocoPeer::set_state(const double* q_mj, const double* qd_mj) {
   std::copy(q_mj, q_mj + n_, d_->qpos);
   if (qd_mj) std::copy(qd_mj, qd_mj + n_, d_->qvel);
@@ -193,32 +199,27 @@ const Eigen::VectorXd& MujocoPeer::last_qdd() {
 }
 
 const Eigen::MatrixXd& MujocoPeer::mass_matrix(const Eigen::VectorXd& q) {
-  to_mj(q, d_->qpos, true);
+  to_mj_state(q, nullptr, nullptr);
   run_mass_matrix();
   return last_mass_matrix();
 }
 
 const Eigen::VectorXd& MujocoPeer::bias_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
-  to_mj(q, d_->qpos, true);
-  to_mj(qd, d_->qvel, false);
+  to_mj_state(q, &qd, nullptr);
   run_bias_forces();
   return last_bias_forces();
 }
 
 const Eigen::VectorXd& MujocoPeer::inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                                     const Eigen::VectorXd& qdd) {
-  to_mj(q, d_->qpos, true);
-  to_mj(qd, d_->qvel, false);
-  to_mj(qdd, d_->qacc, false);
+  to_mj_state(q, &qd, &qdd);
   run_inverse_dynamics();
   return last_tau();
 }
 
 const Eigen::VectorXd& MujocoPeer::inverse_dynamics_pipeline(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                                              const Eigen::VectorXd& qdd) {
-  to_mj(q, d_->qpos, true);
-  to_mj(qd, d_->qvel, false);
-  to_mj(qdd, d_->qacc, false);
+  to_mj_state(q, &qd, &qdd);
   mj_inverse(m_, d_);
   from_mj(d_->qfrc_inverse, v_);
   return v_;
@@ -226,8 +227,7 @@ const Eigen::VectorXd& MujocoPeer::inverse_dynamics_pipeline(const Eigen::Vector
 
 const Eigen::VectorXd& MujocoPeer::forward_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                                     const Eigen::VectorXd& tau) {
-  to_mj(q, d_->qpos, true);
-  to_mj(qd, d_->qvel, false);
+  to_mj_state(q, &qd, nullptr);
   std::vector<double> t(n_);
   to_mj(tau, t.data(), false);
   run_forward_dynamics(t.data());
@@ -249,25 +249,25 @@ void MujocoPeer::load_states(const std::vector<Eigen::VectorXd>& q, const std::v
 }
 
 void MujocoPeer::time_mass_matrix(int k) {
-  set_state(sq_.data() + static_cast<size_t>(k) * n_, nullptr);
+  set_state(stored(sq_, k), nullptr);
   run_mass_matrix();
 }
 
 void MujocoPeer::time_bias_forces(int k) {
-  set_state(sq_.data() + static_cast<size_t>(k) * n_, sqd_.data() + static_cast<size_t>(k) * n_);
+  set_state(stored(sq_, k), stored(sqd_, k));
   run_bias_forces();
 }
 
 void MujocoPeer::time_inverse_dynamics(int k) {
-  set_state(sq_.data() + static_cast<size_t>(k) * n_, sqd_.data() + static_cast<size_t>(k) * n_);
-  const double* a = sqdd_.data() + static_cast<size_t>(k) * n_;
+  set_state(stored(sq_, k), stored(sqd_, k));
+  const double* a = stored(sqdd_, k);
   std::copy(a, a + n_, d_->qacc);
   run_inverse_dynamics();
 }
 
 void MujocoPeer::time_forward_dynamics(int k) {
-  set_state(sq_.data() + static_cast<size_t>(k) * n_, sqd_.data() + static_cast<size_t>(k) * n_);
-  run_forward_dynamics(stau_.data() + static_cast<size_t>(k) * n_);
+  set_state(stored(sq_, k), stored(sqd_, k));
+  run_forward_dynamics(stored(stau_, k));
 }
 
 }  // namespace refdyn_bench

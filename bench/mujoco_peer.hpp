@@ -77,6 +77,10 @@ class MujocoPeer {
 
  private:
   void set_state(const double* q_mj, const double* qd_mj);  // MuJoCo order, offsets included
+  /// q (offsets added) and, when given, q̇ and q̈ from refdyn's order into qpos, qvel, qacc.
+  void to_mj_state(const Eigen::VectorXd& q, const Eigen::VectorXd* qd, const Eigen::VectorXd* qdd);
+  /// Stored state k of one of sq_, sqd_, sqdd_, stau_.
+  const double* stored(const std::vector<double>& v, int k) const { return v.data() + static_cast<size_t>(k) * n_; }
   void to_mj(const Eigen::VectorXd& x, double* out, bool add_offset) const;
   void from_mj(const double* x, Eigen::VectorXd& out) const;
   void run_mass_matrix();
